@@ -1,0 +1,192 @@
+//! Headless OpenGL contexts through EGL devices (EGL_EXT_platform_device): Mesa's
+//! software rasterizer on CPU machines, the NVIDIA driver on GPU machines.
+
+use std::ffi::{CStr, c_char};
+use std::num::NonZeroU32;
+
+use glutin::api::egl::{context::PossiblyCurrentContext, device::Device, display::Display, surface::Surface};
+use glutin::config::{ConfigSurfaceTypes, ConfigTemplateBuilder};
+use glutin::context::{ContextApi, ContextAttributesBuilder, GlProfile, Version};
+use glutin::prelude::{GlDisplay, NotCurrentGlContext, PossiblyCurrentGlContext};
+use glutin::surface::{PbufferSurface, SurfaceAttributesBuilder};
+use serde::Serialize;
+
+use crate::error::SimError;
+
+/// Environment variable that picks an EGL device by its index in [`probe_egl`]'s list.
+pub const EGL_DEVICE_ENV: &str = "DEXJOCO_EGL_DEVICE";
+
+/// An EGL device as [`probe_egl`] and the renderer report it.
+#[derive(Debug, Clone, Serialize)]
+pub struct EglDevice {
+    /// Index in EGL's device list.
+    pub index: usize,
+    /// DRM node, `software`, or the device's name.
+    pub description: String,
+    /// True for a software rasterizer (Mesa llvmpipe).
+    pub software: bool,
+    /// EGL vendor string of the device, when it has one.
+    pub vendor: Option<String>,
+    /// `GL_RENDERER` of a context opened on it (e.g. `llvmpipe (LLVM 15.0.6, 256 bits)`).
+    pub gl_renderer: Option<String>,
+    /// `GL_VERSION` of that context.
+    pub gl_version: Option<String>,
+    /// Why no context opened on it, when none did.
+    pub error: Option<String>,
+}
+
+/// Every EGL device and whether an offscreen context opens on it.
+#[derive(Debug, Clone, Serialize)]
+pub struct EglProbe {
+    /// The devices in EGL's order.
+    pub devices: Vec<EglDevice>,
+    /// Index of the device the renderer uses (the first that works, or [`EGL_DEVICE_ENV`]).
+    pub selected: Option<usize>,
+}
+
+/// An offscreen GL context, current on the thread that created it.
+pub(crate) struct EglContext {
+    context: PossiblyCurrentContext,
+    surface: Surface<PbufferSurface>,
+    pub(crate) device: EglDevice,
+}
+
+impl std::fmt::Debug for EglContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EglContext").field("device", &self.device).finish()
+    }
+}
+
+fn describe(device: &Device) -> (String, bool) {
+    let software = device.extensions().contains("EGL_MESA_device_software");
+    let name = if let Some(path) = device.drm_device_node_path() {
+        path.display().to_string()
+    } else if software {
+        "software".to_owned()
+    } else {
+        device.name().unwrap_or("unnamed").to_owned()
+    };
+    (name, software)
+}
+
+fn devices() -> Result<Vec<Device>, SimError> {
+    Device::query_devices()
+        .map(|d| d.collect())
+        .map_err(|e| SimError::Egl(format!("cannot list EGL devices ({e}); is libEGL installed (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri)?")))
+}
+
+fn requested_device() -> Option<usize> {
+    std::env::var(EGL_DEVICE_ENV).ok().and_then(|v| v.trim().parse().ok())
+}
+
+/// Reads a GL string of the current context.
+fn gl_string(display: &Display, name: u32) -> Option<String> {
+    type GetString = unsafe extern "C" fn(u32) -> *const c_char;
+    let f = display.get_proc_address(c"glGetString");
+    if f.is_null() {
+        return None;
+    }
+    // SAFETY: `glGetString` has this signature in every GL version; a context is current on
+    // this thread (callers only use it after `make_current`), and the returned string is
+    // static NUL-terminated storage owned by the driver (or null, handled below).
+    unsafe {
+        let get: GetString = std::mem::transmute::<*const std::ffi::c_void, GetString>(f);
+        let s = get(name);
+        (!s.is_null()).then(|| CStr::from_ptr(s).to_string_lossy().into_owned())
+    }
+}
+
+impl EglContext {
+    /// Opens a context with a pbuffer of `width` x `height` on the selected device: the one
+    /// named by [`EGL_DEVICE_ENV`], else the first that opens one.
+    pub(crate) fn new(width: u32, height: u32) -> Result<Self, SimError> {
+        let devices = devices()?;
+        if devices.is_empty() {
+            return Err(SimError::Egl("EGL lists no device".into()));
+        }
+        let order: Vec<usize> = match requested_device() {
+            Some(i) if i < devices.len() => vec![i],
+            Some(i) => return Err(SimError::Egl(format!("{EGL_DEVICE_ENV}={i} but EGL lists {} devices", devices.len()))),
+            None => (0..devices.len()).collect(),
+        };
+        let mut errors = Vec::new();
+        for i in order {
+            match Self::on_device(i, &devices[i], width, height) {
+                Ok(c) => return Ok(c),
+                Err(e) => errors.push(format!("device {i} ({}): {e}", describe(&devices[i]).0)),
+            }
+        }
+        Err(SimError::Egl(errors.join("; ")))
+    }
+
+    fn on_device(index: usize, device: &Device, width: u32, height: u32) -> Result<Self, glutin::error::Error> {
+        // SAFETY: `device` comes from EGL's own device list.
+        let display = unsafe { Display::with_device(device, None)? };
+        let template = ConfigTemplateBuilder::new()
+            .with_surface_type(ConfigSurfaceTypes::PBUFFER)
+            .with_alpha_size(0)
+            .with_depth_size(24)
+            .with_stencil_size(8)
+            .build();
+        // SAFETY: `display` is valid and the template asks for standard attributes.
+        let config = unsafe { display.find_configs(template)? }
+            .next()
+            .ok_or_else(|| glutin::error::Error::from(glutin::error::ErrorKind::NotSupported("no pbuffer config with depth 24")))?;
+        let attrs = ContextAttributesBuilder::new()
+            .with_profile(GlProfile::Compatibility)
+            .with_context_api(ContextApi::OpenGl(Some(Version::new(2, 0))))
+            .build(None);
+        // SAFETY: display and config are valid; MuJoCo needs a compatibility profile.
+        let not_current = unsafe { display.create_context(&config, &attrs)? };
+        let w = NonZeroU32::new(width.max(1)).expect("max(1)");
+        let h = NonZeroU32::new(height.max(1)).expect("max(1)");
+        let surface_attrs = SurfaceAttributesBuilder::<PbufferSurface>::new().build(w, h);
+        // SAFETY: display and config are valid; the size is non-zero.
+        let surface = unsafe { display.create_pbuffer_surface(&config, &surface_attrs)? };
+        let context = not_current.make_current(&surface)?;
+        let (description, software) = describe(device);
+        let device = EglDevice {
+            index,
+            description,
+            software,
+            vendor: device.vendor().map(str::to_owned),
+            gl_renderer: gl_string(&display, 0x1F01),
+            gl_version: gl_string(&display, 0x1F02),
+            error: None,
+        };
+        Ok(Self { context, surface, device })
+    }
+
+    /// Makes the context current on this thread.
+    pub(crate) fn make_current(&self) -> Result<(), SimError> {
+        self.context.make_current(&self.surface).map_err(|e| SimError::Egl(e.to_string()))
+    }
+}
+
+/// Lists the EGL devices and tries to open an offscreen context on each (for `doctor`).
+pub fn probe_egl() -> Result<EglProbe, SimError> {
+    let list = devices()?;
+    let mut out = Vec::new();
+    for (i, device) in list.iter().enumerate() {
+        match EglContext::on_device(i, device, 16, 16) {
+            Ok(ctx) => out.push(ctx.device.clone()),
+            Err(e) => {
+                let (description, software) = describe(device);
+                out.push(EglDevice {
+                    index: i,
+                    description,
+                    software,
+                    vendor: device.vendor().map(str::to_owned),
+                    gl_renderer: None,
+                    gl_version: None,
+                    error: Some(e.to_string()),
+                });
+            }
+        }
+    }
+    let selected = match requested_device() {
+        Some(i) => out.get(i).filter(|d| d.error.is_none()).map(|d| d.index),
+        None => out.iter().find(|d| d.error.is_none()).map(|d| d.index),
+    };
+    Ok(EglProbe { devices: out, selected })
+}

@@ -1,0 +1,42 @@
+use std::path::PathBuf;
+
+/// Errors of the simulation and rendering layer.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// MuJoCo could not compile a scene (the message names the missing or bad file).
+    #[error("cannot load scene '{path}': {message}")]
+    Load {
+        /// The scene file.
+        path: PathBuf,
+        /// MuJoCo's message.
+        message: String,
+    },
+    /// A scene file does not exist.
+    #[error("scene file '{0}' does not exist")]
+    Missing(PathBuf),
+    /// No EGL device could open an offscreen OpenGL context.
+    #[error("offscreen rendering is not available: {0}")]
+    Egl(String),
+    /// A name (camera, body, geom...) is not in the scene.
+    #[error("scene has no {kind} named '{name}' (it has: {available})")]
+    UnknownName {
+        /// Object kind.
+        kind: &'static str,
+        /// The name asked for.
+        name: String,
+        /// The names the scene has.
+        available: String,
+    },
+    /// Rendering failed.
+    #[error("rendering failed: {0}")]
+    Render(String),
+    /// Writing an image failed.
+    #[error("cannot write image '{path}': {message}")]
+    Image {
+        /// The image file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+}

@@ -1,0 +1,78 @@
+//! Test support for the dexjoco-data crates (a dev-dependency only).
+//!
+//! - [`python`]: the interpreter of the cached venv of real readers (numpy, SciPy, zarr,
+//!   mcap, lerobot...), made by `scripts/setup.sh --python`. Tests that need it fail
+//!   with a hint when it is missing: they are never skipped.
+//! - [`upstream_dir`]: the DexJoCo reference scenes at `../shared/dexjoco-upstream`.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The workspace root.
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().expect("workspace root")
+}
+
+/// The Python of the test venv: `$DEXJOCO_PYTHON`, else the path `scripts/setup.sh
+/// --python` recorded in `.deps/python-path`. Panics with a hint when neither exists.
+pub fn python() -> PathBuf {
+    if let Some(p) = std::env::var_os("DEXJOCO_PYTHON") {
+        return p.into();
+    }
+    let recorded = workspace_root().join(".deps/python-path");
+    if let Ok(p) = std::fs::read_to_string(&recorded) {
+        let p = PathBuf::from(p.trim());
+        if p.is_file() {
+            return p;
+        }
+    }
+    panic!(
+        "the test venv of real readers is missing: run `scripts/test.sh` (or `scripts/setup.sh --python`) first; \
+         looked at $DEXJOCO_PYTHON and {}",
+        recorded.display()
+    );
+}
+
+/// Runs a Python script of `tests/python/` (or any path) with arguments in the test venv;
+/// returns stdout, panicking with stderr when it fails.
+pub fn run_python(script: &str, args: &[&str]) -> String {
+    let path = {
+        let p = Path::new(script);
+        if p.is_absolute() { p.to_path_buf() } else { workspace_root().join("tests/python").join(script) }
+    };
+    let out = Command::new(python())
+        .arg(&path)
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {}: {e}", path.display()));
+    assert!(
+        out.status.success(),
+        "{} {:?} failed ({}):\n{}",
+        path.display(),
+        args,
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).expect("utf-8 output")
+}
+
+/// Runs a script and parses its stdout as JSON.
+pub fn run_python_json(script: &str, args: &[&str]) -> serde_json::Value {
+    let out = run_python(script, args);
+    serde_json::from_str(&out).unwrap_or_else(|e| panic!("{script} printed no JSON ({e}):\n{out}"))
+}
+
+/// The DexJoCo reference scene files (`../shared/dexjoco-upstream`, or
+/// `$DEXJOCO_UPSTREAM`). Panics, saying clearly that they are absent, when not found.
+pub fn upstream_dir() -> PathBuf {
+    let candidates = [
+        std::env::var_os("DEXJOCO_UPSTREAM").map(PathBuf::from),
+        Some(workspace_root().join("../shared/dexjoco-upstream")),
+    ];
+    candidates.into_iter().flatten().find(|p| p.join("xmls").is_dir()).unwrap_or_else(|| {
+        panic!(
+            "the DexJoCo reference scenes are absent: expected ../shared/dexjoco-upstream beside the checkout \
+             (or set DEXJOCO_UPSTREAM)"
+        )
+    })
+}

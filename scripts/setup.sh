@@ -1,0 +1,102 @@
+#!/usr/bin/env bash
+# Sets up everything dexjoco-data needs on a Debian 12 machine with the Rust toolchain:
+#   1. Debian packages for offscreen rendering (Mesa EGL) and video (ffmpeg);
+#   2. MuJoCo 3.17.0's shared library, taken from the `mujoco==3.17.0` wheel on PyPI
+#      into .deps/mujoco/lib (git-ignored);
+#   3. with --python: the cached Python venv of the real readers used by the tests
+#      (outside the repo, under ${XDG_CACHE_HOME:-~/.cache}/dexjoco-data/).
+# Idempotent: a second run only checks. Source it or run it; it prints what it does.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+MUJOCO_VERSION="3.17.0"
+MUJOCO_DIR="$ROOT/.deps/mujoco/lib"
+DEB_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri ffmpeg)
+
+log() { printf '\033[1m[setup]\033[0m %s\n' "$*" >&2; }
+
+want_python=0
+for arg in "$@"; do
+  case "$arg" in
+    --python) want_python=1 ;;
+    -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
+    *) echo "setup.sh: unknown argument $arg" >&2; exit 2 ;;
+  esac
+done
+
+# --- 1. Debian packages ------------------------------------------------------------
+missing=()
+for p in "${DEB_PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  if [ "$(id -u)" = 0 ]; then
+    log "installing Debian packages: ${missing[*]}"
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq >/dev/null
+    apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  elif command -v sudo >/dev/null && sudo -n true 2>/dev/null; then
+    log "installing Debian packages with sudo: ${missing[*]}"
+    sudo DEBIAN_FRONTEND=noninteractive apt-get update -qq >/dev/null
+    sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  else
+    echo "error: missing Debian packages: ${missing[*]}" >&2
+    echo "hint: run as root, or: sudo apt-get install ${missing[*]}" >&2
+    exit 1
+  fi
+fi
+
+# --- Python (needed for the wheel download and the test venv) ------------------------
+find_python() {
+  local c
+  for c in "${DEXJOCO_BASE_PYTHON:-}" python3.12 python3.11 python3.13 python3.10 python3; do
+    [ -n "$c" ] || continue
+    if command -v "$c" >/dev/null 2>&1 && "$c" -c 'import sys; assert sys.version_info >= (3, 10)' 2>/dev/null; then
+      command -v "$c"; return 0
+    fi
+  done
+  # pyenv installs versions that are not on PATH by default.
+  for c in "$HOME"/.pyenv/versions/3.12*/bin/python3 "$HOME"/.pyenv/versions/3.11*/bin/python3; do
+    [ -x "$c" ] && { echo "$c"; return 0; }
+  done
+  return 1
+}
+PYTHON="$(find_python)" || { echo "error: no Python >= 3.10 found (set DEXJOCO_BASE_PYTHON)" >&2; exit 1; }
+
+# --- 2. MuJoCo shared library from the PyPI wheel -----------------------------------
+if [ ! -f "$MUJOCO_DIR/libmujoco.so.$MUJOCO_VERSION" ]; then
+  log "fetching mujoco==$MUJOCO_VERSION wheel for libmujoco.so.$MUJOCO_VERSION"
+  tmp="$(mktemp -d)"
+  trap 'rm -rf "$tmp"' EXIT
+  "$PYTHON" -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 \
+    --implementation cp --platform manylinux_2_28_"$(uname -m)" \
+    "mujoco==$MUJOCO_VERSION" -d "$tmp"
+  mkdir -p "$MUJOCO_DIR.tmp"
+  "$PYTHON" - "$tmp"/mujoco-*.whl "$MUJOCO_DIR.tmp" "$MUJOCO_VERSION" <<'PY'
+import sys, zipfile, shutil, os
+whl, out, ver = sys.argv[1:4]
+name = f"mujoco/libmujoco.so.{ver}"
+with zipfile.ZipFile(whl) as z, z.open(name) as src, open(os.path.join(out, os.path.basename(name)), "wb") as dst:
+    shutil.copyfileobj(src, dst)
+PY
+  ln -sf "libmujoco.so.$MUJOCO_VERSION" "$MUJOCO_DIR.tmp/libmujoco.so"
+  rm -rf "$MUJOCO_DIR"; mkdir -p "$(dirname "$MUJOCO_DIR")"; mv "$MUJOCO_DIR.tmp" "$MUJOCO_DIR"
+  rm -rf "$tmp"; trap - EXIT
+fi
+
+# --- 3. The Python venv of real readers (tests only) ---------------------------------
+if ((want_python)); then
+  req="$ROOT/tests/python/requirements.txt"
+  hash="$( (cat "$req"; "$PYTHON" -c 'import sys; print(sys.version)') | sha256sum | cut -c1-12)"
+  VENV="${XDG_CACHE_HOME:-$HOME/.cache}/dexjoco-data/venv-$hash"
+  if [ ! -x "$VENV/bin/python" ] || [ ! -f "$VENV/.complete" ]; then
+    log "creating the test venv $VENV (real readers: $(grep -cv '^\s*#' "$req") packages)"
+    rm -rf "$VENV"
+    "$PYTHON" -m venv "$VENV"
+    "$VENV/bin/python" -m pip install -q --upgrade pip
+    "$VENV/bin/python" -m pip install -q -r "$req"
+    touch "$VENV/.complete"
+  fi
+  echo "$VENV/bin/python" > "$ROOT/.deps/python-path"
+fi
+log "ready: MuJoCo $MUJOCO_VERSION in .deps/mujoco/lib"

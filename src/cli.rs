@@ -1,0 +1,193 @@
+//! Every clap definition of the `dexjoco-data` command line, in one place.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+const AFTER_HELP: &str = "\
+Examples:
+  dexjoco-data doctor                         # check MuJoCo, EGL rendering, ffmpeg, Python readers
+  dexjoco-data render                         # render the built-in tabletop scene's cameras
+  dexjoco-data render scene.xml --camera front --depth
+  dexjoco-data bench render --frames 20       # rendering frames/s per quality preset
+  dexjoco-data augment --replays 10           # randomized replays of the sample demos
+  dexjoco-data convert                        # augment output -> LeRobot v3.0
+  dexjoco-data stats --language-eval
+
+Stages chain through the work folder (default ./dexjoco-work, one subfolder per stage),
+so `augment`, `convert` and `stats` need no paths; every path can be overridden.
+
+Exit codes:
+  0  success
+  1  the command failed (bad input, missing file, rendering unavailable...)
+  2  usage error (unknown flag, bad value)
+  3  finished, but some episodes were rejected (see the report)
+  4  this subcommand is not available in this version yet";
+
+/// Data pipeline for DexJoCo dexterous-manipulation demonstrations: ingest teleop
+/// episodes, replay them in MuJoCo under randomization, convert to LeRobot / Diffusion
+/// Policy datasets, and analyse results.
+#[derive(Debug, Parser)]
+#[command(name = "dexjoco-data", version, after_help = AFTER_HELP, propagate_version = true)]
+pub struct Cli {
+    /// Options every subcommand takes.
+    #[command(flatten)]
+    pub global: GlobalArgs,
+    /// The subcommand.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Options shared by every subcommand.
+#[derive(Debug, Args)]
+pub struct GlobalArgs {
+    /// More log output (-v: debug, -vv: trace). Logs go to stderr.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count, conflicts_with = "quiet")]
+    pub verbose: u8,
+    /// Only errors; no progress bars.
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(short, long, global = true, env = "DEXJOCO_JOBS")]
+    pub jobs: Option<usize>,
+    /// Seed of every random choice; the same seed and inputs give identical outputs.
+    #[arg(long, global = true, env = "DEXJOCO_SEED", default_value_t = 0)]
+    pub seed: u64,
+    /// Work folder: each stage writes its own subfolder (ingest/, augment/, convert/,
+    /// stats/, render/, bench/) and reads the previous stage's.
+    #[arg(long, global = true, env = "DEXJOCO_WORK_DIR", default_value = "dexjoco-work")]
+    pub work_dir: PathBuf,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Report what this machine has: MuJoCo, the EGL device (GPU or software), ffmpeg
+    /// encoders and the Python readers.
+    Doctor(DoctorArgs),
+    /// Render PNGs of an MJCF scene's cameras (RGB, optional depth) and a contact sheet.
+    Render(RenderArgs),
+    /// Measure performance (rendering frames/s per quality preset and resolution).
+    #[command(subcommand)]
+    Bench(BenchCommand),
+    /// Read raw teleop episodes (MCAP logs, DexJoCo raw folders), validate and store them.
+    Ingest(PendingArgs),
+    /// Replay each episode under sampled camera/light/texture randomization; keep successes.
+    Augment(PendingArgs),
+    /// Convert episodes to LeRobot v3.0 / v2.1 or Diffusion Policy Zarr.
+    Convert(PendingArgs),
+    /// Dataset statistics, success tables and the language-generalization analysis.
+    Stats(PendingArgs),
+}
+
+/// `doctor` options.
+#[derive(Debug, Args)]
+pub struct DoctorArgs {
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Rendering quality presets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum QualityArg {
+    /// 8x multisampling, shadows, reflections, skybox: as the DexJoCo reference renders.
+    Paper,
+    /// As paper, without multisampling.
+    NoMsaa,
+    /// Without multisampling and shadows.
+    NoMsaaNoShadows,
+    /// No multisampling, shadows, reflections or skybox: several times faster on a CPU.
+    Fast,
+}
+
+impl QualityArg {
+    /// The preset's name in `RenderQuality::PRESETS`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::NoMsaa => "no-msaa",
+            Self::NoMsaaNoShadows => "no-msaa-no-shadows",
+            Self::Fast => "fast",
+        }
+    }
+}
+
+/// `render` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data render
+  dexjoco-data render ../shared/dexjoco-upstream/xmls/arena_arm_hand_plant.xml --quality paper
+  dexjoco-data render scene.xml --camera front --camera left --depth --size 224
+  dexjoco-data render scene.xml --steps 500 --out frames/")]
+pub struct RenderArgs {
+    /// MJCF scene file (default: the built-in tabletop scene).
+    pub scene: Option<PathBuf>,
+    /// Camera to render (repeatable; default: every camera of the scene, or a free view
+    /// when it has none).
+    #[arg(short, long = "camera")]
+    pub cameras: Vec<String>,
+    /// Image width and height in pixels (square); see --width/--height for others.
+    #[arg(long, default_value_t = 640)]
+    pub size: u32,
+    /// Image width (overrides --size).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height (overrides --size).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Quality preset.
+    #[arg(long, value_enum, default_value_t = QualityArg::Paper)]
+    pub quality: QualityArg,
+    /// Also write depth (16-bit PNG preview, near = dark) and report its range in metres.
+    #[arg(long)]
+    pub depth: bool,
+    /// Simulate this many physics steps from the initial state before rendering.
+    #[arg(long, default_value_t = 0)]
+    pub steps: usize,
+    /// Output folder (default: <work-dir>/render).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+}
+
+/// `bench` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Frames/s of offscreen rendering per scene, resolution and quality preset.
+    Render(BenchRenderArgs),
+}
+
+/// `bench render` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data bench render
+  dexjoco-data bench render --scene ../shared/dexjoco-upstream/xmls/arena_arm_hand_plant.xml --frames 50")]
+pub struct BenchRenderArgs {
+    /// Scenes to measure (repeatable; default: the built-in tabletop scene and, when
+    /// present, the DexJoCo reference plant scene in ../shared/dexjoco-upstream).
+    #[arg(long = "scene")]
+    pub scenes: Vec<PathBuf>,
+    /// Timed frames per row (after 3 warm-up frames).
+    #[arg(long, default_value_t = 30)]
+    pub frames: usize,
+    /// Square resolutions to measure.
+    #[arg(long, value_delimiter = ',', default_value = "224,640")]
+    pub sizes: Vec<u32>,
+    /// Presets to measure (default: all).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub presets: Vec<QualityArg>,
+    /// Camera to render (default: `front` when the scene has it, else the first camera).
+    #[arg(long)]
+    pub camera: Option<String>,
+}
+
+/// Arguments of subcommands that are not built yet: accepted, so `--help` works, and
+/// answered with exit code 4.
+#[derive(Debug, Args)]
+pub struct PendingArgs {
+    /// Arguments for the future subcommand.
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
+    pub rest: Vec<String>,
+}

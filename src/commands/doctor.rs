@@ -1,0 +1,201 @@
+//! `dexjoco-data doctor`: what this machine has for the pipeline.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde::Serialize;
+
+use crate::cli::{DoctorArgs, GlobalArgs};
+use crate::exit::ExitStatus;
+
+/// MuJoCo version the project is built for.
+const EXPECTED_MUJOCO: &str = "3.17.0";
+/// Video encoders the pipeline can use, in order of preference per codec.
+const ENCODERS: [&str; 6] = ["libx264", "libsvtav1", "libaom-av1", "h264_nvenc", "av1_nvenc", "libopenh264"];
+/// Python modules the test suite checks outputs with.
+const PY_MODULES: [&str; 9] = ["numpy", "scipy", "sklearn", "zarr", "mcap", "lerobot", "av", "torchcodec", "mujoco"];
+
+#[derive(Debug, Serialize)]
+struct Report {
+    dexjoco_data: &'static str,
+    mujoco: MujocoReport,
+    egl: Result<dexjoco_sim::EglProbe, String>,
+    ffmpeg: Option<FfmpegReport>,
+    python: Option<PythonReport>,
+    reference_scenes: Option<PathBuf>,
+}
+
+#[derive(Debug, Serialize)]
+struct MujocoReport {
+    version: String,
+    library: Option<PathBuf>,
+    expected: &'static str,
+}
+
+#[derive(Debug, Serialize)]
+struct FfmpegReport {
+    path: PathBuf,
+    version: String,
+    encoders: Vec<(String, bool)>,
+}
+
+#[derive(Debug, Serialize)]
+struct PythonReport {
+    interpreter: PathBuf,
+    version: String,
+    modules: Vec<(String, Option<String>)>,
+}
+
+fn which(program: &str) -> Option<PathBuf> {
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path).map(|d| d.join(program)).find(|p| p.is_file())
+}
+
+fn ffmpeg() -> Option<FfmpegReport> {
+    let path = std::env::var_os("DEXJOCO_FFMPEG").map(PathBuf::from).or_else(|| which("ffmpeg"))?;
+    let version = Command::new(&path).arg("-version").output().ok()?;
+    let version = String::from_utf8_lossy(&version.stdout).lines().next().unwrap_or("").to_owned();
+    let list = Command::new(&path).args(["-hide_banner", "-encoders"]).output().ok()?;
+    let list = String::from_utf8_lossy(&list.stdout).into_owned();
+    let encoders = ENCODERS
+        .iter()
+        .map(|e| (e.to_string(), list.lines().any(|l| l.split_whitespace().nth(1) == Some(e))))
+        .collect();
+    Some(FfmpegReport { path, version, encoders })
+}
+
+/// The Python of the cached test venv (written by scripts/setup.sh), else `python3`.
+fn python() -> Option<PathBuf> {
+    if let Some(p) = std::env::var_os("DEXJOCO_PYTHON") {
+        return Some(p.into());
+    }
+    let recorded = Path::new(env!("CARGO_MANIFEST_DIR")).join(".deps/python-path");
+    if let Ok(p) = std::fs::read_to_string(recorded) {
+        let p = PathBuf::from(p.trim());
+        if p.is_file() {
+            return Some(p);
+        }
+    }
+    which("python3")
+}
+
+fn python_report() -> Option<PythonReport> {
+    let interpreter = python()?;
+    let script = format!(
+        "import importlib, sys\nprint(sys.version.split()[0])\nfor m in {:?}:\n    try:\n        mod = importlib.import_module(m)\n        print(m, getattr(mod, '__version__', 'present'))\n    except Exception:\n        print(m, '-')\n",
+        PY_MODULES
+    );
+    let out = Command::new(&interpreter).args(["-c", &script]).output().ok()?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let mut lines = text.lines();
+    let version = lines.next()?.to_owned();
+    let modules = lines
+        .filter_map(|l| l.split_once(' '))
+        .map(|(m, v)| (m.to_owned(), (v != "-").then(|| v.to_owned())))
+        .collect();
+    Some(PythonReport { interpreter, version, modules })
+}
+
+/// Runs `doctor`; fails (exit 1) when MuJoCo or offscreen rendering is unusable.
+pub fn run(_global: &GlobalArgs, args: &DoctorArgs) -> anyhow::Result<ExitStatus> {
+    let report = Report {
+        dexjoco_data: env!("CARGO_PKG_VERSION"),
+        mujoco: MujocoReport {
+            version: dexjoco_sim::mujoco_version(),
+            library: dexjoco_sim::mujoco_library_path(),
+            expected: EXPECTED_MUJOCO,
+        },
+        egl: dexjoco_sim::probe_egl().map_err(|e| e.to_string()),
+        ffmpeg: ffmpeg(),
+        python: python_report(),
+        reference_scenes: super::reference_scene_dir(),
+    };
+    let mujoco_ok = report.mujoco.version == EXPECTED_MUJOCO;
+    let egl_ok = report.egl.as_ref().is_ok_and(|p| p.selected.is_some());
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_human(&report, mujoco_ok);
+    }
+    Ok(if mujoco_ok && egl_ok { ExitStatus::Success } else { ExitStatus::Failure })
+}
+
+fn print_human(r: &Report, mujoco_ok: bool) {
+    println!("dexjoco-data {}", r.dexjoco_data);
+    println!();
+    println!("MuJoCo");
+    println!(
+        "  [{}] version {} (built for {})",
+        if mujoco_ok { "ok  " } else { "WRONG" },
+        r.mujoco.version,
+        r.mujoco.expected
+    );
+    match &r.mujoco.library {
+        Some(p) => println!("         library {}", p.display()),
+        None => println!("         library (not found in the process map)"),
+    }
+    println!();
+    println!("Offscreen rendering (EGL)");
+    match &r.egl {
+        Err(e) => println!("  [MISSING] {e}"),
+        Ok(probe) => {
+            for d in &probe.devices {
+                let chosen = probe.selected == Some(d.index);
+                let kind = if d.software { "software (CPU)" } else { "hardware (GPU)" };
+                match (&d.gl_renderer, &d.error) {
+                    (Some(gl), _) => println!(
+                        "  [{}] device {}: {} - {} - {}{}",
+                        if chosen { "used" } else { "ok  " },
+                        d.index,
+                        d.description,
+                        kind,
+                        gl,
+                        d.gl_version.as_deref().map(|v| format!(" (OpenGL {v})")).unwrap_or_default()
+                    ),
+                    (None, e) => println!(
+                        "  [fail] device {}: {} - {} - {}",
+                        d.index,
+                        d.description,
+                        kind,
+                        e.as_deref().unwrap_or("no context")
+                    ),
+                }
+            }
+            if probe.selected.is_none() {
+                println!("  [MISSING] no device opens an offscreen OpenGL context");
+                println!("  hint: install Mesa (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri), or the NVIDIA driver's EGL");
+            }
+        }
+    }
+    println!();
+    println!("Video (ffmpeg)");
+    match &r.ffmpeg {
+        None => println!("  [MISSING] ffmpeg not on PATH (Debian: ffmpeg)"),
+        Some(f) => {
+            println!("  [ok  ] {} ({})", f.path.display(), f.version);
+            for (e, ok) in &f.encoders {
+                println!("  [{}] encoder {e}", if *ok { "ok  " } else { " -  " });
+            }
+        }
+    }
+    println!();
+    println!("Python readers (for the tests and interop checks)");
+    match &r.python {
+        None => println!("  [ -  ] no Python found (run scripts/setup.sh --python)"),
+        Some(p) => {
+            println!("  [ok  ] {} (Python {})", p.interpreter.display(), p.version);
+            for (m, v) in &p.modules {
+                match v {
+                    Some(v) => println!("  [ok  ] {m} {v}"),
+                    None => println!("  [ -  ] {m}"),
+                }
+            }
+        }
+    }
+    println!();
+    println!("DexJoCo reference scenes (for --scene-dir and the tests)");
+    match &r.reference_scenes {
+        Some(p) => println!("  [ok  ] {}", p.display()),
+        None => println!("  [ -  ] not found (looked at $DEXJOCO_UPSTREAM and ../shared/dexjoco-upstream)"),
+    }
+}

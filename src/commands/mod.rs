@@ -1,0 +1,38 @@
+//! One module per subcommand.
+
+pub mod bench;
+pub mod doctor;
+pub mod render;
+
+use crate::exit::{CliError, ExitStatus};
+
+/// The built-in tabletop scene (also the default of `render` and `bench render`).
+pub const TABLETOP_XML: &str = include_str!("../../crates/sim/assets/tabletop.xml");
+
+/// The DexJoCo reference scenes, when the shared folder is beside the checkout.
+pub fn reference_scene_dir() -> Option<std::path::PathBuf> {
+    let candidates = [
+        std::env::var_os("DEXJOCO_UPSTREAM").map(std::path::PathBuf::from),
+        Some(std::path::PathBuf::from("../shared/dexjoco-upstream")),
+        Some(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/dexjoco-upstream")),
+    ];
+    candidates.into_iter().flatten().map(|p| p.join("xmls")).find(|p| p.is_dir())
+}
+
+/// Loads a scene file, or the built-in tabletop scene when none is given.
+pub fn load_scene(path: Option<&std::path::Path>) -> anyhow::Result<dexjoco_sim::Scene> {
+    Ok(match path {
+        Some(p) => dexjoco_sim::Scene::load(p)?,
+        None => dexjoco_sim::Scene::from_xml_str(TABLETOP_XML, "<built-in tabletop>")?,
+    })
+}
+
+/// Answer of a subcommand that later work fills in.
+pub fn pending(name: &str) -> anyhow::Result<ExitStatus> {
+    Err(CliError {
+        message: format!("`dexjoco-data {name}` is not available in this version yet"),
+        hint: Some("`dexjoco-data render` and `dexjoco-data doctor` work today; see the README's status section".into()),
+        status: ExitStatus::NotAvailable,
+    }
+    .into())
+}

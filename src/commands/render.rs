@@ -1,0 +1,102 @@
+//! `dexjoco-data render`: PNGs of a scene's cameras and a contact sheet.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use dexjoco_sim::mujoco_rs::prelude::MjData;
+use dexjoco_sim::{CameraView, Frame, RenderQuality, RenderSettings, Renderer};
+
+use crate::cli::{GlobalArgs, RenderArgs};
+use crate::exit::ExitStatus;
+
+/// Runs `render`.
+pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus> {
+    let scene = super::load_scene(args.scene.as_deref())?;
+    let stem = args
+        .scene
+        .as_deref()
+        .and_then(Path::file_stem)
+        .map_or_else(|| "tabletop".to_owned(), |s| s.to_string_lossy().into_owned());
+    let out = args.out.clone().unwrap_or_else(|| global.work_dir.join("render"));
+    fs_err::create_dir_all(&out)?;
+
+    let names: Vec<String> = if args.cameras.is_empty() { scene.camera_names() } else { args.cameras.clone() };
+    let mut views = Vec::new();
+    for n in &names {
+        views.push((n.clone(), CameraView::Fixed(scene.camera_id(n)?)));
+    }
+    if views.is_empty() {
+        tracing::info!("the scene has no camera: rendering a free view");
+        let stat = &scene.model.ffi().stat;
+        views.push((
+            "free".into(),
+            CameraView::Orbit { lookat: stat.center, distance: 1.5 * stat.extent, azimuth: 90.0, elevation: -25.0 },
+        ));
+    }
+
+    let settings = RenderSettings {
+        width: args.width.unwrap_or(args.size),
+        height: args.height.unwrap_or(args.size),
+        quality: RenderQuality::from_name(args.quality.name()).expect("every QualityArg is a preset"),
+        depth: args.depth,
+    };
+    let mut renderer = Renderer::new(&scene.model, settings)?;
+    tracing::info!(
+        "rendering {} camera(s) of {} at {}x{} ({}) on EGL device '{}'{}",
+        views.len(),
+        scene.path.display(),
+        settings.width,
+        settings.height,
+        args.quality.name(),
+        renderer.device().description,
+        renderer.device().gl_renderer.as_deref().map(|r| format!(" [{r}]")).unwrap_or_default()
+    );
+
+    let mut data = MjData::new(&*scene.model);
+    data.forward();
+    if args.steps > 0 {
+        let pb = crate::progress::bar(args.steps as u64, "simulate", global.quiet);
+        for _ in 0..args.steps {
+            data.step();
+            pb.inc(1);
+        }
+        pb.finish_and_clear();
+    }
+
+    let mut frames = Vec::new();
+    for (name, view) in &views {
+        let frame = renderer.render(&mut data, *view)?;
+        let png = out.join(format!("{stem}_{name}.png"));
+        frame.save_png(&png)?;
+        println!("{}", png.display());
+        if args.depth {
+            let dpng = out.join(format!("{stem}_{name}_depth.png"));
+            if let Some((lo, hi)) = frame.save_depth_png(&dpng)? {
+                println!("{} (depth {lo:.3} m .. {hi:.3} m)", dpng.display());
+            }
+        }
+        frames.push(frame);
+    }
+    if frames.len() > 1 {
+        let sheet = out.join(format!("{stem}_contact_sheet.png"));
+        contact_sheet(&frames, &sheet)?;
+        println!("{}", sheet.display());
+    }
+    Ok(ExitStatus::Success)
+}
+
+/// Tiles frames of equal size into a grid (at most 4 per row) with a thin border.
+pub fn contact_sheet(frames: &[Frame], path: &PathBuf) -> anyhow::Result<()> {
+    let (w, h) = (frames[0].width, frames[0].height);
+    let cols = frames.len().min(4) as u32;
+    let rows = (frames.len() as u32).div_ceil(cols);
+    let gap = 4;
+    let mut sheet = image::RgbImage::from_pixel(cols * (w + gap) + gap, rows * (h + gap) + gap, image::Rgb([255, 255, 255]));
+    for (i, f) in frames.iter().enumerate() {
+        let img = image::RgbImage::from_raw(f.width, f.height, f.rgb.clone()).context("frame size")?;
+        let (c, r) = (i as u32 % cols, i as u32 / cols);
+        image::imageops::replace(&mut sheet, &img, i64::from(gap + c * (w + gap)), i64::from(gap + r * (h + gap)));
+    }
+    sheet.save(path).with_context(|| format!("cannot write '{}'", path.display()))?;
+    Ok(())
+}

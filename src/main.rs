@@ -1,0 +1,72 @@
+//! The `dexjoco-data` command line: a thin layer that turns arguments into settings,
+//! runs a stage from the library crates, and reports errors with documented exit codes.
+
+mod cli;
+mod commands;
+mod exit;
+mod progress;
+
+use std::process::ExitCode;
+
+use clap::Parser;
+
+use crate::cli::{Cli, Command};
+use crate::exit::{CliError, ExitStatus};
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_logging(cli.global.verbose, cli.global.quiet);
+    if let Some(jobs) = cli.global.jobs {
+        if jobs == 0 {
+            eprintln!("error: --jobs must be at least 1");
+            return ExitStatus::Usage.into();
+        }
+    }
+    let result = match cli.command {
+        Command::Doctor(args) => commands::doctor::run(&cli.global, &args),
+        Command::Render(args) => commands::render::run(&cli.global, &args),
+        Command::Bench(cmd) => commands::bench::run(&cli.global, &cmd),
+        Command::Ingest(_) => commands::pending("ingest"),
+        Command::Augment(_) => commands::pending("augment"),
+        Command::Convert(_) => commands::pending("convert"),
+        Command::Stats(_) => commands::pending("stats"),
+    };
+    match result {
+        Ok(status) => status.into(),
+        Err(err) => report(&err).into(),
+    }
+}
+
+/// Prints an error as `error:` / `Caused by:` / `hint:` and picks the exit status.
+fn report(err: &anyhow::Error) -> ExitStatus {
+    let cli_error = err.chain().find_map(|e| e.downcast_ref::<CliError>());
+    eprintln!("error: {err}");
+    let causes: Vec<String> = err.chain().skip(1).map(ToString::to_string).collect();
+    if !causes.is_empty() {
+        eprintln!("Caused by:");
+        for c in causes {
+            eprintln!("  {c}");
+        }
+    }
+    if let Some(hint) = cli_error.and_then(|e| e.hint.as_deref()) {
+        eprintln!("hint: {hint}");
+    }
+    cli_error.map_or(ExitStatus::Failure, |e| e.status)
+}
+
+fn init_logging(verbose: u8, quiet: bool) {
+    use tracing_subscriber::EnvFilter;
+    let default = match (quiet, verbose) {
+        (true, _) => "error",
+        (false, 0) => "info",
+        (false, 1) => "debug",
+        _ => "trace",
+    };
+    let filter = EnvFilter::try_from_env("DEXJOCO_LOG").unwrap_or_else(|_| EnvFilter::new(default));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(verbose > 0)
+        .without_time()
+        .init();
+}
