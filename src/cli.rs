@@ -55,7 +55,12 @@ pub struct GlobalArgs {
     pub seed: u64,
     /// Work folder: each stage writes its own subfolder (ingest/, augment/, convert/,
     /// stats/, render/, bench/) and reads the previous stage's.
-    #[arg(long, global = true, env = "DEXJOCO_WORK_DIR", default_value = "dexjoco-work")]
+    #[arg(
+        long,
+        global = true,
+        env = "DEXJOCO_WORK_DIR",
+        default_value = "dexjoco-work"
+    )]
     pub work_dir: PathBuf,
 }
 

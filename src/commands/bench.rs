@@ -33,11 +33,18 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
         scenes.push(None);
         match super::reference_scene_dir() {
             Some(dir) => scenes.push(Some(dir.join("arena_arm_hand_plant.xml"))),
-            None => tracing::warn!("DexJoCo reference scenes not found (../shared/dexjoco-upstream): measuring the built-in scene only"),
+            None => tracing::warn!(
+                "DexJoCo reference scenes not found (../shared/dexjoco-upstream): measuring the built-in scene only"
+            ),
         }
     }
     let presets: Vec<QualityArg> = if args.presets.is_empty() {
-        vec![QualityArg::Paper, QualityArg::NoMsaa, QualityArg::NoMsaaNoShadows, QualityArg::Fast]
+        vec![
+            QualityArg::Paper,
+            QualityArg::NoMsaa,
+            QualityArg::NoMsaaNoShadows,
+            QualityArg::Fast,
+        ]
     } else {
         args.presets.clone()
     };
@@ -47,10 +54,10 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
     let mut device = String::new();
     for scene_path in &scenes {
         let scene = super::load_scene(scene_path.as_deref())?;
-        let label = scene_path
-            .as_ref()
-            .and_then(|p| p.file_stem())
-            .map_or_else(|| "tabletop (built-in)".to_owned(), |s| s.to_string_lossy().into_owned());
+        let label = scene_path.as_ref().and_then(|p| p.file_stem()).map_or_else(
+            || "tabletop (built-in)".to_owned(),
+            |s| s.to_string_lossy().into_owned(),
+        );
         let cam_names = scene.camera_names();
         let camera = match &args.camera {
             Some(c) => scene.camera_id(c)?,
@@ -71,7 +78,11 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
                 device = format!(
                     "{} ({})",
                     r.device().gl_renderer.as_deref().unwrap_or("unknown GL"),
-                    if r.device().software { "software" } else { "GPU" }
+                    if r.device().software {
+                        "software"
+                    } else {
+                        "GPU"
+                    }
                 );
                 for _ in 0..3 {
                     r.render(&mut data, CameraView::Fixed(camera))?;
@@ -95,17 +106,30 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
     }
     pb.finish_and_clear();
 
-    println!("Offscreen rendering, one camera, update scene + draw + read back RGB; device: {device}");
+    println!(
+        "Offscreen rendering, one camera, update scene + draw + read back RGB; device: {device}"
+    );
     println!();
     println!("| scene | size | preset | frames/s | ms/frame |");
     println!("|---|---:|---|---:|---:|");
     for r in &rows {
-        println!("| {} | {}x{} | {} | {:.1} | {:.1} |", r.scene, r.size, r.size, r.preset, r.fps, 1000.0 / r.fps);
+        println!(
+            "| {} | {}x{} | {} | {:.1} | {:.1} |",
+            r.scene,
+            r.size,
+            r.size,
+            r.preset,
+            r.fps,
+            1000.0 / r.fps
+        );
     }
     let out = global.work_dir.join("bench");
     fs_err::create_dir_all(&out)?;
     let json = out.join("render.json");
-    fs_err::write(&json, serde_json::to_string_pretty(&serde_json::json!({ "device": device, "rows": rows }))?)?;
+    fs_err::write(
+        &json,
+        serde_json::to_string_pretty(&serde_json::json!({ "device": device, "rows": rows }))?,
+    )?;
     eprintln!("wrote {}", json.display());
     Ok(ExitStatus::Success)
 }

@@ -11,9 +11,26 @@ use crate::exit::ExitStatus;
 /// MuJoCo version the project is built for.
 const EXPECTED_MUJOCO: &str = "3.17.0";
 /// Video encoders the pipeline can use, in order of preference per codec.
-const ENCODERS: [&str; 6] = ["libx264", "libsvtav1", "libaom-av1", "h264_nvenc", "av1_nvenc", "libopenh264"];
+const ENCODERS: [&str; 6] = [
+    "libx264",
+    "libsvtav1",
+    "libaom-av1",
+    "h264_nvenc",
+    "av1_nvenc",
+    "libopenh264",
+];
 /// Python modules the test suite checks outputs with.
-const PY_MODULES: [&str; 9] = ["numpy", "scipy", "sklearn", "zarr", "mcap", "lerobot", "av", "torchcodec", "mujoco"];
+const PY_MODULES: [&str; 9] = [
+    "numpy",
+    "scipy",
+    "sklearn",
+    "zarr",
+    "mcap",
+    "lerobot",
+    "av",
+    "torchcodec",
+    "mujoco",
+];
 
 #[derive(Debug, Serialize)]
 struct Report {
@@ -48,20 +65,40 @@ struct PythonReport {
 
 fn which(program: &str) -> Option<PathBuf> {
     let path = std::env::var_os("PATH")?;
-    std::env::split_paths(&path).map(|d| d.join(program)).find(|p| p.is_file())
+    std::env::split_paths(&path)
+        .map(|d| d.join(program))
+        .find(|p| p.is_file())
 }
 
 fn ffmpeg() -> Option<FfmpegReport> {
-    let path = std::env::var_os("DEXJOCO_FFMPEG").map(PathBuf::from).or_else(|| which("ffmpeg"))?;
+    let path = std::env::var_os("DEXJOCO_FFMPEG")
+        .map(PathBuf::from)
+        .or_else(|| which("ffmpeg"))?;
     let version = Command::new(&path).arg("-version").output().ok()?;
-    let version = String::from_utf8_lossy(&version.stdout).lines().next().unwrap_or("").to_owned();
-    let list = Command::new(&path).args(["-hide_banner", "-encoders"]).output().ok()?;
+    let version = String::from_utf8_lossy(&version.stdout)
+        .lines()
+        .next()
+        .unwrap_or("")
+        .to_owned();
+    let list = Command::new(&path)
+        .args(["-hide_banner", "-encoders"])
+        .output()
+        .ok()?;
     let list = String::from_utf8_lossy(&list.stdout).into_owned();
     let encoders = ENCODERS
         .iter()
-        .map(|e| (e.to_string(), list.lines().any(|l| l.split_whitespace().nth(1) == Some(e))))
+        .map(|e| {
+            (
+                e.to_string(),
+                list.lines().any(|l| l.split_whitespace().nth(1) == Some(e)),
+            )
+        })
         .collect();
-    Some(FfmpegReport { path, version, encoders })
+    Some(FfmpegReport {
+        path,
+        version,
+        encoders,
+    })
 }
 
 /// The Python of the cached test venv (written by scripts/setup.sh), else `python3`.
@@ -85,7 +122,10 @@ fn python_report() -> Option<PythonReport> {
         "import importlib, sys\nprint(sys.version.split()[0])\nfor m in {:?}:\n    try:\n        mod = importlib.import_module(m)\n        print(m, getattr(mod, '__version__', 'present'))\n    except Exception:\n        print(m, '-')\n",
         PY_MODULES
     );
-    let out = Command::new(&interpreter).args(["-c", &script]).output().ok()?;
+    let out = Command::new(&interpreter)
+        .args(["-c", &script])
+        .output()
+        .ok()?;
     let text = String::from_utf8_lossy(&out.stdout);
     let mut lines = text.lines();
     let version = lines.next()?.to_owned();
@@ -93,7 +133,11 @@ fn python_report() -> Option<PythonReport> {
         .filter_map(|l| l.split_once(' '))
         .map(|(m, v)| (m.to_owned(), (v != "-").then(|| v.to_owned())))
         .collect();
-    Some(PythonReport { interpreter, version, modules })
+    Some(PythonReport {
+        interpreter,
+        version,
+        modules,
+    })
 }
 
 /// Runs `doctor`; fails (exit 1) when MuJoCo or offscreen rendering is unusable.
@@ -117,7 +161,11 @@ pub fn run(_global: &GlobalArgs, args: &DoctorArgs) -> anyhow::Result<ExitStatus
     } else {
         print_human(&report, mujoco_ok);
     }
-    Ok(if mujoco_ok && egl_ok { ExitStatus::Success } else { ExitStatus::Failure })
+    Ok(if mujoco_ok && egl_ok {
+        ExitStatus::Success
+    } else {
+        ExitStatus::Failure
+    })
 }
 
 fn print_human(r: &Report, mujoco_ok: bool) {
@@ -141,7 +189,11 @@ fn print_human(r: &Report, mujoco_ok: bool) {
         Ok(probe) => {
             for d in &probe.devices {
                 let chosen = probe.selected == Some(d.index);
-                let kind = if d.software { "software (CPU)" } else { "hardware (GPU)" };
+                let kind = if d.software {
+                    "software (CPU)"
+                } else {
+                    "hardware (GPU)"
+                };
                 match (&d.gl_renderer, &d.error) {
                     (Some(gl), _) => println!(
                         "  [{}] device {}: {} - {} - {}{}",
@@ -150,7 +202,10 @@ fn print_human(r: &Report, mujoco_ok: bool) {
                         d.description,
                         kind,
                         gl,
-                        d.gl_version.as_deref().map(|v| format!(" (OpenGL {v})")).unwrap_or_default()
+                        d.gl_version
+                            .as_deref()
+                            .map(|v| format!(" (OpenGL {v})"))
+                            .unwrap_or_default()
                     ),
                     (None, e) => println!(
                         "  [fail] device {}: {} - {} - {}",
@@ -163,7 +218,9 @@ fn print_human(r: &Report, mujoco_ok: bool) {
             }
             if probe.selected.is_none() {
                 println!("  [MISSING] no device opens an offscreen OpenGL context");
-                println!("  hint: install Mesa (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri), or the NVIDIA driver's EGL");
+                println!(
+                    "  hint: install Mesa (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri), or the NVIDIA driver's EGL"
+                );
             }
         }
     }
@@ -183,7 +240,11 @@ fn print_human(r: &Report, mujoco_ok: bool) {
     match &r.python {
         None => println!("  [ -  ] no Python found (run scripts/setup.sh --python)"),
         Some(p) => {
-            println!("  [ok  ] {} (Python {})", p.interpreter.display(), p.version);
+            println!(
+                "  [ok  ] {} (Python {})",
+                p.interpreter.display(),
+                p.version
+            );
             for (m, v) in &p.modules {
                 match v {
                     Some(v) => println!("  [ok  ] {m} {v}"),
@@ -196,6 +257,8 @@ fn print_human(r: &Report, mujoco_ok: bool) {
     println!("DexJoCo reference scenes (for --scene-dir and the tests)");
     match &r.reference_scenes {
         Some(p) => println!("  [ok  ] {}", p.display()),
-        None => println!("  [ -  ] not found (looked at $DEXJOCO_UPSTREAM and ../shared/dexjoco-upstream)"),
+        None => println!(
+            "  [ -  ] not found (looked at $DEXJOCO_UPSTREAM and ../shared/dexjoco-upstream)"
+        ),
     }
 }

@@ -16,7 +16,11 @@ pub fn reference_scene_dir() -> Option<std::path::PathBuf> {
         Some(std::path::PathBuf::from("../shared/dexjoco-upstream")),
         Some(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/dexjoco-upstream")),
     ];
-    candidates.into_iter().flatten().map(|p| p.join("xmls")).find(|p| p.is_dir())
+    candidates
+        .into_iter()
+        .flatten()
+        .map(|p| p.join("xmls"))
+        .find(|p| p.is_dir())
 }
 
 /// Loads a scene file, or the built-in tabletop scene when none is given.

@@ -12,15 +12,21 @@ use crate::exit::ExitStatus;
 /// Runs `render`.
 pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus> {
     let scene = super::load_scene(args.scene.as_deref())?;
-    let stem = args
-        .scene
-        .as_deref()
-        .and_then(Path::file_stem)
-        .map_or_else(|| "tabletop".to_owned(), |s| s.to_string_lossy().into_owned());
-    let out = args.out.clone().unwrap_or_else(|| global.work_dir.join("render"));
+    let stem = args.scene.as_deref().and_then(Path::file_stem).map_or_else(
+        || "tabletop".to_owned(),
+        |s| s.to_string_lossy().into_owned(),
+    );
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| global.work_dir.join("render"));
     fs_err::create_dir_all(&out)?;
 
-    let names: Vec<String> = if args.cameras.is_empty() { scene.camera_names() } else { args.cameras.clone() };
+    let names: Vec<String> = if args.cameras.is_empty() {
+        scene.camera_names()
+    } else {
+        args.cameras.clone()
+    };
     let mut views = Vec::new();
     for n in &names {
         views.push((n.clone(), CameraView::Fixed(scene.camera_id(n)?)));
@@ -30,14 +36,20 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
         let stat = &scene.model.ffi().stat;
         views.push((
             "free".into(),
-            CameraView::Orbit { lookat: stat.center, distance: 1.5 * stat.extent, azimuth: 90.0, elevation: -25.0 },
+            CameraView::Orbit {
+                lookat: stat.center,
+                distance: 1.5 * stat.extent,
+                azimuth: 90.0,
+                elevation: -25.0,
+            },
         ));
     }
 
     let settings = RenderSettings {
         width: args.width.unwrap_or(args.size),
         height: args.height.unwrap_or(args.size),
-        quality: RenderQuality::from_name(args.quality.name()).expect("every QualityArg is a preset"),
+        quality: RenderQuality::from_name(args.quality.name())
+            .expect("every QualityArg is a preset"),
         depth: args.depth,
     };
     let mut renderer = Renderer::new(&scene.model, settings)?;
@@ -49,7 +61,12 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
         settings.height,
         args.quality.name(),
         renderer.device().description,
-        renderer.device().gl_renderer.as_deref().map(|r| format!(" [{r}]")).unwrap_or_default()
+        renderer
+            .device()
+            .gl_renderer
+            .as_deref()
+            .map(|r| format!(" [{r}]"))
+            .unwrap_or_default()
     );
 
     let mut data = MjData::new(&*scene.model);
@@ -91,12 +108,24 @@ pub fn contact_sheet(frames: &[Frame], path: &PathBuf) -> anyhow::Result<()> {
     let cols = frames.len().min(4) as u32;
     let rows = (frames.len() as u32).div_ceil(cols);
     let gap = 4;
-    let mut sheet = image::RgbImage::from_pixel(cols * (w + gap) + gap, rows * (h + gap) + gap, image::Rgb([255, 255, 255]));
+    let mut sheet = image::RgbImage::from_pixel(
+        cols * (w + gap) + gap,
+        rows * (h + gap) + gap,
+        image::Rgb([255, 255, 255]),
+    );
     for (i, f) in frames.iter().enumerate() {
-        let img = image::RgbImage::from_raw(f.width, f.height, f.rgb.clone()).context("frame size")?;
+        let img =
+            image::RgbImage::from_raw(f.width, f.height, f.rgb.clone()).context("frame size")?;
         let (c, r) = (i as u32 % cols, i as u32 / cols);
-        image::imageops::replace(&mut sheet, &img, i64::from(gap + c * (w + gap)), i64::from(gap + r * (h + gap)));
+        image::imageops::replace(
+            &mut sheet,
+            &img,
+            i64::from(gap + c * (w + gap)),
+            i64::from(gap + r * (h + gap)),
+        );
     }
-    sheet.save(path).with_context(|| format!("cannot write '{}'", path.display()))?;
+    sheet
+        .save(path)
+        .with_context(|| format!("cannot write '{}'", path.display()))?;
     Ok(())
 }

@@ -18,14 +18,21 @@ impl FrameArray {
     /// Wraps a flat row-major buffer; it must hold a whole number of frames.
     pub fn new(width: usize, data: Vec<f64>) -> Result<Self, CoreError> {
         if width == 0 || data.len() % width != 0 {
-            return Err(CoreError::Ragged { at: Location::default(), len: data.len(), width });
+            return Err(CoreError::Ragged {
+                at: Location::default(),
+                len: data.len(),
+                width,
+            });
         }
         Ok(Self { width, data })
     }
 
     /// An array of `frames` rows of zeros.
     pub fn zeros(frames: usize, width: usize) -> Self {
-        Self { width, data: vec![0.0; frames * width] }
+        Self {
+            width,
+            data: vec![0.0; frames * width],
+        }
     }
 
     /// Builds an array from rows, which must all have the same width (at least 1).
@@ -149,17 +156,23 @@ impl Episode {
 
     /// `timestamp = k / fps` for every frame.
     pub fn regular_timestamps(frames: usize, fps: f64) -> FrameArray {
-        FrameArray { width: 1, data: (0..frames).map(|k| k as f64 / fps).collect() }
+        FrameArray {
+            width: 1,
+            data: (0..frames).map(|k| k as f64 / fps).collect(),
+        }
     }
 
     /// Computes `action_rotvec` from `action` (per arm, normalized quaternion to rotation
     /// vector; zero quaternion to zero) and stores it, replacing any present.
     pub fn compute_action_rotvec(&mut self, setup: ArmSetup) -> Result<(), CoreError> {
-        let action = self.arrays.get(Self::ACTION).ok_or_else(|| CoreError::Length {
-            at: Location::episode(&self.id).field(Self::ACTION),
-            expected: self.len(),
-            found: 0,
-        })?;
+        let action = self
+            .arrays
+            .get(Self::ACTION)
+            .ok_or_else(|| CoreError::Length {
+                at: Location::episode(&self.id).field(Self::ACTION),
+                expected: self.len(),
+                found: 0,
+            })?;
         self.check_width(Self::ACTION, setup.action_dim())?;
         let mut out = FrameArray::zeros(action.len(), setup.action_rotvec_dim());
         for i in 0..action.len() {
@@ -174,8 +187,16 @@ impl Episode {
         let at = Location::episode(&self.id).field(name);
         match self.arrays.get(name) {
             Some(a) if a.width() == width => Ok(()),
-            Some(a) => Err(CoreError::Width { at, expected: width, found: a.width() }),
-            None => Err(CoreError::Width { at, expected: width, found: 0 }),
+            Some(a) => Err(CoreError::Width {
+                at,
+                expected: width,
+                found: a.width(),
+            }),
+            None => Err(CoreError::Width {
+                at,
+                expected: width,
+                found: 0,
+            }),
         }
     }
 
@@ -210,8 +231,14 @@ mod tests {
     fn episode(action: Vec<Vec<f64>>) -> Episode {
         let n = action.len();
         let mut arrays = BTreeMap::new();
-        arrays.insert(Episode::ACTION.into(), FrameArray::from_rows(&action).unwrap());
-        arrays.insert(Episode::TIMESTAMP.into(), Episode::regular_timestamps(n, 30.0));
+        arrays.insert(
+            Episode::ACTION.into(),
+            FrameArray::from_rows(&action).unwrap(),
+        );
+        arrays.insert(
+            Episode::TIMESTAMP.into(),
+            Episode::regular_timestamps(n, 30.0),
+        );
         Episode {
             id: "ep0".into(),
             task: "click_mouse".into(),
@@ -243,9 +270,15 @@ mod tests {
         let mut ep = episode(vec![vec![0.0; 23], vec![0.0; 23]]);
         ep.arrays.get_mut(Episode::ACTION).unwrap().row_mut(1)[4] = f64::NAN;
         let err = ep.check_consistent().unwrap_err().to_string();
-        assert!(err.contains("episode 'ep0'") && err.contains("action[4]") && err.contains("frame 1"), "{err}");
+        assert!(
+            err.contains("episode 'ep0'") && err.contains("action[4]") && err.contains("frame 1"),
+            "{err}"
+        );
         let err = ep.check_width(Episode::ACTION, 46).unwrap_err().to_string();
-        assert!(err.contains("expected 46") && err.contains("found 23"), "{err}");
+        assert!(
+            err.contains("expected 46") && err.contains("found 23"),
+            "{err}"
+        );
     }
 
     #[test]

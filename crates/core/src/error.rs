@@ -19,7 +19,10 @@ pub struct Location {
 impl Location {
     /// A location in one episode.
     pub fn episode(id: impl Into<String>) -> Self {
-        Self { episode: Some(id.into()), ..Self::default() }
+        Self {
+            episode: Some(id.into()),
+            ..Self::default()
+        }
     }
 
     /// The same location in a field.

@@ -108,7 +108,11 @@ impl ArrayLayout {
     /// Appends a slice of `len` columns after the last one.
     pub fn push(&mut self, name: impl Into<String>, len: usize) -> &mut Self {
         let start = self.width();
-        self.fields.push(FieldSlice { name: name.into(), start, len });
+        self.fields.push(FieldSlice {
+            name: name.into(),
+            start,
+            len,
+        });
         self
     }
 
@@ -127,7 +131,10 @@ impl ArrayLayout {
         self.fields
             .iter()
             .find(|f| column >= f.start && column < f.start + f.len)
-            .map_or_else(|| format!("[{column}]"), |f| format!("{}[{}]", f.name, column - f.start))
+            .map_or_else(
+                || format!("[{column}]"),
+                |f| format!("{}[{}]", f.name, column - f.start),
+            )
     }
 }
 

@@ -13,6 +13,4 @@ mod rotation;
 pub use episode::{CameraStream, Episode, FrameArray};
 pub use error::{CoreError, Location};
 pub use layout::{ArmSetup, ArrayLayout, FieldSlice, HAND_DOF, POSE_DIM, ROTVEC_POSE_DIM};
-pub use rotation::{
-    action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz, ZERO_QUAT_EPS,
-};
+pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};

@@ -55,7 +55,10 @@ pub fn rotvec_to_quat_wxyz(r: [f64; 3]) -> [f64; 4] {
 pub fn action_to_rotvec(action: &[f64], out: &mut [f64]) {
     let per_in = POSE_DIM + HAND_DOF;
     let per_out = ROTVEC_POSE_DIM + HAND_DOF;
-    for (a, o) in action.chunks_exact(per_in).zip(out.chunks_exact_mut(per_out)) {
+    for (a, o) in action
+        .chunks_exact(per_in)
+        .zip(out.chunks_exact_mut(per_out))
+    {
         o[..3].copy_from_slice(&a[..3]);
         o[3..6].copy_from_slice(&quat_wxyz_to_rotvec([a[3], a[4], a[5], a[6]]));
         o[6..].copy_from_slice(&a[7..]);
@@ -89,7 +92,10 @@ mod tests {
             let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
             let s = if q[0] < 0.0 { -1.0 } else { 1.0 };
             for k in 0..4 {
-                assert!((back[k] - s * q[k] / n).abs() < 1e-12, "{q:?} -> {r:?} -> {back:?}");
+                assert!(
+                    (back[k] - s * q[k] / n).abs() < 1e-12,
+                    "{q:?} -> {r:?} -> {back:?}"
+                );
             }
         }
     }

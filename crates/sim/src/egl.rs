@@ -4,7 +4,9 @@
 use std::ffi::{CStr, c_char};
 use std::num::NonZeroU32;
 
-use glutin::api::egl::{context::PossiblyCurrentContext, device::Device, display::Display, surface::Surface};
+use glutin::api::egl::{
+    context::PossiblyCurrentContext, device::Device, display::Display, surface::Surface,
+};
 use glutin::config::{ConfigSurfaceTypes, ConfigTemplateBuilder};
 use glutin::context::{ContextApi, ContextAttributesBuilder, GlProfile, Version};
 use glutin::prelude::{GlDisplay, NotCurrentGlContext, PossiblyCurrentGlContext};
@@ -53,7 +55,9 @@ pub(crate) struct EglContext {
 
 impl std::fmt::Debug for EglContext {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("EglContext").field("device", &self.device).finish()
+        f.debug_struct("EglContext")
+            .field("device", &self.device)
+            .finish()
     }
 }
 
@@ -76,7 +80,9 @@ fn devices() -> Result<Vec<Device>, SimError> {
 }
 
 fn requested_device() -> Option<usize> {
-    std::env::var(EGL_DEVICE_ENV).ok().and_then(|v| v.trim().parse().ok())
+    std::env::var(EGL_DEVICE_ENV)
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
 }
 
 /// Reads a GL string of the current context.
@@ -106,7 +112,12 @@ impl EglContext {
         }
         let order: Vec<usize> = match requested_device() {
             Some(i) if i < devices.len() => vec![i],
-            Some(i) => return Err(SimError::Egl(format!("{EGL_DEVICE_ENV}={i} but EGL lists {} devices", devices.len()))),
+            Some(i) => {
+                return Err(SimError::Egl(format!(
+                    "{EGL_DEVICE_ENV}={i} but EGL lists {} devices",
+                    devices.len()
+                )));
+            }
             None => (0..devices.len()).collect(),
         };
         let mut errors = Vec::new();
@@ -119,7 +130,12 @@ impl EglContext {
         Err(SimError::Egl(errors.join("; ")))
     }
 
-    fn on_device(index: usize, device: &Device, width: u32, height: u32) -> Result<Self, glutin::error::Error> {
+    fn on_device(
+        index: usize,
+        device: &Device,
+        width: u32,
+        height: u32,
+    ) -> Result<Self, glutin::error::Error> {
         // SAFETY: `device` comes from EGL's own device list.
         let display = unsafe { Display::with_device(device, None)? };
         let template = ConfigTemplateBuilder::new()
@@ -131,7 +147,11 @@ impl EglContext {
         // SAFETY: `display` is valid and the template asks for standard attributes.
         let config = unsafe { display.find_configs(template)? }
             .next()
-            .ok_or_else(|| glutin::error::Error::from(glutin::error::ErrorKind::NotSupported("no pbuffer config with depth 24")))?;
+            .ok_or_else(|| {
+                glutin::error::Error::from(glutin::error::ErrorKind::NotSupported(
+                    "no pbuffer config with depth 24",
+                ))
+            })?;
         let attrs = ContextAttributesBuilder::new()
             .with_profile(GlProfile::Compatibility)
             .with_context_api(ContextApi::OpenGl(Some(Version::new(2, 0))))
@@ -154,12 +174,18 @@ impl EglContext {
             gl_version: gl_string(&display, 0x1F02),
             error: None,
         };
-        Ok(Self { context, surface, device })
+        Ok(Self {
+            context,
+            surface,
+            device,
+        })
     }
 
     /// Makes the context current on this thread.
     pub(crate) fn make_current(&self) -> Result<(), SimError> {
-        self.context.make_current(&self.surface).map_err(|e| SimError::Egl(e.to_string()))
+        self.context
+            .make_current(&self.surface)
+            .map_err(|e| SimError::Egl(e.to_string()))
     }
 }
 
@@ -188,5 +214,8 @@ pub fn probe_egl() -> Result<EglProbe, SimError> {
         Some(i) => out.get(i).filter(|d| d.error.is_none()).map(|d| d.index),
         None => out.iter().find(|d| d.error.is_none()).map(|d| d.index),
     };
-    Ok(EglProbe { devices: out, selected })
+    Ok(EglProbe {
+        devices: out,
+        selected,
+    })
 }

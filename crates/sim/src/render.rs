@@ -4,7 +4,8 @@ use std::path::Path;
 
 use mujoco_rs::mujoco_c::mjtRndFlag;
 use mujoco_rs::prelude::{
-    MjData, MjModel, MjrContext, MjrRectangle, MjtCamera, MjvCamera, MjvOption, MjvPerturb, MjvScene,
+    MjData, MjModel, MjrContext, MjrRectangle, MjtCamera, MjvCamera, MjvOption, MjvPerturb,
+    MjvScene,
 };
 use mujoco_rs::wrappers::mj_model::traits::ModelType;
 use serde::{Deserialize, Serialize};
@@ -28,21 +29,47 @@ pub struct RenderQuality {
 
 impl RenderQuality {
     /// As the DexJoCo reference renders: 8 samples, shadows, reflection, skybox.
-    pub const PAPER: Self = Self { samples: 8, shadows: true, reflection: true, skybox: true };
+    pub const PAPER: Self = Self {
+        samples: 8,
+        shadows: true,
+        reflection: true,
+        skybox: true,
+    };
     /// Everything off: the fastest look that still shows materials, textures and lights.
-    pub const FAST: Self = Self { samples: 0, shadows: false, reflection: false, skybox: false };
+    pub const FAST: Self = Self {
+        samples: 0,
+        shadows: false,
+        reflection: false,
+        skybox: false,
+    };
 
     /// Named presets, from the most to the least expensive.
     pub const PRESETS: [(&'static str, Self); 4] = [
         ("paper", Self::PAPER),
-        ("no-msaa", Self { samples: 0, ..Self::PAPER }),
-        ("no-msaa-no-shadows", Self { samples: 0, shadows: false, ..Self::PAPER }),
+        (
+            "no-msaa",
+            Self {
+                samples: 0,
+                ..Self::PAPER
+            },
+        ),
+        (
+            "no-msaa-no-shadows",
+            Self {
+                samples: 0,
+                shadows: false,
+                ..Self::PAPER
+            },
+        ),
         ("fast", Self::FAST),
     ];
 
     /// A preset by name (`paper`, `no-msaa`, `no-msaa-no-shadows`, `fast`).
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::PRESETS.iter().find(|(n, _)| *n == name).map(|(_, q)| *q)
+        Self::PRESETS
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, q)| *q)
     }
 }
 
@@ -61,7 +88,12 @@ pub struct RenderSettings {
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        Self { width: 640, height: 640, quality: RenderQuality::FAST, depth: false }
+        Self {
+            width: 640,
+            height: 640,
+            quality: RenderQuality::FAST,
+            depth: false,
+        }
     }
 }
 
@@ -87,7 +119,12 @@ impl CameraView {
     fn to_mjv(self) -> MjvCamera {
         match self {
             Self::Fixed(id) => MjvCamera::new_fixed(id),
-            Self::Orbit { lookat, distance, azimuth, elevation } => MjvCamera {
+            Self::Orbit {
+                lookat,
+                distance,
+                azimuth,
+                elevation,
+            } => MjvCamera {
                 type_: MjtCamera::mjCAMERA_FREE as i32,
                 fixedcamid: -1,
                 trackbodyid: -1,
@@ -123,25 +160,51 @@ impl Frame {
 
     /// Depth of pixel (x, y) in metres, when depth was rendered.
     pub fn depth_at(&self, x: u32, y: u32) -> Option<f32> {
-        self.depth.as_ref().map(|d| d[y as usize * self.width as usize + x as usize])
+        self.depth
+            .as_ref()
+            .map(|d| d[y as usize * self.width as usize + x as usize])
     }
 
     /// Writes the RGB image as PNG.
     pub fn save_png(&self, path: &Path) -> Result<(), SimError> {
-        image::save_buffer(path, &self.rgb, self.width, self.height, image::ExtendedColorType::Rgb8)
-            .map_err(|e| SimError::Image { path: path.into(), message: e.to_string() })
+        image::save_buffer(
+            path,
+            &self.rgb,
+            self.width,
+            self.height,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| SimError::Image {
+            path: path.into(),
+            message: e.to_string(),
+        })
     }
 
     /// Writes depth as a 16-bit grey PNG, near (dark) to far (light) over this frame's
     /// finite range; returns that range in metres.
     pub fn save_depth_png(&self, path: &Path) -> Result<Option<(f32, f32)>, SimError> {
-        let Some(depth) = &self.depth else { return Ok(None) };
-        let (lo, hi) = depth.iter().filter(|v| v.is_finite()).fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        let Some(depth) = &self.depth else {
+            return Ok(None);
+        };
+        let (lo, hi) = depth
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
         let span = (hi - lo).max(f32::EPSILON);
-        let grey: Vec<u16> = depth.iter().map(|&v| (((v - lo) / span).clamp(0.0, 1.0) * 65535.0) as u16).collect();
-        let img = image::ImageBuffer::<image::Luma<u16>, _>::from_raw(self.width, self.height, grey)
-            .ok_or_else(|| SimError::Image { path: path.into(), message: "size mismatch".into() })?;
-        img.save(path).map_err(|e| SimError::Image { path: path.into(), message: e.to_string() })?;
+        let grey: Vec<u16> = depth
+            .iter()
+            .map(|&v| (((v - lo) / span).clamp(0.0, 1.0) * 65535.0) as u16)
+            .collect();
+        let img =
+            image::ImageBuffer::<image::Luma<u16>, _>::from_raw(self.width, self.height, grey)
+                .ok_or_else(|| SimError::Image {
+                    path: path.into(),
+                    message: "size mismatch".into(),
+                })?;
+        img.save(path).map_err(|e| SimError::Image {
+            path: path.into(),
+            message: e.to_string(),
+        })?;
         Ok(Some((lo, hi)))
     }
 }
@@ -173,9 +236,16 @@ impl Drop for Renderer {
 impl Renderer {
     /// Creates a renderer for `model` on this thread.
     pub fn new(model: &MjModel, settings: RenderSettings) -> Result<Self, SimError> {
-        let RenderSettings { width, height, quality, .. } = settings;
+        let RenderSettings {
+            width,
+            height,
+            quality,
+            ..
+        } = settings;
         if width == 0 || height == 0 {
-            return Err(SimError::Render(format!("image size {width}x{height} is empty")));
+            return Err(SimError::Render(format!(
+                "image size {width}x{height} is empty"
+            )));
         }
         let egl = EglContext::new(width, height)?;
         // SAFETY: the EGL context created above is current on this thread, stays on it (the
@@ -226,7 +296,8 @@ impl Renderer {
     /// Builds the abstract scene from `data` as seen from `view`.
     pub fn update_scene<M: ModelType>(&mut self, data: &mut MjData<M>, view: CameraView) {
         let mut cam = view.to_mjv();
-        self.scene.update(data, &self.option, &MjvPerturb::default(), &mut cam);
+        self.scene
+            .update(data, &self.option, &MjvPerturb::default(), &mut cam);
     }
 
     /// The abstract scene, for per-render visual edits (lights, materials) before [`Self::draw`].
@@ -253,11 +324,20 @@ impl Renderer {
                 *v = near / (1.0 - *v * (1.0 - near / far));
             }
         }
-        Ok(Frame { width: w as u32, height: h as u32, rgb, depth })
+        Ok(Frame {
+            width: w as u32,
+            height: h as u32,
+            rgb,
+            depth,
+        })
     }
 
     /// Updates the scene from `data` and draws it from `view`.
-    pub fn render<M: ModelType>(&mut self, data: &mut MjData<M>, view: CameraView) -> Result<Frame, SimError> {
+    pub fn render<M: ModelType>(
+        &mut self,
+        data: &mut MjData<M>,
+        view: CameraView,
+    ) -> Result<Frame, SimError> {
         self.update_scene(data, view);
         self.draw()
     }

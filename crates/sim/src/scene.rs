@@ -10,7 +10,11 @@ use crate::error::SimError;
 /// MuJoCo's version string, e.g. `3.17.0`.
 pub fn mujoco_version() -> String {
     // SAFETY: mj_versionString returns a pointer to a static NUL-terminated string.
-    unsafe { CStr::from_ptr(mj_versionString()).to_string_lossy().into_owned() }
+    unsafe {
+        CStr::from_ptr(mj_versionString())
+            .to_string_lossy()
+            .into_owned()
+    }
 }
 
 /// The path of the loaded `libmujoco.so`, read from the process's memory map.
@@ -40,32 +44,49 @@ impl Scene {
         if !path.is_file() {
             return Err(SimError::Missing(path));
         }
-        let model = MjModel::from_xml(&path)
-            .map_err(|e| SimError::Load { path: path.clone(), message: e.to_string() })?;
-        Ok(Self { model: Arc::new(model), path })
+        let model = MjModel::from_xml(&path).map_err(|e| SimError::Load {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+        Ok(Self {
+            model: Arc::new(model),
+            path,
+        })
     }
 
     /// Compiles an MJCF document given as a string (assets resolve against the working
     /// directory); `label` names it in errors.
     pub fn from_xml_str(xml: &str, label: &str) -> Result<Self, SimError> {
-        let model = MjModel::from_xml_string(xml)
-            .map_err(|e| SimError::Load { path: label.into(), message: e.to_string() })?;
-        Ok(Self { model: Arc::new(model), path: label.into() })
+        let model = MjModel::from_xml_string(xml).map_err(|e| SimError::Load {
+            path: label.into(),
+            message: e.to_string(),
+        })?;
+        Ok(Self {
+            model: Arc::new(model),
+            path: label.into(),
+        })
     }
 
     /// Names of the scene's cameras, in id order.
     pub fn camera_names(&self) -> Vec<String> {
         (0..self.model.ffi().ncam as usize)
-            .map(|i| self.model.id_to_name(MjtObjBase::mjOBJ_CAMERA, i).unwrap_or("").to_owned())
+            .map(|i| {
+                self.model
+                    .id_to_name(MjtObjBase::mjOBJ_CAMERA, i)
+                    .unwrap_or("")
+                    .to_owned()
+            })
             .collect()
     }
 
     /// The id of a named camera.
     pub fn camera_id(&self, name: &str) -> Result<usize, SimError> {
-        self.model.name_to_id(MjtObjBase::mjOBJ_CAMERA, name).ok_or_else(|| SimError::UnknownName {
-            kind: "camera",
-            name: name.into(),
-            available: self.camera_names().join(", "),
-        })
+        self.model
+            .name_to_id(MjtObjBase::mjOBJ_CAMERA, name)
+            .ok_or_else(|| SimError::UnknownName {
+                kind: "camera",
+                name: name.into(),
+                available: self.camera_names().join(", "),
+            })
     }
 }

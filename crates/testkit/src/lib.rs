@@ -10,7 +10,10 @@ use std::process::Command;
 
 /// The workspace root.
 pub fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().expect("workspace root")
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .canonicalize()
+        .expect("workspace root")
 }
 
 /// The Python of the test venv: `$DEXJOCO_PYTHON`, else the path `scripts/setup.sh
@@ -38,7 +41,11 @@ pub fn python() -> PathBuf {
 pub fn run_python(script: &str, args: &[&str]) -> String {
     let path = {
         let p = Path::new(script);
-        if p.is_absolute() { p.to_path_buf() } else { workspace_root().join("tests/python").join(script) }
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            workspace_root().join("tests/python").join(script)
+        }
     };
     let out = Command::new(python())
         .arg(&path)
