@@ -48,7 +48,8 @@ pub struct GlobalArgs {
     #[arg(short, long, global = true)]
     pub quiet: bool,
     /// Worker threads (default: all cores). Results do not depend on it.
-    #[arg(short, long, global = true, env = "DEXJOCO_JOBS")]
+    #[arg(short, long, global = true, env = "DEXJOCO_JOBS",
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub jobs: Option<usize>,
     /// Seed of every random choice; the same seed and inputs give identical outputs.
     #[arg(long, global = true, env = "DEXJOCO_SEED", default_value_t = 0)]

@@ -17,9 +17,12 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging(cli.global.verbose, cli.global.quiet);
     if let Some(jobs) = cli.global.jobs {
-        if jobs == 0 {
-            eprintln!("error: --jobs must be at least 1");
-            return ExitStatus::Usage.into();
+        // Worker pools (rayon) size themselves from this; results never depend on it.
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(jobs)
+            .build_global()
+        {
+            tracing::warn!("cannot size the worker pool to {jobs}: {e}");
         }
     }
     let result = match cli.command {

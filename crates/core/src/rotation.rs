@@ -20,8 +20,19 @@ pub fn quat_wxyz_to_rotvec(q: [f64; 4]) -> [f64; 3] {
         return [0.0; 3];
     }
     let mut q = q / norm;
-    // The same rotation with w >= 0 gives the angle in [0, pi].
-    if q.w < 0.0 {
+    // The canonical sign of the same rotation: w > 0, or, when w is 0, the first nonzero
+    // of x, y, z positive. It gives the angle in [0, pi] and, at exactly pi, the same axis
+    // direction SciPy picks.
+    let flip = if q.w != 0.0 {
+        q.w < 0.0
+    } else if q.i != 0.0 {
+        q.i < 0.0
+    } else if q.j != 0.0 {
+        q.j < 0.0
+    } else {
+        q.k < 0.0
+    };
+    if flip {
         q = -q;
     }
     let v: Vector3<f64> = q.imag();

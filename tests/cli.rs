@@ -1,0 +1,289 @@
+//! End-to-end tests of the `dexjoco-data` binary: exit codes, help, doctor, render.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
+    c.env_remove("DEXJOCO_WORK_DIR")
+        .env_remove("DEXJOCO_EGL_DEVICE");
+    c
+}
+
+fn run(args: &[&str], cwd: &Path) -> Output {
+    bin()
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("binary runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn probe_scene() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/sim/tests/data/render_probe.xml")
+}
+
+#[test]
+fn help_shows_examples_and_exit_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run(&["--help"], dir.path());
+    assert!(out.status.success());
+    let help = text(&out.stdout);
+    for needle in [
+        "Examples:",
+        "augment --replays 10",
+        "Exit codes:",
+        "doctor",
+        "render",
+        "--seed",
+        "--jobs",
+        "--work-dir",
+    ] {
+        assert!(help.contains(needle), "--help lacks '{needle}':\n{help}");
+    }
+    let out = run(&["render", "--help"], dir.path());
+    assert!(text(&out.stdout).contains("Examples:"));
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    assert_eq!(
+        run(&["render", "--no-such-flag"], dir.path()).status.code(),
+        Some(2)
+    );
+    assert_eq!(
+        run(&["--jobs", "0", "doctor"], dir.path()).status.code(),
+        Some(2)
+    );
+}
+
+#[test]
+fn stages_not_built_yet_say_so_with_exit_4() {
+    let dir = tempfile::tempdir().unwrap();
+    for stage in ["augment", "convert"] {
+        let out = run(&[stage], dir.path());
+        assert_eq!(out.status.code(), Some(4), "{stage}");
+        assert!(
+            text(&out.stderr).contains("not available"),
+            "{}",
+            text(&out.stderr)
+        );
+    }
+}
+
+#[test]
+fn doctor_reports_mujoco_egl_and_ffmpeg() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run(&["doctor", "--json"], dir.path());
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["mujoco"]["version"], "3.17.0");
+    assert!(
+        report["mujoco"]["library"]
+            .as_str()
+            .unwrap()
+            .contains("libmujoco.so"),
+        "{report}"
+    );
+    let egl = &report["egl"]["Ok"];
+    let selected = egl["selected"].as_u64().expect("an EGL device is selected") as usize;
+    let device = &egl["devices"][selected];
+    assert!(device["gl_renderer"].is_string(), "{device}");
+    assert!(device["software"].is_boolean());
+    let encoders = report["ffmpeg"]["encoders"]
+        .as_array()
+        .expect("ffmpeg found");
+    assert!(
+        encoders.iter().any(|e| e[0] == "libx264" && e[1] == true),
+        "{encoders:?}"
+    );
+
+    let human = run(&["doctor"], dir.path());
+    let human = text(&human.stdout);
+    assert!(
+        human.contains("3.17.0") && human.contains("[used]") && human.contains("libx264"),
+        "{human}"
+    );
+}
+
+#[test]
+fn render_writes_pngs_of_every_camera_and_a_contact_sheet() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = probe_scene();
+    let out = run(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--quality",
+            "fast",
+            "--depth",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let render = dir.path().join("dexjoco-work/render");
+    for f in [
+        "render_probe_top.png",
+        "render_probe_side.png",
+        "render_probe_contact_sheet.png",
+        "render_probe_top_depth.png",
+    ] {
+        assert!(render.join(f).is_file(), "{f} missing");
+    }
+    let top = image::open(render.join("render_probe_top.png"))
+        .unwrap()
+        .to_rgb8();
+    assert_eq!(top.dimensions(), (64, 48));
+    let c = top.get_pixel(32, 24);
+    assert!(c[0] > 150 && c[1] < 60, "{c:?}");
+    // Reported depth range covers the red box's top at 1.3 m.
+    assert!(
+        text(&out.stdout).contains("depth 1.30"),
+        "{}",
+        text(&out.stdout)
+    );
+}
+
+#[test]
+fn render_one_camera_to_a_chosen_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("pics");
+    let scene = probe_scene();
+    let out = run(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--camera",
+            "side",
+            "--size",
+            "32",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(out_dir.join("render_probe_side.png").is_file());
+    assert!(!out_dir.join("render_probe_top.png").exists());
+    assert!(!out_dir.join("render_probe_contact_sheet.png").exists());
+}
+
+#[test]
+fn render_the_builtin_scene_by_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run(
+        &[
+            "render",
+            "--size",
+            "48",
+            "--quality",
+            "fast",
+            "--steps",
+            "20",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(
+        dir.path()
+            .join("dexjoco-work/render/tabletop_front.png")
+            .is_file()
+    );
+    assert!(
+        dir.path()
+            .join("dexjoco-work/render/tabletop_contact_sheet.png")
+            .is_file()
+    );
+}
+
+#[test]
+fn bad_scene_paths_and_cameras_fail_with_exit_1_naming_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run(&["render", "nowhere/scene.xml"], dir.path());
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        text(&out.stderr).contains("nowhere/scene.xml"),
+        "{}",
+        text(&out.stderr)
+    );
+
+    let scene = probe_scene();
+    let out = run(
+        &["render", scene.to_str().unwrap(), "--camera", "ceiling"],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("'ceiling'") && err.contains("top, side"),
+        "{err}"
+    );
+}
+
+#[test]
+fn reference_scenes_render_through_the_cli() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = dexjoco_testkit::upstream_dir().join("xmls/arena_arm_hand_monitor_mouse.xml");
+    let out = run(
+        &[
+            "render",
+            xml.to_str().unwrap(),
+            "--camera",
+            "front",
+            "--size",
+            "64",
+            "--quality",
+            "fast",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(
+        dir.path()
+            .join("dexjoco-work/render/arena_arm_hand_monitor_mouse_front.png")
+            .is_file()
+    );
+}
+
+#[test]
+fn bench_render_prints_a_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = probe_scene();
+    let out = run(
+        &[
+            "bench",
+            "render",
+            "--scene",
+            scene.to_str().unwrap(),
+            "--frames",
+            "2",
+            "--sizes",
+            "32",
+            "--presets",
+            "fast,paper",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let table = text(&out.stdout);
+    assert!(
+        table.contains("| render_probe | 32x32 | fast |")
+            && table.contains("| render_probe | 32x32 | paper |"),
+        "{table}"
+    );
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("dexjoco-work/bench/render.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(json["rows"].as_array().unwrap().len(), 2);
+    assert!(json["rows"][0]["fps"].as_f64().unwrap() > 0.0);
+}
