@@ -29,39 +29,46 @@ missing=()
 for p in "${DEB_PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
-if ((${#missing[@]})); then
-  if [ "$(id -u)" = 0 ]; then
-    log "installing Debian packages: ${missing[*]}"
-    export DEBIAN_FRONTEND=noninteractive
-    apt-get update -qq >/dev/null
-    apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-  elif command -v sudo >/dev/null && sudo -n true 2>/dev/null; then
-    log "installing Debian packages with sudo: ${missing[*]}"
-    sudo DEBIAN_FRONTEND=noninteractive apt-get update -qq >/dev/null
-    sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-  else
-    echo "error: missing Debian packages: ${missing[*]}" >&2
-    echo "hint: run as root, or: sudo apt-get install ${missing[*]}" >&2
-    exit 1
-  fi
-fi
-
 # --- Python (needed for the wheel download and the test venv) ------------------------
 find_python() {
   local c
-  for c in "${DEXJOCO_BASE_PYTHON:-}" python3.12 python3.11 python3.13 python3.10 python3; do
+  # Preference: $DEXJOCO_BASE_PYTHON, then Python 3.12 (on PATH or from pyenv), then any
+  # Python >= 3.10 on PATH.
+  for c in "${DEXJOCO_BASE_PYTHON:-}" python3.12 "$HOME"/.pyenv/versions/3.12*/bin/python3 \
+           python3.11 python3.13 python3.10 python3; do
     [ -n "$c" ] || continue
     if command -v "$c" >/dev/null 2>&1 && "$c" -c 'import sys; assert sys.version_info >= (3, 10)' 2>/dev/null; then
       command -v "$c"; return 0
     fi
   done
-  # pyenv installs versions that are not on PATH by default.
-  for c in "$HOME"/.pyenv/versions/3.12*/bin/python3 "$HOME"/.pyenv/versions/3.11*/bin/python3; do
-    [ -x "$c" ] && { echo "$c"; return 0; }
-  done
   return 1
 }
-PYTHON="$(find_python)" || { echo "error: no Python >= 3.10 found (set DEXJOCO_BASE_PYTHON)" >&2; exit 1; }
+apt_install() {
+  if [ "$(id -u)" = 0 ]; then
+    log "installing Debian packages: $*"
+    DEBIAN_FRONTEND=noninteractive apt-get update -qq >/dev/null
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@" >/dev/null
+  elif command -v sudo >/dev/null && sudo -n true 2>/dev/null; then
+    log "installing Debian packages with sudo: $*"
+    sudo DEBIAN_FRONTEND=noninteractive apt-get update -qq >/dev/null
+    sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@" >/dev/null
+  else
+    echo "error: missing Debian packages: $*" >&2
+    echo "hint: run as root, or: sudo apt-get install $*" >&2
+    exit 1
+  fi
+}
+PYTHON="$(find_python)" || PYTHON=""
+# pip fetches the MuJoCo wheel; venv makes the test environment. Debian's own Python
+# has them in separate packages.
+if [ -z "$PYTHON" ] || ! "$PYTHON" -c 'import pip, venv, ensurepip' 2>/dev/null; then
+  apt_install python3 python3-pip python3-venv
+  PYTHON="$(find_python)" || { echo "error: no Python >= 3.10 found (set DEXJOCO_BASE_PYTHON)" >&2; exit 1; }
+fi
+
+if ((${#missing[@]})); then
+  apt_install "${missing[@]}"
+fi
 
 # --- 2. MuJoCo shared library from the PyPI wheel -----------------------------------
 if [ ! -f "$MUJOCO_DIR/libmujoco.so.$MUJOCO_VERSION" ]; then
