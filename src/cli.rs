@@ -126,7 +126,8 @@ Examples:
   dexjoco-data render
   dexjoco-data render ../shared/dexjoco-upstream/xmls/arena_arm_hand_plant.xml --quality paper
   dexjoco-data render scene.xml --camera front --camera left --depth --size 224
-  dexjoco-data render scene.xml --steps 500 --out frames/")]
+  dexjoco-data render scene.xml --steps 500 --out frames/
+  dexjoco-data render --video --steps 1000 --camera front    # 2 s clip, 30 fps, H.264")]
 pub struct RenderArgs {
     /// MJCF scene file (default: the built-in tabletop scene).
     pub scene: Option<PathBuf>,
@@ -149,9 +150,17 @@ pub struct RenderArgs {
     /// Also write depth (16-bit PNG preview, near = dark) and report its range in metres.
     #[arg(long)]
     pub depth: bool,
-    /// Simulate this many physics steps from the initial state before rendering.
+    /// Simulate this many physics steps from the initial state before rendering (with
+    /// --video: the length of the clip; default 1000 steps = 2 s).
     #[arg(long, default_value_t = 0)]
     pub steps: usize,
+    /// Write an H.264 video per camera (through ffmpeg) of the simulation over --steps,
+    /// instead of still images.
+    #[arg(long)]
+    pub video: bool,
+    /// Frames per second of --video (one frame per 1/fps of simulated time).
+    #[arg(long, default_value_t = 30)]
+    pub fps: u32,
     /// Output folder (default: <work-dir>/render).
     #[arg(short, long)]
     pub out: Option<PathBuf>,

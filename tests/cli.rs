@@ -287,3 +287,39 @@ fn bench_render_prints_a_table() {
     assert_eq!(json["rows"].as_array().unwrap().len(), 2);
     assert!(json["rows"][0]["fps"].as_f64().unwrap() > 0.0);
 }
+
+#[test]
+fn render_video_streams_an_h264_clip_per_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run(
+        &[
+            "render",
+            "--video",
+            "--steps",
+            "100",
+            "--size",
+            "64",
+            "--quality",
+            "fast",
+            "--camera",
+            "front",
+            "--camera",
+            "top0",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    for cam in ["front", "top0"] {
+        let path = dir
+            .path()
+            .join(format!("dexjoco-work/render/tabletop_{cam}.mp4"));
+        let info = dexjoco_video::probe(&path).unwrap();
+        // 100 steps of 2 ms = 0.2 s at 30 fps: frames at t = 0, 1/30, ..., 6/30.
+        assert_eq!(
+            (info.codec.as_str(), info.frames, info.width),
+            ("h264", 7, 64),
+            "{cam}: {info:?}"
+        );
+    }
+}

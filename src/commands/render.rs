@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use dexjoco_sim::mujoco_rs::prelude::MjData;
 use dexjoco_sim::{CameraView, Frame, RenderQuality, RenderSettings, Renderer};
+use dexjoco_video::{Codec, VideoSpec, VideoWriter};
 
 use crate::cli::{GlobalArgs, RenderArgs};
 use crate::exit::ExitStatus;
@@ -71,6 +72,9 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
 
     let mut data = MjData::new(&*scene.model);
     data.forward();
+    if args.video {
+        return video(global, args, &mut renderer, &mut data, &views, &out, &stem);
+    }
     if args.steps > 0 {
         let pb = crate::progress::bar(args.steps as u64, "simulate", global.quiet);
         for _ in 0..args.steps {
@@ -98,6 +102,59 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
         let sheet = out.join(format!("{stem}_contact_sheet.png"));
         contact_sheet(&frames, &sheet)?;
         println!("{}", sheet.display());
+    }
+    Ok(ExitStatus::Success)
+}
+
+/// Simulates `--steps` steps and streams one frame per 1/fps of simulated time and
+/// camera into an H.264 video per camera.
+fn video(
+    global: &GlobalArgs,
+    args: &RenderArgs,
+    renderer: &mut Renderer,
+    data: &mut MjData<&dexjoco_sim::mujoco_rs::prelude::MjModel>,
+    views: &[(String, CameraView)],
+    out: &Path,
+    stem: &str,
+) -> anyhow::Result<ExitStatus> {
+    anyhow::ensure!(args.fps > 0, "--fps must be positive");
+    let steps = if args.steps == 0 { 1000 } else { args.steps };
+    let timestep = data.model().ffi().opt.timestep;
+    let settings = renderer.settings();
+    let spec = VideoSpec {
+        width: settings.width,
+        height: settings.height,
+        fps: args.fps,
+        codec: Codec::DEXJOCO,
+    };
+    let mut writers = Vec::new();
+    for (name, _) in views {
+        let path = out.join(format!("{stem}_{name}.mp4"));
+        writers.push((VideoWriter::create(&path, spec)?, path));
+    }
+    let pb = crate::progress::bar(steps as u64, "video", global.quiet);
+    let mut next_frame = 0.0;
+    for step in 0..=steps {
+        let t = step as f64 * timestep;
+        if t + 1e-12 >= next_frame {
+            for ((writer, _), (_, view)) in writers.iter_mut().zip(views) {
+                writer.write_frame(&renderer.render(data, *view)?.rgb)?;
+            }
+            next_frame += 1.0 / f64::from(args.fps);
+        }
+        if step < steps {
+            data.step();
+        }
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    for (writer, path) in writers {
+        let frames = writer.finish()?;
+        println!(
+            "{} ({frames} frames, {} fps, H.264)",
+            path.display(),
+            args.fps
+        );
     }
     Ok(ExitStatus::Success)
 }

@@ -1,0 +1,386 @@
+//! Camera streams through ffmpeg (Debian's package: libx264 for H.264, libsvtav1 for AV1).
+//!
+//! [`VideoWriter`] streams RGB frames into an ffmpeg process as they are rendered, so a
+//! whole episode of images is never held in memory, and publishes the file atomically
+//! (temporary name, renamed by [`VideoWriter::finish`]). Output is bit-exact for the same
+//! frames and settings (ffmpeg's bitexact flags; x264 is deterministic across threads).
+//! [`probe`] and [`decode_rgb`] read videos back, for checks and tests.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Stdio};
+
+use serde::{Deserialize, Serialize};
+
+/// Errors of video encoding and decoding; each names the file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum VideoError {
+    /// ffmpeg or ffprobe could not be started.
+    #[error("cannot run {program} for '{path}': {source} (install Debian's ffmpeg package)")]
+    Spawn {
+        /// The program.
+        program: String,
+        /// The video file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// ffmpeg or ffprobe failed.
+    #[error("{program} failed on '{path}': {message}")]
+    Failed {
+        /// The program.
+        program: String,
+        /// The video file.
+        path: PathBuf,
+        /// Its error output.
+        message: String,
+    },
+    /// A frame of the wrong size was given.
+    #[error(
+        "'{path}': frame {frame} has {found} bytes, expected {expected} ({width}x{height} RGB)"
+    )]
+    FrameSize {
+        /// The video file.
+        path: PathBuf,
+        /// Frame index.
+        frame: usize,
+        /// Bytes given.
+        found: usize,
+        /// Bytes expected.
+        expected: usize,
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+    },
+    /// Writing to ffmpeg or renaming the output failed.
+    #[error("'{path}': {source}")]
+    Io {
+        /// The video file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
+/// Video codec and its quality setting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "codec")]
+pub enum Codec {
+    /// H.264 (libx264), yuv420p, profile high: what the DexJoCo recorder writes (crf 21).
+    H264 {
+        /// Constant rate factor (lower = better; 21 in DexJoCo).
+        crf: u8,
+    },
+    /// AV1 (libsvtav1), yuv420p: what lerobot encodes by default.
+    Av1 {
+        /// Constant rate factor (lerobot uses 30).
+        crf: u8,
+        /// SVT-AV1 preset (0 slowest .. 13 fastest).
+        preset: u8,
+    },
+}
+
+impl Codec {
+    /// The DexJoCo recorder's setting: H.264, crf 21.
+    pub const DEXJOCO: Self = Self::H264 { crf: 21 };
+}
+
+/// Frame size, rate and codec of a video.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct VideoSpec {
+    /// Width in pixels (even, for yuv420p).
+    pub width: u32,
+    /// Height in pixels (even, for yuv420p).
+    pub height: u32,
+    /// Frames per second.
+    pub fps: u32,
+    /// Codec.
+    pub codec: Codec,
+}
+
+/// The ffmpeg program: `$DEXJOCO_FFMPEG` or `ffmpeg` on PATH.
+pub fn ffmpeg_program() -> PathBuf {
+    std::env::var_os("DEXJOCO_FFMPEG").map_or_else(|| "ffmpeg".into(), PathBuf::from)
+}
+
+fn ffprobe_program() -> PathBuf {
+    let ff = ffmpeg_program();
+    match ff.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir.join("ffprobe"),
+        _ => "ffprobe".into(),
+    }
+}
+
+/// Streams RGB frames into a video file through an ffmpeg process.
+#[derive(Debug)]
+pub struct VideoWriter {
+    child: Option<Child>,
+    stdin: Option<ChildStdin>,
+    path: PathBuf,
+    tmp: PathBuf,
+    spec: VideoSpec,
+    frames: usize,
+}
+
+impl VideoWriter {
+    /// Starts an encoder writing to a temporary file beside `path`.
+    pub fn create(path: impl Into<PathBuf>, spec: VideoSpec) -> Result<Self, VideoError> {
+        let path = path.into();
+        let name = path
+            .file_name()
+            .map_or_else(|| "video".into(), |n| n.to_string_lossy().into_owned());
+        let tmp = path.with_file_name(format!(".{name}.partial.mp4"));
+        let mut cmd = Command::new(ffmpeg_program());
+        cmd.args(["-hide_banner", "-loglevel", "error", "-nostdin", "-y"])
+            .args(["-f", "rawvideo", "-pix_fmt", "rgb24"])
+            .args(["-s", &format!("{}x{}", spec.width, spec.height)])
+            .args(["-framerate", &spec.fps.to_string(), "-i", "-"]);
+        match spec.codec {
+            Codec::H264 { crf } => {
+                cmd.args([
+                    "-c:v",
+                    "libx264",
+                    "-profile:v",
+                    "high",
+                    "-crf",
+                    &crf.to_string(),
+                ]);
+            }
+            Codec::Av1 { crf, preset } => {
+                cmd.args([
+                    "-c:v",
+                    "libsvtav1",
+                    "-crf",
+                    &crf.to_string(),
+                    "-preset",
+                    &preset.to_string(),
+                ]);
+            }
+        }
+        cmd.args(["-pix_fmt", "yuv420p", "-r", &spec.fps.to_string()])
+            .args([
+                "-fflags",
+                "+bitexact",
+                "-flags:v",
+                "+bitexact",
+                "-map_metadata",
+                "-1",
+            ])
+            .args(["-f", "mp4"])
+            .arg(&tmp)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        let mut child = cmd.spawn().map_err(|source| VideoError::Spawn {
+            program: ffmpeg_program().display().to_string(),
+            path: path.clone(),
+            source,
+        })?;
+        let stdin = child.stdin.take();
+        Ok(Self {
+            child: Some(child),
+            stdin,
+            path,
+            tmp,
+            spec,
+            frames: 0,
+        })
+    }
+
+    /// Frames written so far.
+    pub fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// Appends one RGB8 frame (rows top to bottom).
+    pub fn write_frame(&mut self, rgb: &[u8]) -> Result<(), VideoError> {
+        let expected = self.spec.width as usize * self.spec.height as usize * 3;
+        if rgb.len() != expected {
+            return Err(VideoError::FrameSize {
+                path: self.path.clone(),
+                frame: self.frames,
+                found: rgb.len(),
+                expected,
+                width: self.spec.width,
+                height: self.spec.height,
+            });
+        }
+        let stdin = self.stdin.as_mut().expect("stdin is open until finish");
+        if let Err(source) = stdin.write_all(rgb) {
+            // ffmpeg exited early: its stderr says why.
+            return Err(self.fail_with(source));
+        }
+        self.frames += 1;
+        Ok(())
+    }
+
+    fn fail_with(&mut self, source: std::io::Error) -> VideoError {
+        self.stdin = None;
+        let message = self
+            .child
+            .take()
+            .and_then(|c| c.wait_with_output().ok())
+            .map(|o| String::from_utf8_lossy(&o.stderr).trim().to_owned())
+            .filter(|m| !m.is_empty());
+        let _ = std::fs::remove_file(&self.tmp);
+        match message {
+            Some(message) => VideoError::Failed {
+                program: "ffmpeg".into(),
+                path: self.path.clone(),
+                message,
+            },
+            None => VideoError::Io {
+                path: self.path.clone(),
+                source,
+            },
+        }
+    }
+
+    /// Closes the stream, waits for ffmpeg and moves the file into place. Returns the
+    /// number of frames.
+    pub fn finish(mut self) -> Result<usize, VideoError> {
+        drop(self.stdin.take());
+        let child = self.child.take().expect("child runs until finish");
+        let out = child.wait_with_output().map_err(|source| VideoError::Io {
+            path: self.path.clone(),
+            source,
+        })?;
+        if !out.status.success() {
+            let _ = std::fs::remove_file(&self.tmp);
+            return Err(VideoError::Failed {
+                program: "ffmpeg".into(),
+                path: self.path.clone(),
+                message: String::from_utf8_lossy(&out.stderr).trim().to_owned(),
+            });
+        }
+        std::fs::rename(&self.tmp, &self.path).map_err(|source| VideoError::Io {
+            path: self.path.clone(),
+            source,
+        })?;
+        Ok(self.frames)
+    }
+}
+
+impl Drop for VideoWriter {
+    /// An unfinished writer leaves nothing behind: the encoder is stopped and its
+    /// temporary file removed.
+    fn drop(&mut self) {
+        if let Some(mut child) = self.child.take() {
+            drop(self.stdin.take());
+            let _ = child.kill();
+            let _ = child.wait();
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// What ffprobe says about a video's first stream.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VideoInfo {
+    /// Codec name (`h264`, `av1`).
+    pub codec: String,
+    /// Codec profile (`High`), when reported.
+    pub profile: Option<String>,
+    /// Pixel format (`yuv420p`).
+    pub pix_fmt: String,
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+    /// Frames per second.
+    pub fps: f64,
+    /// Number of frames (counted by decoding the packets).
+    pub frames: u64,
+}
+
+fn run(program: PathBuf, args: &[&str], path: &Path) -> Result<Vec<u8>, VideoError> {
+    let out = Command::new(&program)
+        .args(args)
+        .output()
+        .map_err(|source| VideoError::Spawn {
+            program: program.display().to_string(),
+            path: path.into(),
+            source,
+        })?;
+    if !out.status.success() {
+        return Err(VideoError::Failed {
+            program: program.display().to_string(),
+            path: path.into(),
+            message: String::from_utf8_lossy(&out.stderr).trim().to_owned(),
+        });
+    }
+    Ok(out.stdout)
+}
+
+/// Codec, size, rate and frame count of a video (with ffprobe).
+pub fn probe(path: &Path) -> Result<VideoInfo, VideoError> {
+    let p = path.to_string_lossy();
+    let out = run(
+        ffprobe_program(),
+        &[
+            "-v",
+            "error",
+            "-select_streams",
+            "v:0",
+            "-count_packets",
+            "-show_streams",
+            "-of",
+            "json",
+            &p,
+        ],
+        path,
+    )?;
+    let bad = |m: &str| VideoError::Failed {
+        program: "ffprobe".into(),
+        path: path.into(),
+        message: m.into(),
+    };
+    let json: serde_json::Value = serde_json::from_slice(&out).map_err(|e| bad(&e.to_string()))?;
+    let s = json["streams"]
+        .get(0)
+        .ok_or_else(|| bad("no video stream"))?;
+    let rate = s["avg_frame_rate"].as_str().unwrap_or("0/1");
+    let fps = match rate.split_once('/') {
+        Some((n, d)) => n.parse::<f64>().unwrap_or(0.0) / d.parse::<f64>().unwrap_or(1.0).max(1e-9),
+        None => rate.parse().unwrap_or(0.0),
+    };
+    Ok(VideoInfo {
+        codec: s["codec_name"].as_str().unwrap_or("").into(),
+        profile: s["profile"].as_str().map(Into::into),
+        pix_fmt: s["pix_fmt"].as_str().unwrap_or("").into(),
+        width: s["width"].as_u64().unwrap_or(0) as u32,
+        height: s["height"].as_u64().unwrap_or(0) as u32,
+        fps,
+        frames: s["nb_read_packets"]
+            .as_str()
+            .and_then(|n| n.parse().ok())
+            .unwrap_or(0),
+    })
+}
+
+/// Decodes every frame to RGB8 (rows top to bottom), one `Vec` per frame.
+pub fn decode_rgb(path: &Path) -> Result<Vec<Vec<u8>>, VideoError> {
+    let info = probe(path)?;
+    let p = path.to_string_lossy();
+    let raw = run(
+        ffmpeg_program(),
+        &[
+            "-v", "error", "-nostdin", "-i", &p, "-f", "rawvideo", "-pix_fmt", "rgb24", "-",
+        ],
+        path,
+    )?;
+    let size = info.width as usize * info.height as usize * 3;
+    if size == 0 || raw.len() % size != 0 {
+        return Err(VideoError::Failed {
+            program: "ffmpeg".into(),
+            path: path.into(),
+            message: format!(
+                "decoded {} bytes, not a whole number of {size}-byte frames",
+                raw.len()
+            ),
+        });
+    }
+    Ok(raw.chunks_exact(size).map(<[u8]>::to_vec).collect())
+}
