@@ -83,7 +83,7 @@ pub enum Command {
     /// Convert episodes to LeRobot v3.0 / v2.1 or Diffusion Policy Zarr.
     Convert(PendingArgs),
     /// Dataset statistics, success tables and the language-generalization analysis.
-    Stats(PendingArgs),
+    Stats(StatsArgs),
 }
 
 /// `doctor` options.
@@ -196,6 +196,62 @@ pub struct BenchRenderArgs {
     /// Camera to render (default: `front` when the scene has it, else the first camera).
     #[arg(long)]
     pub camera: Option<String>,
+}
+
+/// Log base of the Jensen-Shannon divergence.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum JsBaseArg {
+    /// Bits: divergences lie in [0, 1].
+    #[value(name = "2")]
+    Two,
+    /// Nats (SciPy's default): divergences lie in [0, ln 2].
+    #[value(name = "e")]
+    E,
+}
+
+/// `stats` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data stats --language-eval                    # the shipped EXAMPLE input (not results)
+  dexjoco-data stats --language-eval outputs/ipad_language/
+  dexjoco-data stats --language-eval trials.csv --js-base e
+  dexjoco-data stats --success-table outputs/           # one subfolder per policy
+  dexjoco-data stats --success-table                    # the shipped EXAMPLE runs (not results)
+  dexjoco-data stats --language-eval --success-table --out report/ --json
+
+Language evaluation input: a folder <config>/<task>_seed<s>/episode_XX_{success|failure}_{<digits>|no_password_input}/
+as the DexJoCo evaluator writes it (instructions.csv at its root names each config's instruction
+and expected answer), or a tidy .csv/.json with instruction, expected, seed, episode, output.
+Writes <out>/language-eval/ (summary.md, language_eval.json, CSVs, heatmap.png/.svg) and
+<out>/success-table/ (success_table.md/.tex/.csv/.json); the summary goes to stdout.")]
+pub struct StatsArgs {
+    /// Language-generalization analysis (DexJoCo paper, appendix A) of an evaluation
+    /// folder or a tidy .csv/.json file. Without a value: the example input shipped in
+    /// datasets/examples/language-eval (made up, not results).
+    #[arg(long, value_name = "INPUT", num_args = 0..=1)]
+    pub language_eval: Option<Option<PathBuf>>,
+    /// Success-rate table (mean ± std over seeds per task x regime x policy) of the
+    /// evaluation runs under DIR. Without a value: the example runs shipped in
+    /// datasets/examples/success-table (made up, not results).
+    #[arg(long, value_name = "DIR", num_args = 0..=1)]
+    pub success_table: Option<Option<PathBuf>>,
+    /// Output folder (default: <work-dir>/stats).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+    /// Log base of the Jensen-Shannon divergences.
+    #[arg(long, value_enum, default_value_t = JsBaseArg::Two)]
+    pub js_base: JsBaseArg,
+    /// Significance level of the chi-square test in the verdict.
+    #[arg(long, default_value_t = 0.05)]
+    pub alpha: f64,
+    /// Normalized mutual information below which the verdict calls a dependence
+    /// negligible.
+    #[arg(long, default_value_t = 0.1)]
+    pub nmi_weak: f64,
+    /// Print the reports as JSON on stdout instead of the Markdown summaries.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of subcommands that are not built yet: accepted, so `--help` works, and

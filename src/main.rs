@@ -32,7 +32,7 @@ fn main() -> ExitCode {
         Command::Ingest(_) => commands::pending("ingest"),
         Command::Augment(_) => commands::pending("augment"),
         Command::Convert(_) => commands::pending("convert"),
-        Command::Stats(_) => commands::pending("stats"),
+        Command::Stats(args) => commands::stats::run(&cli.global, &args),
     };
     match result {
         Ok(status) => status.into(),

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod doctor;
 pub mod render;
+pub mod stats;
 
 use crate::exit::{CliError, ExitStatus};
 

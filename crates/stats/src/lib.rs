@@ -1,4 +1,38 @@
-//! Language-generalization statistics, success-rate tables and dataset summaries.
+//! Language-generalization statistics, success-rate tables and dataset summaries: the
+//! `stats` stage of dexjoco-data.
 //!
-//! Not built yet: the `stats` stage is tracked as its own issue, and the CLI says so
-//! rather than pretending.
+//! - [`LanguageInput`] reads a language study (the reference evaluator's episode folders,
+//!   or a tidy CSV/JSON) and [`LanguageReport`] analyses it as the DexJoCo paper's
+//!   appendix A: the instruction x output distribution, precision over seeds, a
+//!   chi-square test of independence, normalized mutual information and Jensen-Shannon
+//!   divergences, with a verdict, a heatmap and JSON.
+//! - [`SuccessTable`] aggregates evaluation runs into mean ± std over seeds per task x
+//!   regime x policy, as Markdown, LaTeX (the paper's Table 2 layout) and CSV.
+//! - [`DatasetStats`] summarizes episodes: counts, lengths, per-dimension distributions
+//!   and openpi-style normalization statistics.
+//!
+//! The measures in [`measures`] follow SciPy and scikit-learn; the tests compare them.
+//! Standard deviations over seeds are sample standard deviations (divisor n - 1), as
+//! the paper reports them.
+
+mod dataset;
+mod error;
+pub mod evaltree;
+mod language;
+pub mod measures;
+mod output;
+pub mod plot;
+mod success;
+
+pub use dataset::{
+    ArrayStats, DatasetStats, HISTOGRAM_BINS, LengthStats, TaskStats, column_names, quantile_sorted,
+};
+pub use error::StatsError;
+pub use language::{
+    EXAMPLE_MARKER, Instruction, JsPair, LanguageInput, LanguageOptions, LanguageReport,
+    MANIFEST_FILE, NONE_OUTPUT, Precision, Trial, format_p, infer_expected,
+};
+pub use measures::{ChiSquare, LogBase, MeanStd};
+pub use success::{
+    AverageCell, SuccessCell, SuccessTable, TASK_NAMES, latex_escape, regime_name, task_name,
+};

@@ -1,0 +1,383 @@
+//! Dataset statistics over episodes: counts, episode lengths, per-dimension
+//! distributions and openpi-style normalization statistics.
+
+use std::collections::BTreeMap;
+
+use dexjoco_core::{ArmSetup, Episode};
+use serde::{Deserialize, Serialize};
+
+use crate::error::StatsError;
+use crate::measures::mean_std;
+
+/// Bins of the per-dimension histograms.
+pub const HISTOGRAM_BINS: usize = 40;
+
+/// Arrays that are not distributions worth summarizing.
+const SKIPPED_ARRAYS: [&str; 1] = [Episode::TIMESTAMP];
+
+/// The `q`-quantile of sorted values with linear interpolation between order statistics
+/// (`numpy.quantile`'s default method). `None` when empty.
+pub fn quantile_sorted(sorted: &[f64], q: f64) -> Option<f64> {
+    let n = sorted.len();
+    if n == 0 {
+        return None;
+    }
+    let pos = q.clamp(0.0, 1.0) * (n - 1) as f64;
+    let lo = pos.floor() as usize;
+    let hi = (lo + 1).min(n - 1);
+    let t = pos - lo as f64;
+    let (a, b) = (sorted[lo], sorted[hi]);
+    // numpy interpolates from the nearer end for accuracy.
+    Some(if t >= 0.5 {
+        b - (b - a) * (1.0 - t)
+    } else {
+        a + (b - a) * t
+    })
+}
+
+/// Summary of episode lengths in frames.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LengthStats {
+    /// Shortest.
+    pub min: usize,
+    /// Longest.
+    pub max: usize,
+    /// Mean.
+    pub mean: f64,
+    /// Sample standard deviation (n - 1); `None` for one episode.
+    pub std: Option<f64>,
+    /// Median.
+    pub median: f64,
+    /// Every length, in episode order.
+    pub lengths: Vec<usize>,
+}
+
+impl LengthStats {
+    fn from_lengths(lengths: Vec<usize>) -> Option<Self> {
+        let values: Vec<f64> = lengths.iter().map(|&n| n as f64).collect();
+        let ms = mean_std(&values)?;
+        let mut sorted = values;
+        sorted.sort_by(f64::total_cmp);
+        Some(Self {
+            min: *lengths.iter().min()?,
+            max: *lengths.iter().max()?,
+            mean: ms.mean,
+            std: ms.std,
+            median: quantile_sorted(&sorted, 0.5)?,
+            lengths,
+        })
+    }
+}
+
+/// Per-dimension statistics of one array over every frame of a set of episodes.
+///
+/// `mean`, `std`, `q01` and `q99` are openpi's normalization statistics; `std` is the
+/// population standard deviation (divisor n), as openpi computes it, and the quantiles
+/// are exact (linear interpolation, `numpy.quantile`) where openpi approximates them
+/// from a histogram.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ArrayStats {
+    /// Values per frame.
+    pub width: usize,
+    /// Frames counted.
+    pub frames: usize,
+    /// Column names (from the DexJoCo layouts when the width matches one).
+    pub columns: Vec<String>,
+    /// Mean per dimension.
+    pub mean: Vec<f64>,
+    /// Population standard deviation per dimension.
+    pub std: Vec<f64>,
+    /// Minimum per dimension.
+    pub min: Vec<f64>,
+    /// Maximum per dimension.
+    pub max: Vec<f64>,
+    /// 1 % quantile per dimension.
+    pub q01: Vec<f64>,
+    /// 99 % quantile per dimension.
+    pub q99: Vec<f64>,
+    /// Histogram per dimension: [`HISTOGRAM_BINS`] equal bins from min to max.
+    pub histogram: Vec<Vec<u64>>,
+}
+
+/// Column names of an array, from the DexJoCo layouts when its width fits one.
+pub fn column_names(array: &str, width: usize, setup: Option<ArmSetup>) -> Vec<String> {
+    let layout = match (array, setup) {
+        (Episode::ACTION, _) if width == 23 => Some(ArmSetup::SingleArm.action_layout()),
+        (Episode::ACTION, _) if width == 46 => Some(ArmSetup::Bimanual.action_layout()),
+        (Episode::ACTION_ROTVEC, _) if width == 22 => {
+            Some(ArmSetup::SingleArm.action_rotvec_layout())
+        }
+        (Episode::ACTION_ROTVEC, _) if width == 44 => {
+            Some(ArmSetup::Bimanual.action_rotvec_layout())
+        }
+        (Episode::STATE, Some(s)) if width >= s.proprio_dim() => Some(s.proprio_layout()),
+        _ => None,
+    };
+    (0..width)
+        .map(|i| match &layout {
+            Some(l) if i < l.width() => l.column_name(i),
+            Some(l) if array == Episode::STATE => format!("privileged[{}]", i - l.width()),
+            _ => format!("{array}[{i}]"),
+        })
+        .collect()
+}
+
+fn array_stats(episodes: &[&Episode], name: &str, setup: Option<ArmSetup>) -> Option<ArrayStats> {
+    let arrays: Vec<_> = episodes.iter().filter_map(|e| e.array(name)).collect();
+    let width = arrays.first()?.width();
+    let frames: usize = arrays.iter().map(|a| a.len()).sum();
+    if frames == 0 {
+        return None;
+    }
+    let mut s = ArrayStats {
+        width,
+        frames,
+        columns: column_names(name, width, setup),
+        mean: Vec::with_capacity(width),
+        std: Vec::with_capacity(width),
+        min: Vec::with_capacity(width),
+        max: Vec::with_capacity(width),
+        q01: Vec::with_capacity(width),
+        q99: Vec::with_capacity(width),
+        histogram: Vec::with_capacity(width),
+    };
+    let mut column = Vec::with_capacity(frames);
+    for d in 0..width {
+        column.clear();
+        column.extend(arrays.iter().flat_map(|a| a.rows().map(move |r| r[d])));
+        let mean = column.iter().sum::<f64>() / frames as f64;
+        let var = column.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / frames as f64;
+        column.sort_by(f64::total_cmp);
+        let (lo, hi) = (column[0], column[frames - 1]);
+        let mut bins = vec![0u64; HISTOGRAM_BINS];
+        for &v in &column {
+            let k = if hi > lo {
+                (((v - lo) / (hi - lo)) * HISTOGRAM_BINS as f64) as usize
+            } else {
+                0
+            };
+            bins[k.min(HISTOGRAM_BINS - 1)] += 1;
+        }
+        s.mean.push(mean);
+        s.std.push(var.sqrt());
+        s.min.push(lo);
+        s.max.push(hi);
+        s.q01
+            .push(quantile_sorted(&column, 0.01).expect("non-empty"));
+        s.q99
+            .push(quantile_sorted(&column, 0.99).expect("non-empty"));
+        s.histogram.push(bins);
+    }
+    Some(s)
+}
+
+/// Statistics of one task's episodes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TaskStats {
+    /// Task id.
+    pub task: String,
+    /// Episodes.
+    pub episodes: usize,
+    /// Frames over all episodes.
+    pub frames: usize,
+    /// Episode lengths.
+    pub lengths: LengthStats,
+    /// Per-dimension statistics per array (every array but `timestamp`).
+    pub arrays: BTreeMap<String, ArrayStats>,
+}
+
+/// Statistics of a dataset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DatasetStats {
+    /// Episodes.
+    pub episodes: usize,
+    /// Frames over all episodes.
+    pub frames: usize,
+    /// Frame rates found (30 for DexJoCo).
+    pub fps: Vec<f64>,
+    /// Episode lengths over the whole dataset.
+    pub lengths: LengthStats,
+    /// Per task, sorted by task id.
+    pub tasks: Vec<TaskStats>,
+    /// Per-dimension statistics over the whole dataset, for arrays of one width in every
+    /// episode.
+    pub arrays: BTreeMap<String, ArrayStats>,
+    /// Arrays left out of the dataset-wide statistics because their width differs
+    /// between tasks (e.g. `state`, whose privileged part is per task).
+    pub mixed_width_arrays: Vec<String>,
+}
+
+impl DatasetStats {
+    /// Computes the statistics. Fails when there are no episodes, or when an array's
+    /// width differs between episodes of one task.
+    pub fn compute(episodes: &[Episode]) -> Result<Self, StatsError> {
+        let Some(lengths) = LengthStats::from_lengths(episodes.iter().map(Episode::len).collect())
+        else {
+            return Err(StatsError::Empty {
+                path: "<episodes>".into(),
+                message: "no episodes".into(),
+            });
+        };
+        let mut by_task: BTreeMap<&str, Vec<&Episode>> = BTreeMap::new();
+        for e in episodes {
+            by_task.entry(e.task.as_str()).or_default().push(e);
+        }
+        let setup_of = |eps: &[&Episode]| {
+            eps.iter()
+                .find_map(|e| e.array(Episode::ACTION))
+                .and_then(|a| match a.width() {
+                    23 => Some(ArmSetup::SingleArm),
+                    46 => Some(ArmSetup::Bimanual),
+                    _ => None,
+                })
+        };
+        let mut widths: BTreeMap<&str, Option<usize>> = BTreeMap::new();
+        let mut tasks = Vec::new();
+        for (task, eps) in &by_task {
+            let mut task_widths: BTreeMap<&str, (usize, &str)> = BTreeMap::new();
+            for e in eps {
+                for (name, a) in &e.arrays {
+                    if SKIPPED_ARRAYS.contains(&name.as_str()) {
+                        continue;
+                    }
+                    let (w, _) = *task_widths.entry(name).or_insert((a.width(), &e.id));
+                    if w != a.width() {
+                        return Err(StatsError::Width {
+                            task: (*task).to_string(),
+                            episode: e.id.clone(),
+                            array: name.clone(),
+                            expected: w,
+                            found: a.width(),
+                        });
+                    }
+                }
+            }
+            for (name, (w, _)) in &task_widths {
+                let entry = widths.entry(name).or_insert(Some(*w));
+                if *entry != Some(*w) {
+                    *entry = None;
+                }
+            }
+            let setup = setup_of(eps);
+            tasks.push(TaskStats {
+                task: (*task).to_string(),
+                episodes: eps.len(),
+                frames: eps.iter().map(|e| e.len()).sum(),
+                lengths: LengthStats::from_lengths(eps.iter().map(|e| e.len()).collect())
+                    .expect("a task has episodes"),
+                arrays: task_widths
+                    .keys()
+                    .filter_map(|name| Some(((*name).to_string(), array_stats(eps, name, setup)?)))
+                    .collect(),
+            });
+        }
+        let all: Vec<&Episode> = episodes.iter().collect();
+        let setup = setup_of(&all);
+        let mut arrays = BTreeMap::new();
+        let mut mixed_width_arrays = Vec::new();
+        for (name, w) in &widths {
+            match w {
+                Some(_) => {
+                    if let Some(s) = array_stats(&all, name, setup) {
+                        arrays.insert((*name).to_string(), s);
+                    }
+                }
+                None => mixed_width_arrays.push((*name).to_string()),
+            }
+        }
+        let mut fps: Vec<f64> = episodes.iter().map(|e| e.fps).collect();
+        fps.sort_by(f64::total_cmp);
+        fps.dedup();
+        Ok(Self {
+            episodes: episodes.len(),
+            frames: episodes.iter().map(Episode::len).sum(),
+            fps,
+            lengths,
+            tasks,
+            arrays,
+            mixed_width_arrays,
+        })
+    }
+
+    /// openpi's `norm_stats.json` for a set of arrays: `{"norm_stats": {key: {"mean",
+    /// "std", "q01", "q99"}}}`, with `action` under openpi's key `actions`.
+    pub fn norm_stats_json(arrays: &BTreeMap<String, ArrayStats>) -> serde_json::Value {
+        let stats: serde_json::Map<String, serde_json::Value> = arrays
+            .iter()
+            .map(|(name, s)| {
+                let key = if name == Episode::ACTION {
+                    "actions"
+                } else {
+                    name.as_str()
+                };
+                (
+                    key.to_string(),
+                    serde_json::json!({"mean": s.mean, "std": s.std, "q01": s.q01, "q99": s.q99}),
+                )
+            })
+            .collect();
+        serde_json::json!({ "norm_stats": stats })
+    }
+
+    /// A short Markdown summary: totals, per-task counts and lengths.
+    pub fn to_markdown(&self) -> String {
+        use std::fmt::Write as _;
+        let fmt_std = |s: Option<f64>| s.map_or_else(|| "n/a".into(), |s| format!("{s:.1}"));
+        let mut s = format!(
+            "{} episodes, {} frames ({:.1} min at {} fps); episode length {:.1} ± {} frames (min {}, median {:.0}, max {})\n\n",
+            self.episodes,
+            self.frames,
+            self.frames as f64 / self.fps.first().copied().unwrap_or(30.0) / 60.0,
+            self.fps
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join("/"),
+            self.lengths.mean,
+            fmt_std(self.lengths.std),
+            self.lengths.min,
+            self.lengths.median,
+            self.lengths.max
+        );
+        s.push_str("| Task | Episodes | Frames | Length mean ± std | Min | Max |\n|---|---:|---:|---:|---:|---:|\n");
+        for t in &self.tasks {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {:.1} ± {} | {} | {} |",
+                t.task,
+                t.episodes,
+                t.frames,
+                t.lengths.mean,
+                fmt_std(t.lengths.std),
+                t.lengths.min,
+                t.lengths.max
+            );
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_interpolate_linearly() {
+        let v = [1.0, 2.0, 3.0, 4.0, 5.0];
+        assert_eq!(quantile_sorted(&v, 0.5), Some(3.0));
+        assert_eq!(quantile_sorted(&v, 0.0), Some(1.0));
+        assert_eq!(quantile_sorted(&v, 1.0), Some(5.0));
+        assert!((quantile_sorted(&v, 0.01).unwrap() - 1.04).abs() < 1e-12);
+        assert_eq!(quantile_sorted(&[], 0.5), None);
+    }
+
+    #[test]
+    fn column_names_follow_the_layouts() {
+        let n = column_names(Episode::STATE, 31, Some(ArmSetup::SingleArm));
+        assert_eq!(n[0], "arm.tcp_pos[0]");
+        assert_eq!(n[7], "arm.hand_qpos[0]");
+        assert_eq!(n[23], "privileged[0]");
+        assert_eq!(column_names(Episode::ACTION, 46, None)[23], "left.pos[0]");
+        assert_eq!(column_names("other", 2, None), ["other[0]", "other[1]"]);
+    }
+}

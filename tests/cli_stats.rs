@@ -1,0 +1,105 @@
+//! `dexjoco-data stats` end to end: exit codes, stdout, and the files it writes.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn stats(work: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_dexjoco-data"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .arg("--work-dir")
+        .arg(work)
+        .arg("stats")
+        .args(args)
+        .output()
+        .expect("run dexjoco-data")
+}
+
+#[test]
+fn language_eval_without_a_path_runs_on_the_example() {
+    let work = tempfile::tempdir().unwrap();
+    let out = stats(work.path(), &["--language-eval"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("EXAMPLE INPUT") && stdout.contains("Verdict: "),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("Chi-square test of independence") && stdout.contains("dof 36"),
+        "{stdout}"
+    );
+    assert!(stderr.contains("not results"), "{stderr}");
+    let dir = work.path().join("stats/language-eval");
+    for f in [
+        "heatmap.png",
+        "heatmap.svg",
+        "language_eval.json",
+        "summary.md",
+        "precision.csv",
+    ] {
+        assert!(dir.join(f).is_file(), "{f} not written");
+    }
+}
+
+#[test]
+fn success_table_and_json_output() {
+    let work = tempfile::tempdir().unwrap();
+    let out_dir = work.path().join("report");
+    let out = stats(
+        work.path(),
+        &[
+            "--success-table",
+            "datasets/examples/success-table",
+            "--out",
+            out_dir.to_str().unwrap(),
+            "--json",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON on stdout");
+    assert_eq!(json["success_table"]["tasks"].as_array().unwrap().len(), 11);
+    assert!(json.get("language_eval").is_none());
+    for f in [
+        "success_table.md",
+        "success_table.tex",
+        "success_table.csv",
+        "success_table.json",
+    ] {
+        assert!(
+            out_dir.join("success-table").join(f).is_file(),
+            "{f} not written"
+        );
+    }
+}
+
+#[test]
+fn errors_have_exit_codes_and_hints() {
+    let work = tempfile::tempdir().unwrap();
+    let out = stats(work.path(), &[]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("nothing to do") && stderr.contains("hint:"),
+        "{stderr}"
+    );
+
+    let out = stats(work.path(), &["--language-eval", "no/such/trials.csv"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("no/such/trials.csv"), "{stderr}");
+
+    let out = stats(work.path(), &["--language-eval", "--alpha", "2"]);
+    assert_eq!(out.status.code(), Some(2));
+
+    let out = stats(work.path(), &["--language-eval", "--js-base", "10"]);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "clap refuses bases other than 2 and e"
+    );
+}
