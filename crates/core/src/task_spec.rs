@@ -1021,7 +1021,9 @@ impl TaskSpec {
     fn validate_node(&self, name: &str, node: &Node) -> Result<(), TaskSpecError> {
         let bad = |what: &str| Err(self.invalid(format!("node '{name}': {what}")));
         match node {
-            Node::PointInCylinder { radius, along, .. } if *radius <= 0.0 || along[0] > along[1] => {
+            Node::PointInCylinder { radius, along, .. }
+                if *radius <= 0.0 || along[0] > along[1] =>
+            {
                 bad("radius must be > 0 and along ordered")
             }
             Node::PointInBox { min, max, .. } if (0..3).any(|i| min[i] > max[i]) => {
@@ -1032,9 +1034,11 @@ impl TaskSpec {
             {
                 bad("needs sites")
             }
-            Node::AxisAlignment { target, max_angle_deg, .. }
-                if target.iter().all(|v| *v == 0.0) || !(0.0..=180.0).contains(max_angle_deg) =>
-            {
+            Node::AxisAlignment {
+                target,
+                max_angle_deg,
+                ..
+            } if target.iter().all(|v| *v == 0.0) || !(0.0..=180.0).contains(max_angle_deg) => {
                 bad("target must be non-zero and the angle in [0, 180]")
             }
             Node::All { of } | Node::Any { of } if of.is_empty() => bad("needs inputs"),
@@ -1130,11 +1134,15 @@ impl TaskSpec {
         };
         for node in self.nodes.values() {
             match node {
-                Node::PointInCylinder { point: p, center, .. } => {
+                Node::PointInCylinder {
+                    point: p, center, ..
+                } => {
                     point(p, &mut push);
                     point(center, &mut push);
                 }
-                Node::PointInBox { point: p, origin, .. } => {
+                Node::PointInBox {
+                    point: p, origin, ..
+                } => {
                     point(p, &mut push);
                     frame(origin, &mut push);
                 }
@@ -1146,7 +1154,9 @@ impl TaskSpec {
                     sites.iter().for_each(|s| push(NameKind::Site, s))
                 }
                 Node::AboveReference {
-                    point: p, reference, ..
+                    point: p,
+                    reference,
+                    ..
                 } => {
                     point(p, &mut push);
                     point(reference, &mut push);
@@ -1166,7 +1176,11 @@ impl TaskSpec {
                     nail_body,
                     ..
                 } => {
-                    hammer.iter().chain(nail).chain([face]).for_each(|g| push(NameKind::Geom, g));
+                    hammer
+                        .iter()
+                        .chain(nail)
+                        .chain([face])
+                        .for_each(|g| push(NameKind::Geom, g));
                     push(NameKind::Body, nail_body);
                 }
                 Node::Keypad {
@@ -1252,7 +1266,10 @@ mod tests {
     #[test]
     fn every_task_spec_loads_and_validates() {
         let specs = TaskSpec::load_dir(&schemas_dir().join("tasks")).unwrap();
-        let ids: Vec<_> = specs.iter().map(|s| (s.id.as_str(), s.state.width)).collect();
+        let ids: Vec<_> = specs
+            .iter()
+            .map(|s| (s.id.as_str(), s.state.width))
+            .collect();
         assert_eq!(ids, TASKS);
         for s in &specs {
             let order = s.evaluation_order().unwrap();
@@ -1267,7 +1284,11 @@ mod tests {
             }
             assert!(!s.scene_names().is_empty());
             // The four constraint kinds and mechanics appear as primitives, never as code.
-            let cap = if s.setup == ArmSetup::Bimanual { 46 } else { 23 };
+            let cap = if s.setup == ArmSetup::Bimanual {
+                46
+            } else {
+                23
+            };
             assert_eq!(s.setup.proprio_dim(), cap);
         }
         // Some fixed facts.
@@ -1302,7 +1323,11 @@ mod tests {
                 assert!(props.contains_key(k), "{}: {k} not in the schema", s.id);
             }
             for r in schema["required"].as_array().unwrap() {
-                assert!(v.get(r.as_str().unwrap()).is_some(), "{}: {r} missing", s.id);
+                assert!(
+                    v.get(r.as_str().unwrap()).is_some(),
+                    "{}: {r} missing",
+                    s.id
+                );
             }
             // Round trip: what we write reads back the same.
             let back: TaskSpec = serde_json::from_value(v).unwrap();
@@ -1331,7 +1356,9 @@ objects = []
 
     #[test]
     fn unknown_keys_and_bad_references_are_refused() {
-        let ok = minimal("[nodes.done]\nkind = \"all\"\nof = [\"x\"]\n[nodes.x]\nkind = \"not\"\nof = \"done2\"\n[nodes.done2]\nkind = \"latch\"\nset = \"x\"\n");
+        let ok = minimal(
+            "[nodes.done]\nkind = \"all\"\nof = [\"x\"]\n[nodes.x]\nkind = \"not\"\nof = \"done2\"\n[nodes.done2]\nkind = \"latch\"\nset = \"x\"\n",
+        );
         // x -> done2 -> x is a cycle.
         let e = TaskSpec::from_toml_str(&ok, "t").unwrap_err().to_string();
         assert!(e.contains("depends on itself"), "{e}");
@@ -1341,20 +1368,27 @@ objects = []
         assert!(e.contains("step"), "{e}");
 
         let unknown = minimal("[nodes.done]\nkind = \"not\"\nof = \"nothing\"\n");
-        let e = TaskSpec::from_toml_str(&unknown, "t").unwrap_err().to_string();
+        let e = TaskSpec::from_toml_str(&unknown, "t")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("unknown node 'nothing'"), "{e}");
 
-        let port = minimal("[nodes.a]\nkind = \"held\"\nof = \"b\"\nsteps = 2\n[nodes.b]\nkind = \"not\"\nof = \"a.depth\"\n[nodes.done]\nkind = \"not\"\nof = \"a\"\n");
+        let port = minimal(
+            "[nodes.a]\nkind = \"held\"\nof = \"b\"\nsteps = 2\n[nodes.b]\nkind = \"not\"\nof = \"a.depth\"\n[nodes.done]\nkind = \"not\"\nof = \"a\"\n",
+        );
         let e = TaskSpec::from_toml_str(&port, "t").unwrap_err().to_string();
         assert!(e.contains("no output 'depth'"), "{e}");
 
         let width = minimal("[nodes.done]\nkind = \"joint_threshold\"\njoint = { qpos = \"j\" }\nop = \"gt\"\nvalue = 1.0\n")
             .replace("width = 24", "width = 23");
-        let e = TaskSpec::from_toml_str(&width, "t").unwrap_err().to_string();
+        let e = TaskSpec::from_toml_str(&width, "t")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("state width"), "{e}");
 
-        let top = minimal("[nodes.done]\nkind = \"any\"\nof = [\"e\"]\n[nodes.e]\nkind = \"joint_threshold\"\njoint = { qpos = \"j\" }\nop = \"gt\"\nvalue = 1.0\n")
-            + "\n[extra]\nx = 1\n";
+        let top = minimal(
+            "[nodes.done]\nkind = \"any\"\nof = [\"e\"]\n[nodes.e]\nkind = \"joint_threshold\"\njoint = { qpos = \"j\" }\nop = \"gt\"\nvalue = 1.0\n",
+        ) + "\n[extra]\nx = 1\n";
         assert!(TaskSpec::from_toml_str(&top, "t").is_err());
     }
 }
