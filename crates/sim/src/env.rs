@@ -176,9 +176,9 @@ fn write_data_pose(
         PoseSource::Mocap(n) => {
             let b = name_id(&model, NameKind::Body, n).expect("resolved");
             let m = model.body_mocapid()[b] as usize;
-            for i in 0..3 {
-                if let Some(v) = pos[i] {
-                    data.mocap_pos_mut()[m][i] = v;
+            for (dst, v) in data.mocap_pos_mut()[m].iter_mut().zip(pos) {
+                if let Some(v) = v {
+                    *dst = v;
                 }
             }
             if let Some(q) = quat {
@@ -335,18 +335,17 @@ impl TaskEnv {
         }
         if let Some(hand) = &spec.reset.hand_qpos {
             for arm in &robot.arms {
-                for i in 0..HAND_DOF {
+                for (&act, &v) in arm.hand_actuators.iter().zip(hand) {
                     // The reset pose is given in the action order; write it by actuator.
-                    let act = arm.hand_actuators[i];
                     let joint = model.actuator_trnid()[act][0] as usize;
                     let a = model.jnt_qposadr()[joint] as usize;
-                    data.qpos_mut()[a] = hand[i];
+                    data.qpos_mut()[a] = v;
                 }
             }
             data.forward();
             for arm in &robot.arms {
-                for i in 0..HAND_DOF {
-                    data.ctrl_mut()[arm.hand_actuators[i]] = hand[i];
+                for (&act, &v) in arm.hand_actuators.iter().zip(hand) {
+                    data.ctrl_mut()[act] = v;
                 }
             }
         }

@@ -148,7 +148,7 @@ fn state_restores_exactly_for_every_task() {
         );
         // dh moved the table.
         let table =
-            dexjoco_sim::name_id(&a.data().model(), dexjoco_core::NameKind::Body, "table").unwrap();
+            dexjoco_sim::name_id(a.data().model(), dexjoco_core::NameKind::Body, "table").unwrap();
         assert_eq!(a.data().xpos()[table][2], 0.031, "{}", spec.id);
     }
 }
@@ -228,5 +228,36 @@ fn trajectories_are_bit_identical_across_runs_and_threads() {
         for (i, r) in results.iter().enumerate() {
             assert!(r == &reference, "{id}: thread {i} differs");
         }
+    }
+}
+
+/// The controller's step response matches the measured one of the reference stack
+/// (scripted-demo-notes.md: a 0.1 m step leaves 61, 29, 8.2 and 0.65 mm after 10, 25,
+/// 50 and 100 control steps).
+#[test]
+fn step_response_matches_the_reference_time_constant() {
+    let spec = common::spec("click_mouse");
+    let scene = common::scene("click_mouse");
+    let mut env = TaskEnv::new(&scene, &spec, EnvOptions::default()).unwrap();
+    let s0 = env.state();
+    let mut a = vec![0.0; 23];
+    a[..7].copy_from_slice(&s0[..7]);
+    a[0] += 0.1;
+    a[7 + 12] = 0.263;
+    let mut errs = Vec::new();
+    for t in 1..=100 {
+        env.step(&a).unwrap();
+        if [10, 25, 50, 100].contains(&t) {
+            let s = env.state();
+            let e = ((s[0] - a[0]).powi(2) + (s[1] - a[1]).powi(2) + (s[2] - a[2]).powi(2)).sqrt();
+            errs.push(e * 1000.0);
+        }
+    }
+    eprintln!("0.1 m step: error after 10/25/50/100 steps = {errs:?} mm");
+    for (e, reference) in errs.iter().zip([61.0, 29.0, 8.2, 0.65]) {
+        assert!(
+            (e - reference).abs() <= 0.05 * reference,
+            "{e} mm vs {reference} mm"
+        );
     }
 }
