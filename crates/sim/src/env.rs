@@ -210,6 +210,63 @@ impl TaskEnv {
         Ok(state)
     }
 
+    /// A randomized initial state as the reference reset draws it: dh = U(0, 0.05)
+    /// first, then each placement in spec order (two coordinates as
+    /// `low + (high - low) * u`, then the yaw as `qz(U(-a, a)) * quat`, or the yaw first
+    /// where the spec says so). `uniform` returns U(0, 1) draws.
+    pub fn sample_initial_state(
+        scene: &Scene,
+        spec: &TaskSpec,
+        uniform: &mut dyn FnMut() -> f64,
+    ) -> Result<Vec<f64>, SimError> {
+        let mut s = Self::default_initial_state(scene, spec)?;
+        let layout = spec.state_layout();
+        let model = &*scene.model;
+        let dh = 0.05 * uniform();
+        let top_site = name_id(model, NameKind::Site, &spec.table.top_site).expect("resolved");
+        let table = name_id(model, NameKind::Body, &spec.table.body).expect("resolved");
+        let table_top_z = model.body_pos()[table][2] + model.site_pos()[top_site][2] + dh;
+        for p in &spec.placement {
+            let f = layout
+                .get(&format!("{}.pose", p.object))
+                .expect("validated");
+            let pose = &mut s[f.start..f.start + f.len];
+            let yaw = |u: &mut dyn FnMut() -> f64| {
+                (p.yaw_deg > 0.0).then(|| -p.yaw_deg + 2.0 * p.yaw_deg * u())
+            };
+            let mut angle = if p.yaw_first { yaw(uniform) } else { None };
+            for (k, axis) in p.axes.iter().enumerate() {
+                pose[axis.index()] = p.low[k] + (p.high[k] - p.low[k]) * uniform();
+            }
+            if !p.yaw_first {
+                angle = yaw(uniform);
+            }
+            match p.z {
+                ZRule::DhPlus(v) => pose[2] = v + dh,
+                ZRule::TableTopPlus(v) => pose[2] = table_top_z + v,
+                ZRule::Keep | ZRule::FromSource => {}
+            }
+            if pose.len() == 7 {
+                let (sz, cz) = (angle.unwrap_or(0.0).to_radians() / 2.0).sin_cos();
+                let q = p.quat;
+                // qz * q, then normalized.
+                let r = [
+                    cz * q[0] - sz * q[3],
+                    cz * q[1] - sz * q[2],
+                    cz * q[2] + sz * q[1],
+                    cz * q[3] + sz * q[0],
+                ];
+                let n = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+                for i in 0..4 {
+                    pose[3 + i] = r[i] / n;
+                }
+            }
+        }
+        let last = s.len() - 1;
+        s[last] = dh;
+        Ok(s)
+    }
+
     fn check_names(spec: &TaskSpec, model: &MjModel) -> Result<(), SimError> {
         let mut r = Resolver::new(model);
         for (k, n) in spec.scene_names() {

@@ -19,6 +19,7 @@ mod error;
 pub mod primitives;
 mod render;
 mod scene;
+pub mod scripted;
 
 pub use checker::{SuccessChecker, Verdict, name_id, unresolved_names};
 pub use control::{
