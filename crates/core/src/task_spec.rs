@@ -880,12 +880,22 @@ impl TaskSpec {
         l
     }
 
-    /// The node names in an order where every node comes after its inputs (ties by name).
+    /// The node names in an order where every node comes after its inputs: scene
+    /// mechanics first, then depth-first by name.
     pub fn evaluation_order(&self) -> Result<Vec<String>, TaskSpecError> {
         let mut order = Vec::new();
         let mut done = BTreeSet::new();
         let mut visiting = BTreeSet::new();
-        for name in self.nodes.keys() {
+        // Scene mechanics first: they may move objects (the nail) that other nodes read.
+        let mechanics = self
+            .nodes
+            .iter()
+            .filter(|(_, n)| n.kind() == ConstraintKind::Mechanic);
+        let others = self
+            .nodes
+            .iter()
+            .filter(|(_, n)| n.kind() != ConstraintKind::Mechanic);
+        for (name, _) in mechanics.chain(others) {
             self.visit(name, &mut done, &mut visiting, &mut order)?;
         }
         Ok(order)

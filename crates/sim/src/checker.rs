@@ -595,7 +595,6 @@ impl SuccessChecker {
 
     /// Reads the reset-time values and clears every counter and latch.
     pub fn reset<M: ModelType>(&mut self, data: &MjData<M>) {
-        let sensordata = data.sensordata();
         for (i, node) in self.nodes.iter_mut().enumerate() {
             self.values[i] = false;
             self.outputs[i].iter_mut().for_each(|v| *v = 0.0);
@@ -634,7 +633,6 @@ impl SuccessChecker {
                 _ => {}
             }
         }
-        let _ = sensordata;
     }
 
     /// Bookkeeping after each physics substep (the nail's face speed window).
