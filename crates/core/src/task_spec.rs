@@ -215,8 +215,10 @@ pub enum ZRule {
     FromSource,
 }
 
-/// A pose written on restore that is derived from a restored object (mouse pad from the
-/// mouse, target region from the logo, Hanoi disks from the base, monitor height).
+/// A pose derived from another object: written on restore after the recorded objects
+/// (mouse pad from the mouse, target region from the logo, Hanoi disks from the base,
+/// monitor height). When the target is itself a state object (the iPad on its stand),
+/// the pose is used when placing objects at reset, and a restore keeps the recorded one.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DerivedPose {

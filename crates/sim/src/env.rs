@@ -262,6 +262,34 @@ impl TaskEnv {
                 }
             }
         }
+        // Objects that follow another one (the iPad on its stand).
+        for d in &spec.state.derived {
+            let Some(o) = spec.state.objects.iter().find(|o| o.source == d.target) else {
+                continue;
+            };
+            let f = layout.get(&format!("{}.pose", o.name)).expect("validated");
+            let src = d.from.as_deref().map(|n| {
+                let g = layout.get(&format!("{n}.pose")).expect("validated");
+                [s[g.start], s[g.start + 1], s[g.start + 2]]
+            });
+            if let Some(src) = src {
+                s[f.start] = src[0] + d.offset[0];
+                s[f.start + 1] = src[1] + d.offset[1];
+            }
+            match d.z {
+                ZRule::DhPlus(v) => s[f.start + 2] = v + dh,
+                ZRule::TableTopPlus(v) => s[f.start + 2] = table_top_z + v,
+                ZRule::FromSource => {
+                    if let Some(src) = src {
+                        s[f.start + 2] = src[2] + d.offset[2];
+                    }
+                }
+                ZRule::Keep => {}
+            }
+            if let (Some(q), 7) = (d.quat, f.len) {
+                s[f.start + 3..f.start + 7].copy_from_slice(&q);
+            }
+        }
         let last = s.len() - 1;
         s[last] = dh;
         Ok(s)
@@ -347,7 +375,13 @@ impl TaskEnv {
             };
             [xy(0), xy(1), z]
         };
-        for d in &spec.state.derived {
+        let derived: Vec<&dexjoco_core::DerivedPose> = spec
+            .state
+            .derived
+            .iter()
+            .filter(|d| !spec.state.objects.iter().any(|o| o.source == d.target))
+            .collect();
+        for d in &derived {
             if is_model_pose(&d.target) {
                 write_model_pose(&mut model, &d.target, derived_pose(d), d.quat);
             }
@@ -419,7 +453,7 @@ impl TaskEnv {
                 );
             }
         }
-        for d in &spec.state.derived {
+        for d in &derived {
             if !is_model_pose(&d.target) {
                 write_data_pose(&mut data, &d.target, derived_pose(d), d.quat);
             }

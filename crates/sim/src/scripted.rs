@@ -237,3 +237,104 @@ pub fn click_mouse_demo(
     rec.hold(0, quat, POINT_HAND, 40)?;
     rec.into_episode(id)
 }
+
+/// Hamilton product a * b of wxyz quaternions.
+fn qmul(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+    [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ]
+}
+
+/// Straight index finger, middle and ring curled away, thumb at home.
+const INDEX_HAND: [f64; HAND_DOF] = [
+    0.0, 0.0, 0.0, 0.0, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 0.263, 0.0, 0.0, 0.0,
+];
+
+/// A scripted bimanual_unlock_ipad demonstration with the right hand alone: the hand
+/// pitched 30 degrees down so the straight index finger is perpendicular to the screen;
+/// each digit of the password is pressed by a guarded move along the screen normal
+/// that stops as soon as the digit registers, then backs off.
+pub fn unlock_ipad_demo(
+    scene: &Scene,
+    spec: &TaskSpec,
+    state0: &[f64],
+    id: &str,
+) -> Result<Episode, SimError> {
+    if spec.id != "bimanual_unlock_ipad" {
+        return Err(SimError::Spec(format!(
+            "unlock_ipad_demo cannot plan '{}'",
+            spec.id
+        )));
+    }
+    let password = spec
+        .nodes
+        .values()
+        .find_map(|n| match n {
+            dexjoco_core::Node::Keypad { password, .. } => Some(password.clone()),
+            _ => None,
+        })
+        .ok_or_else(|| SimError::Spec("no keypad".into()))?;
+    let env = TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default())?;
+    let s = env.state();
+    let (h, c) = (15f64.to_radians().sin(), 15f64.to_radians().cos());
+    let quat = qmul([c, 0.0, h, 0.0], [s[3], s[4], s[5], s[6]]);
+    let mut rec = Recorder::new(env);
+    let never = |_: &TaskEnv| false;
+
+    // Screen normal (out of the screen) = the iPad body's z axis.
+    let (normal, ipad_pos) = {
+        let d = rec.env().data();
+        let b = name_id(d.model(), NameKind::Body, "ipad_body")
+            .ok_or_else(|| SimError::Spec("no ipad_body".into()))?;
+        let m = d.xmat()[b];
+        ([m[2], m[5], m[8]], d.xpos()[b])
+    };
+    // Turn the hand and measure the index fingertip relative to the TCP.
+    let start = [ipad_pos[0] - 0.25, ipad_pos[1] - 0.05, ipad_pos[2] + 0.25];
+    rec.move_to(0, start, quat, INDEX_HAND, 80, never)?;
+    rec.hold(0, quat, INDEX_HAND, 40)?;
+    let offset = {
+        let e = rec.env();
+        let d = e.data();
+        let tip = name_id(d.model(), NameKind::Geom, "fingertip_ff_right")
+            .ok_or_else(|| SimError::Spec("no fingertip".into()))?;
+        let tcp = e.robot().tcp_pose(d, &e.robot().arms[0]).0;
+        let t = d.geom_xpos()[tip];
+        [t[0] - tcp[0], t[1] - tcp[1], t[2] - tcp[2]]
+    };
+    let along = |p: [f64; 3], k: f64| {
+        [
+            p[0] + normal[0] * k,
+            p[1] + normal[1] * k,
+            p[2] + normal[2] * k,
+        ]
+    };
+    for (i, digit) in password.iter().enumerate() {
+        let button = {
+            let d = rec.env().data();
+            let g = name_id(d.model(), NameKind::Geom, &format!("btn{digit}_cyl"))
+                .ok_or_else(|| SimError::Spec(format!("no button {digit}")))?;
+            d.geom_xpos()[g]
+        };
+        let tcp_at = |k: f64| {
+            let p = along(button, k);
+            [p[0] - offset[0], p[1] - offset[1], p[2] - offset[2]]
+        };
+        rec.move_to(0, tcp_at(0.04), quat, INDEX_HAND, 60, never)?;
+        rec.hold(0, quat, INDEX_HAND, 25)?;
+        let entered = move |e: &TaskEnv| {
+            e.checker().output("keypad", "index").unwrap_or(0.0) as usize > i
+                || e.checker().value("keypad") == Some(true)
+        };
+        if !rec.move_to(0, tcp_at(-0.005), quat, INDEX_HAND, 23, entered)? {
+            let here = rec.env().targets()[0].0;
+            rec.move_to(0, here, quat, INDEX_HAND, 60, entered)?;
+        }
+        rec.move_to(0, tcp_at(0.04), quat, INDEX_HAND, 15, never)?;
+    }
+    rec.hold(0, quat, INDEX_HAND, 30)?;
+    rec.into_episode(id)
+}

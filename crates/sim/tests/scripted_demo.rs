@@ -1,5 +1,6 @@
 //! A scripted click_mouse demonstration on the reference scene: its replay succeeds,
-//! twice with identical states equal to the recording, and a perturbed action fails.
+//! twice with identical states equal to the recording, and a perturbed action fails;
+//! a scripted bimanual_unlock_ipad demonstration replays to success.
 
 mod common;
 
@@ -9,12 +10,16 @@ use dexjoco_sim::{EnvOptions, TaskEnv, scripted};
 /// A deterministic U(0, 1) sequence (xorshift64*).
 fn uniform(seed: u64) -> impl FnMut() -> f64 {
     let mut x = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    move || {
+    let mut next = move || {
         x ^= x >> 12;
         x ^= x << 25;
         x ^= x >> 27;
         (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for _ in 0..8 {
+        next();
     }
+    next
 }
 
 fn bits(a: &FrameArray) -> Vec<u64> {
@@ -69,4 +74,23 @@ fn scripted_click_mouse_replays_and_a_perturbed_action_fails() {
         "a perturbed demo still succeeded at {:?}",
         r.first_success()
     );
+}
+
+#[test]
+fn scripted_unlock_ipad_replays_to_success() {
+    let spec = common::spec("bimanual_unlock_ipad");
+    let scene = common::scene("bimanual_unlock_ipad");
+    let s0 = TaskEnv::sample_initial_state(&scene, &spec, &mut uniform(3)).unwrap();
+    let ep = scripted::unlock_ipad_demo(&scene, &spec, &s0, "unlock_ipad_scripted_0").unwrap();
+    ep.check_width(Episode::ACTION, 46).unwrap();
+    ep.check_width(Episode::STATE, 61).unwrap();
+    eprintln!("scripted bimanual_unlock_ipad: {} steps", ep.len());
+    let recorded = ep.array(Episode::STATE).unwrap();
+    let mut env =
+        TaskEnv::from_initial_state(&scene, &spec, recorded.row(0), EnvOptions::default()).unwrap();
+    let r = env.rollout(ep.array(Episode::ACTION).unwrap()).unwrap();
+    assert_eq!(r.first_success(), Some(ep.len() - 1));
+    assert_eq!(r.first_failure(), None);
+    assert_eq!(bits(&r.states), bits(recorded), "replay = recording");
+    assert_eq!(env.checker().output("keypad", "index"), Some(3.0));
 }
