@@ -8,7 +8,7 @@ pub const POSE_DIM: usize = 7;
 pub const ROTVEC_POSE_DIM: usize = 6;
 
 /// Which robot a task uses: one arm and hand, or two.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ArmSetup {
     /// One Panda + Allegro (action 23, action_rotvec 22, proprioception 23).

@@ -39,4 +39,25 @@ pub enum SimError {
         /// What went wrong.
         message: String,
     },
+    /// Names a task spec or the robot refers to are not in the scene.
+    #[error("{what}: the scene lacks {}", names.join(", "))]
+    MissingNames {
+        /// What needed the names (a task, the robot).
+        what: String,
+        /// Each missing name as `kind 'name'`.
+        names: Vec<String>,
+    },
+    /// A task spec cannot be used.
+    #[error("task spec: {0}")]
+    Spec(String),
+    /// A state or action row has the wrong width.
+    #[error("{what} has {found} values, the task needs {expected}")]
+    Width {
+        /// `state[0]` or `action`.
+        what: &'static str,
+        /// Values needed.
+        expected: usize,
+        /// Values given.
+        found: usize,
+    },
 }

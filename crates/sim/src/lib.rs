@@ -2,15 +2,31 @@
 //! llvmpipe on CPU machines, the NVIDIA driver on GPU machines) with quality presets,
 //! RGB and metric depth.
 //!
+//! The simulation core of the DexJoCo tasks: [`TaskEnv`] builds a task's reference
+//! scene from a recorded initial state, steps recorded actions with the DexJoCo
+//! controller ([`Robot`]: operational-space arm control, hand position targets) and
+//! evaluates the task spec's conditions ([`SuccessChecker`], built from the reusable
+//! [`primitives`]) after every step.
+//!
 //! `MjModel` is shared across threads; each worker owns its `MjData` and its
 //! [`Renderer`], which holds a GL context bound to the thread that created it.
 
+mod checker;
+mod control;
 mod egl;
+mod env;
 mod error;
+pub mod primitives;
 mod render;
 mod scene;
+pub mod scripted;
 
+pub use checker::{SuccessChecker, Verdict, name_id, unresolved_names};
+pub use control::{
+    ARM_DOF, ARM_HOME, Arm, HOLD_EPS, OscGains, Robot, SUBSTEPS, mat_to_quat, orientation_error,
+};
 pub use egl::{EglDevice, EglProbe, probe_egl};
+pub use env::{EnvOptions, Rollout, TaskEnv, load_task_scene};
 pub use error::SimError;
 pub use render::{CameraView, Frame, RenderQuality, RenderSettings, Renderer};
 pub use scene::{Scene, mujoco_library_path, mujoco_version};
