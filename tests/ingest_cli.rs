@@ -41,7 +41,12 @@ fn exit_code_is_3_when_anything_is_rejected_and_0_otherwise() {
         .arg(&store)
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("3 landed"), "{stdout}");
 
@@ -54,14 +59,28 @@ fn exit_code_is_3_when_anything_is_rejected_and_0_otherwise() {
         .arg("--json")
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(3), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let sources = report["sources"].as_array().unwrap();
     assert_eq!(sources.len(), 4);
-    let empty = sources.iter().find(|s| s["source"].as_str().unwrap().ends_with("empty.mcap")).unwrap();
+    let empty = sources
+        .iter()
+        .find(|s| s["source"].as_str().unwrap().ends_with("empty.mcap"))
+        .unwrap();
     assert_eq!(empty["outcome"], "quarantined");
     assert_eq!(empty["problems"][0]["code"], "empty_file");
-    assert_eq!(sources.iter().filter(|s| s["outcome"] == "already_present").count(), 3);
+    assert_eq!(
+        sources
+            .iter()
+            .filter(|s| s["outcome"] == "already_present")
+            .count(),
+        3
+    );
 
     // A missing input is an error of the command, not a rejected episode.
     let out = cli()
@@ -97,7 +116,10 @@ fn an_ingest_killed_midway_completes_on_rerun_without_duplicates_or_half_episode
         if landed {
             break;
         }
-        assert!(child.try_wait().unwrap().is_none(), "the run ended before it could be killed");
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before it could be killed"
+        );
         assert!(t0.elapsed() < Duration::from_secs(120), "nothing landed");
         std::thread::sleep(Duration::from_millis(2));
     }
@@ -119,7 +141,10 @@ fn an_ingest_killed_midway_completes_on_rerun_without_duplicates_or_half_episode
             landed_before += 1;
         }
     }
-    assert!(landed_before < n, "killed before the end ({landed_before} of {n})");
+    assert!(
+        landed_before < n,
+        "killed before the end ({landed_before} of {n})"
+    );
 
     let out = cli()
         .args(["-q", "ingest"])
@@ -128,7 +153,12 @@ fn an_ingest_killed_midway_completes_on_rerun_without_duplicates_or_half_episode
         .arg(&store)
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
     let m = manifest(&store);
     assert_eq!(m.episodes.len(), n);
@@ -154,7 +184,13 @@ fn export_writes_mcap_that_python_reads() {
     let input = tmp.path().join("in");
     write_inputs(&input, 2, 15);
     let store = tmp.path().join("store");
-    let out = cli().args(["-q", "ingest"]).arg(&input).arg("--store").arg(&store).output().unwrap();
+    let out = cli()
+        .args(["-q", "ingest"])
+        .arg(&input)
+        .arg("--store")
+        .arg(&store)
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(0));
     let mcap_dir = tmp.path().join("mcap");
     let out = cli()
@@ -164,8 +200,17 @@ fn export_writes_mcap_that_python_reads() {
         .arg(&mcap_dir)
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let files: Vec<String> = String::from_utf8(out.stdout).unwrap().lines().map(str::to_owned).collect();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let files: Vec<String> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(str::to_owned)
+        .collect();
     assert_eq!(files.len(), 2);
     for f in &files {
         let py = dexjoco_testkit::run_python_json("read_mcap.py", &[f]);
@@ -185,8 +230,16 @@ fn bench_ingest_reports_episodes_and_megabytes_per_second() {
         .args(["bench", "ingest", "--episodes", "4", "--frames", "30"])
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("episodes/s") && stdout.contains("MB/s"), "{stdout}");
+    assert!(
+        stdout.contains("episodes/s") && stdout.contains("MB/s"),
+        "{stdout}"
+    );
     assert!(tmp.path().join("bench/ingest.json").is_file());
 }

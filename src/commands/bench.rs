@@ -171,7 +171,10 @@ fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitSta
     pb.finish_and_clear();
 
     let mut rows = Vec::new();
-    for (format, input) in [("DexJoCo raw (zarr)", &raw_in), ("MCAP (json, zstd)", &mcap_in)] {
+    for (format, input) in [
+        ("DexJoCo raw (zarr)", &raw_in),
+        ("MCAP (json, zstd)", &mcap_in),
+    ] {
         let store_dir = tmp.path().join(format!("store-{}", rows.len()));
         let mut store = Store::open(&store_dir)?;
         let sources = discover(std::slice::from_ref(input), &store_dir)?;

@@ -32,7 +32,10 @@ impl Reporter for BarReporter {
 }
 
 /// Runs `body` on a rayon pool of `--jobs` threads (all cores by default).
-pub fn with_pool<T: Send>(global: &GlobalArgs, body: impl FnOnce() -> T + Send) -> anyhow::Result<T> {
+pub fn with_pool<T: Send>(
+    global: &GlobalArgs,
+    body: impl FnOnce() -> T + Send,
+) -> anyhow::Result<T> {
     let mut b = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("ingest-{i}"));
     if let Some(j) = global.jobs {
         b = b.num_threads(j);
@@ -73,7 +76,10 @@ pub fn run(global: &GlobalArgs, args: &IngestArgs) -> anyhow::Result<ExitStatus>
     if sources.is_empty() {
         return Err(CliError {
             message: "no inputs found".into(),
-            hint: Some("inputs are *.mcap files and folders holding replay.zarr (searched recursively)".into()),
+            hint: Some(
+                "inputs are *.mcap files and folders holding replay.zarr (searched recursively)"
+                    .into(),
+            ),
             status: ExitStatus::Failure,
         }
         .into());
@@ -116,9 +122,7 @@ pub fn run(global: &GlobalArgs, args: &IngestArgs) -> anyhow::Result<ExitStatus>
 }
 
 fn print_summary(summary: &IngestSummary, store: &Path) {
-    println!(
-        "| input | id | outcome | where | first problem |\n|---|---|---|---|---|"
-    );
+    println!("| input | id | outcome | where | first problem |\n|---|---|---|---|---|");
     for s in &summary.sources {
         let outcome = match s.outcome {
             Outcome::Landed => "landed",
@@ -133,7 +137,10 @@ fn print_summary(summary: &IngestSummary, store: &Path) {
             s.id,
             outcome,
             s.path.display(),
-            s.problems.first().map(ToString::to_string).unwrap_or_default()
+            s.problems
+                .first()
+                .map(ToString::to_string)
+                .unwrap_or_default()
         );
     }
     println!();

@@ -16,6 +16,6 @@ pub use error::{CoreError, Location};
 pub use layout::{ArmSetup, ArrayLayout, FieldSlice, HAND_DOF, POSE_DIM, ROTVEC_POSE_DIM};
 pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};
 pub use tasks::{
-    DEXJOCO_FPS, HAND_CTRL_RANGES, PrivilegedField, PrivilegedKind, TABLE_OFFSET_RANGE, TASKS, TaskInfo,
-    task_info,
+    DEXJOCO_FPS, HAND_CTRL_RANGES, PrivilegedField, PrivilegedKind, TABLE_OFFSET_RANGE, TASKS,
+    TaskInfo, task_info,
 };

@@ -233,7 +233,10 @@ fn core_problem(e: &CoreError) -> Problem {
 /// Shorthand for results of this crate.
 pub type Result<T, E = IngestError> = std::result::Result<T, E>;
 
-pub(crate) fn io_err(op: &'static str, path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> IngestError {
+pub(crate) fn io_err(
+    op: &'static str,
+    path: impl Into<PathBuf>,
+) -> impl FnOnce(std::io::Error) -> IngestError {
     let path = path.into();
     move |source| IngestError::Io { op, path, source }
 }

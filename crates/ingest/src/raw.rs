@@ -50,7 +50,11 @@ struct ArrayInfo {
 fn read_json(path: &Path, at: &Location) -> Result<Value> {
     let bytes = fs_err::read(path).map_err(|e| {
         if e.kind() == std::io::ErrorKind::NotFound {
-            IngestError::input(ProblemCode::MissingArray, at, format!("'{}' is missing", path.display()))
+            IngestError::input(
+                ProblemCode::MissingArray,
+                at,
+                format!("'{}' is missing", path.display()),
+            )
         } else {
             IngestError::input(ProblemCode::Unreadable, at, e)
         }
@@ -74,7 +78,11 @@ fn read_json(path: &Path, at: &Location) -> Result<Value> {
 fn array_info(zarr: &Path, key: &str, at: &Location) -> Result<ArrayInfo> {
     let meta = read_json(&zarr.join(key).join(".zarray"), at)?;
     let corrupt = |what: &str| {
-        IngestError::input(ProblemCode::Corrupt, at, format!("'.zarray' has no valid {what}"))
+        IngestError::input(
+            ProblemCode::Corrupt,
+            at,
+            format!("'.zarray' has no valid {what}"),
+        )
     };
     if meta.get("zarr_format").and_then(Value::as_u64) != Some(2) {
         return Err(corrupt("zarr_format 2"));
@@ -140,7 +148,11 @@ fn chunk_keys(info: &ArrayInfo, separator: &str) -> Vec<String> {
         }
         keys = next;
     }
-    if counts.contains(&0) { Vec::new() } else { keys }
+    if counts.contains(&0) {
+        Vec::new()
+    } else {
+        keys
+    }
 }
 
 fn open_store(zarr: &Path, at: &Location) -> Result<Arc<FilesystemStore>> {
@@ -224,11 +236,7 @@ pub fn task_from_path(dir: &Path) -> Option<String> {
         }
     }
     if name.starts_with("episode_") {
-        return dir
-            .parent()?
-            .file_name()?
-            .to_str()
-            .map(str::to_owned);
+        return dir.parent()?.file_name()?.to_str().map(str::to_owned);
     }
     None
 }
@@ -425,7 +433,12 @@ fn cameras_of(videos: &[PathBuf]) -> Vec<CameraStream> {
     cams
 }
 
-fn metadata_v2(shape: &[u64], chunks: &[u64], dtype: &str, compressed: bool) -> Result<ArrayMetadataV2> {
+fn metadata_v2(
+    shape: &[u64],
+    chunks: &[u64],
+    dtype: &str,
+    compressed: bool,
+) -> Result<ArrayMetadataV2> {
     let compressor = if compressed {
         json!({"id": "blosc", "cname": "zstd", "clevel": 5, "shuffle": 2, "blocksize": 0})
     } else {
@@ -467,10 +480,14 @@ pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
     let store = Arc::new(FilesystemStore::new(&zarr).map_err(|e| err(e.to_string()))?);
     let group_opts = GroupMetadataOptions::default();
     for path in ["/", "/data", "/meta"] {
-        Group::new_with_metadata(store.clone(), path, GroupMetadata::V2(GroupMetadataV2::new()))
-            .map_err(|e| err(e.to_string()))?
-            .store_metadata_opt(&group_opts)
-            .map_err(|e| err(e.to_string()))?;
+        Group::new_with_metadata(
+            store.clone(),
+            path,
+            GroupMetadata::V2(GroupMetadataV2::new()),
+        )
+        .map_err(|e| err(e.to_string()))?
+        .store_metadata_opt(&group_opts)
+        .map_err(|e| err(e.to_string()))?;
     }
     let array_opts = ArrayMetadataOptions::default().with_include_zarrs_metadata(false);
     let codec_opts = CodecOptions::default().with_store_empty_chunks(true);
@@ -485,8 +502,12 @@ pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
             (vec![frames, width], vec![chunk_frames, width])
         };
         let meta = metadata_v2(&shape, &chunks, "<f8", true)?;
-        let array = Array::new_with_metadata(store.clone(), &format!("/data/{name}"), ArrayMetadata::V2(meta))
-            .map_err(|e| err(e.to_string()))?;
+        let array = Array::new_with_metadata(
+            store.clone(),
+            &format!("/data/{name}"),
+            ArrayMetadata::V2(meta),
+        )
+        .map_err(|e| err(e.to_string()))?;
         array
             .store_metadata_opt(&array_opts)
             .map_err(|e| err(e.to_string()))?;
@@ -497,8 +518,9 @@ pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
         }
     }
     let meta = metadata_v2(&[1], &[1024], "<i8", false)?;
-    let array = Array::new_with_metadata(store.clone(), "/meta/episode_ends", ArrayMetadata::V2(meta))
-        .map_err(|e| err(e.to_string()))?;
+    let array =
+        Array::new_with_metadata(store.clone(), "/meta/episode_ends", ArrayMetadata::V2(meta))
+            .map_err(|e| err(e.to_string()))?;
     array
         .store_metadata_opt(&array_opts)
         .map_err(|e| err(e.to_string()))?;

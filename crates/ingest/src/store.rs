@@ -240,7 +240,9 @@ pub fn discover(inputs: &[PathBuf], exclude: &Path) -> Result<Vec<Source>> {
         let meta = std::fs::symlink_metadata(input).map_err(io_err("read", input))?;
         if input.is_dir() {
             if input.file_name().is_some_and(|n| n == REPLAY_ZARR) {
-                let parent = input.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf);
+                let parent = input
+                    .parent()
+                    .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
                 out.push(Source {
                     path: parent,
                     kind: SourceKind::Raw,
@@ -346,7 +348,10 @@ impl Store {
         }
         let mut store = Self { root, manifest };
         if recovered > 0 {
-            tracing::info!(recovered, "manifest: re-added entries of an interrupted run");
+            tracing::info!(
+                recovered,
+                "manifest: re-added entries of an interrupted run"
+            );
             store.save_manifest()?;
         }
         Ok(store)
@@ -354,7 +359,10 @@ impl Store {
 
     fn entry_files(root: &Path) -> Result<Vec<PathBuf>> {
         let mut out = Vec::new();
-        for e in fs_err::read_dir(root).map_err(io_err("list", root))?.flatten() {
+        for e in fs_err::read_dir(root)
+            .map_err(io_err("list", root))?
+            .flatten()
+        {
             let name = e.file_name();
             if name == STAGING || !e.path().is_dir() {
                 continue;
@@ -436,7 +444,10 @@ impl Store {
     /// The next free episode index of every task folder.
     fn scan_indices(&self) -> Result<HashMap<String, usize>> {
         let mut next = HashMap::new();
-        for e in fs_err::read_dir(&self.root).map_err(io_err("list", &self.root))?.flatten() {
+        for e in fs_err::read_dir(&self.root)
+            .map_err(io_err("list", &self.root))?
+            .flatten()
+        {
             let Some(task) = e.file_name().to_str().map(str::to_owned) else {
                 continue;
             };
@@ -603,7 +614,13 @@ impl Store {
 
     /// Copies a rejected input and its reason into staging, to be renamed under
     /// `quarantine/<id>/` on commit.
-    fn quarantine(&self, source: &Source, mut entry: ManifestEntry, staging: &Path, bytes: u64) -> Prepared {
+    fn quarantine(
+        &self,
+        source: &Source,
+        mut entry: ManifestEntry,
+        staging: &Path,
+        bytes: u64,
+    ) -> Prepared {
         tracing::warn!(
             source = %source.path.display(),
             "rejected: {}",
@@ -621,7 +638,9 @@ impl Store {
             copy_tree(&source.path, &dest.join(name))
         })();
         if let Err(e) = copied {
-            entry.notes.push(format!("the input could not be copied into quarantine: {e}"));
+            entry.notes.push(format!(
+                "the input could not be copied into quarantine: {e}"
+            ));
         }
         let staged = match write_atomic(
             &dir.join(REASON_FILE),
@@ -629,7 +648,9 @@ impl Store {
         ) {
             Ok(()) => Some(dir),
             Err(e) => {
-                entry.notes.push(format!("the quarantine folder could not be written: {e}"));
+                entry
+                    .notes
+                    .push(format!("the quarantine folder could not be written: {e}"));
                 None
             }
         };
@@ -787,7 +808,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let mut tmp =
         tempfile::NamedTempFile::new_in(dir).map_err(io_err("create a temporary file in", dir))?;
     tmp.write_all(bytes).map_err(io_err("write", tmp.path()))?;
-    tmp.as_file().sync_all().map_err(io_err("sync", tmp.path()))?;
+    tmp.as_file()
+        .sync_all()
+        .map_err(io_err("sync", tmp.path()))?;
     tmp.persist(path).map_err(|e| IngestError::Io {
         op: "rename into",
         path: path.to_owned(),
@@ -849,7 +872,10 @@ pub fn read_stored_episode(dir: &Path) -> Result<Episode> {
     })?;
     let mut ep = raw::read_raw_episode(dir, task)?.episode;
     ep.id = entry.map_or_else(
-        || dir.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+        || {
+            dir.file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+        },
         |e| e.id,
     );
     Ok(ep)

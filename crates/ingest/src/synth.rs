@@ -81,6 +81,7 @@ pub fn episode(task: &TaskInfo, frames: usize, seed: u64) -> Episode {
         arrays,
         cameras: Vec::new(),
     };
-    ep.compute_action_rotvec(setup).expect("action has the setup's width");
+    ep.compute_action_rotvec(setup)
+        .expect("action has the setup's width");
     ep
 }

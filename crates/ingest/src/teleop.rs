@@ -10,9 +10,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
-use dexjoco_core::{
-    ArmSetup, Episode, FrameArray, HAND_DOF, Location, TaskInfo, task_info,
-};
+use dexjoco_core::{ArmSetup, Episode, FrameArray, HAND_DOF, Location, TaskInfo, task_info};
 use mcap::records::{MessageHeader, Metadata, Record};
 use serde_json::{Value, json};
 
@@ -96,17 +94,26 @@ fn log_time(t: f64) -> u64 {
 }
 
 /// Writes an episode as one MCAP file (atomically: a temporary file renamed into place).
-pub fn write_episode_mcap(path: &Path, ep: &Episode, task: &TaskInfo, meta: &EpisodeMeta) -> Result<()> {
+pub fn write_episode_mcap(
+    path: &Path,
+    ep: &Episode,
+    task: &TaskInfo,
+    meta: &EpisodeMeta,
+) -> Result<()> {
     let dir = path.parent().unwrap_or(Path::new("."));
     fs_err::create_dir_all(dir).map_err(io_err("create", dir))?;
-    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(io_err("create a temporary file in", dir))?;
+    let tmp =
+        tempfile::NamedTempFile::new_in(dir).map_err(io_err("create a temporary file in", dir))?;
     let at = Location::episode(&ep.id).path(path);
     let mcap_err = |source| IngestError::Mcap {
         at: at.clone(),
         source,
     };
     {
-        let file = tmp.as_file().try_clone().map_err(io_err("open", tmp.path()))?;
+        let file = tmp
+            .as_file()
+            .try_clone()
+            .map_err(io_err("open", tmp.path()))?;
         let mut w = mcap::WriteOptions::new()
             .library(concat!("dexjoco-data/", env!("CARGO_PKG_VERSION")))
             .create(BufWriter::new(file))
@@ -116,13 +123,14 @@ pub fn write_episode_mcap(path: &Path, ep: &Episode, task: &TaskInfo, meta: &Epi
         let mut inner = w.into_inner();
         inner.flush().map_err(io_err("write", tmp.path()))?;
     }
-    tmp.as_file().sync_all().map_err(io_err("sync", tmp.path()))?;
-    tmp.persist(path)
-        .map_err(|e| IngestError::Io {
-            op: "rename into",
-            path: path.to_owned(),
-            source: e.error,
-        })?;
+    tmp.as_file()
+        .sync_all()
+        .map_err(io_err("sync", tmp.path()))?;
+    tmp.persist(path).map_err(|e| IngestError::Io {
+        op: "rename into",
+        path: path.to_owned(),
+        source: e.error,
+    })?;
     Ok(())
 }
 
@@ -149,7 +157,11 @@ fn write_into<W: std::io::Write + std::io::Seek>(
     if !ep.id.is_empty() {
         md.insert("episode_id".to_owned(), ep.id.clone());
     }
-    for (k, v) in [("operator", &meta.operator), ("date", &meta.date), ("source", &meta.source)] {
+    for (k, v) in [
+        ("operator", &meta.operator),
+        ("date", &meta.date),
+        ("source", &meta.source),
+    ] {
         if let Some(v) = v {
             md.insert(k.to_owned(), v.clone());
         }
@@ -163,7 +175,11 @@ fn write_into<W: std::io::Write + std::io::Seek>(
     })?;
 
     let pose_schema = w.add_schema("foxglove.PoseInFrame", "jsonschema", POSE_SCHEMA.as_bytes())?;
-    let hand_schema = w.add_schema("dexjoco.HandJointTargets", "jsonschema", HAND_SCHEMA.as_bytes())?;
+    let hand_schema = w.add_schema(
+        "dexjoco.HandJointTargets",
+        "jsonschema",
+        HAND_SCHEMA.as_bytes(),
+    )?;
     let state_schema = w.add_schema("dexjoco.State", "jsonschema", STATE_SCHEMA.as_bytes())?;
     let mut arm_channels = Vec::new();
     for arm in setup.arm_names() {
@@ -185,7 +201,11 @@ fn write_into<W: std::io::Write + std::io::Seek>(
     let rotvec = ep.array(Episode::ACTION_ROTVEC);
     let rotvec_ch = match rotvec {
         Some(_) => {
-            let s = w.add_schema("dexjoco.ActionRotvec", "jsonschema", ROTVEC_SCHEMA.as_bytes())?;
+            let s = w.add_schema(
+                "dexjoco.ActionRotvec",
+                "jsonschema",
+                ROTVEC_SCHEMA.as_bytes(),
+            )?;
             Some(w.add_channel(s, ACTION_ROTVEC_TOPIC, "json", &BTreeMap::new())?)
         }
         None => None,
@@ -263,7 +283,11 @@ fn mcap_problem(e: &mcap::McapError, at: &Location) -> IngestError {
 pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     let base = Location::default().path(path);
     if bytes.is_empty() {
-        return Err(IngestError::input(ProblemCode::EmptyFile, &base, "the file is empty"));
+        return Err(IngestError::input(
+            ProblemCode::EmptyFile,
+            &base,
+            "the file is empty",
+        ));
     }
     if !bytes.starts_with(mcap::MAGIC) {
         return Err(IngestError::input(
@@ -361,7 +385,11 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
         })?;
         msgs.sort_by_key(|m| (m.log_time, m.sequence, m.order));
         let schema = schemas.get(&schema_id).cloned();
-        topics.entry(topic).or_insert((schema, Vec::new())).1.extend(msgs);
+        topics
+            .entry(topic)
+            .or_insert((schema, Vec::new()))
+            .1
+            .extend(msgs);
     }
     let mut notes = Vec::new();
 
@@ -427,7 +455,12 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
             return Err(IngestError::input(
                 ProblemCode::WrongDimensions,
                 &base.clone().field(STATE_TOPIC).frame(k),
-                format!("{} state values where {} has {}", row.len(), task.id, task.state_dim),
+                format!(
+                    "{} state values where {} has {}",
+                    row.len(),
+                    task.id,
+                    task.state_dim
+                ),
             ));
         }
         state_rows.push(row);
@@ -452,13 +485,19 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
             }
             for (k, m) in msgs.iter().enumerate() {
                 let v = parse(&topic, k, m)?;
-                let out = &mut action[k * per_arm * task.setup.arms() + arm_i * per_arm..][..per_arm];
+                let out =
+                    &mut action[k * per_arm * task.setup.arms() + arm_i * per_arm..][..per_arm];
                 if is_pose {
                     let pose = v.get("pose").unwrap_or(&Value::Null);
                     let p = pose.get("position").unwrap_or(&Value::Null);
                     let q = pose.get("orientation").unwrap_or(&Value::Null);
                     let field = |o: &Value, key: &str| -> Result<f64> {
-                        num(o.get(key).unwrap_or(&Value::Null), &topic, k, &format!("pose.{key}"))
+                        num(
+                            o.get(key).unwrap_or(&Value::Null),
+                            &topic,
+                            k,
+                            &format!("pose.{key}"),
+                        )
                     };
                     out[0] = field(p, "x")?;
                     out[1] = field(p, "y")?;
@@ -474,7 +513,10 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
                         return Err(IngestError::input(
                             ProblemCode::WrongDimensions,
                             &base.clone().field(topic.as_str()).frame(k),
-                            format!("{} hand targets where the Allegro hand has {HAND_DOF}", hand.len()),
+                            format!(
+                                "{} hand targets where the Allegro hand has {HAND_DOF}",
+                                hand.len()
+                            ),
                         ));
                     }
                     out[7..].copy_from_slice(&hand);
@@ -488,7 +530,10 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
         Episode::ACTION.to_owned(),
         FrameArray::new(task.setup.action_dim(), action)?,
     );
-    arrays.insert(Episode::STATE.to_owned(), FrameArray::from_rows(&state_rows)?);
+    arrays.insert(
+        Episode::STATE.to_owned(),
+        FrameArray::from_rows(&state_rows)?,
+    );
     arrays.insert(Episode::TIMESTAMP.to_owned(), FrameArray::new(1, times)?);
     if let Some((_, msgs)) = topics.get(ACTION_ROTVEC_TOPIC) {
         let mut rows = Vec::with_capacity(msgs.len());
@@ -504,15 +549,24 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
                 format!("{} messages where {STATE_TOPIC} has {frames}", rows.len()),
             ));
         }
-        if rows.iter().any(|r| r.len() != task.setup.action_rotvec_dim()) {
+        if rows
+            .iter()
+            .any(|r| r.len() != task.setup.action_rotvec_dim())
+        {
             return Err(IngestError::input(
                 ProblemCode::WrongDimensions,
                 &base.clone().field(ACTION_ROTVEC_TOPIC),
-                format!("rows are not {} values wide", task.setup.action_rotvec_dim()),
+                format!(
+                    "rows are not {} values wide",
+                    task.setup.action_rotvec_dim()
+                ),
             ));
         }
         if frames > 0 {
-            arrays.insert(Episode::ACTION_ROTVEC.to_owned(), FrameArray::from_rows(&rows)?);
+            arrays.insert(
+                Episode::ACTION_ROTVEC.to_owned(),
+                FrameArray::from_rows(&rows)?,
+            );
         }
     }
 
@@ -550,7 +604,17 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
         episode.compute_action_rotvec(task.setup)?;
         notes.push("action_rotvec was absent: computed from the pose commands".into());
     }
-    let known = ["schema_version", "task", "prompt", "fps", "setup", "episode_id", "operator", "date", "source"];
+    let known = [
+        "schema_version",
+        "task",
+        "prompt",
+        "fps",
+        "setup",
+        "episode_id",
+        "operator",
+        "date",
+        "source",
+    ];
     let meta = EpisodeMeta {
         operator: get("operator").map(str::to_owned),
         date: get("date").map(str::to_owned),

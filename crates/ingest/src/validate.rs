@@ -366,14 +366,28 @@ mod tests {
         ep.arrays.get_mut("state").unwrap().row_mut(5)[60] = -0.01;
         ep.arrays.get_mut("state").unwrap().row_mut(6)[60] = -0.01;
         let c = codes(&ep, task);
-        assert_eq!(c, vec![(ProblemCode::TableOffsetOutOfRange, Some("state[60]".into()), Some(5))]);
+        assert_eq!(
+            c,
+            vec![(
+                ProblemCode::TableOffsetOutOfRange,
+                Some("state[60]".into()),
+                Some(5)
+            )]
+        );
         let msg = &validate(&ep, task, Path::new("x"), &ValidationOptions::default())[0].message;
         assert!(msg.contains("(and 1 more)"), "{msg}");
 
         // The left arm's quaternion (action[26..30]).
         let mut ep = base.clone();
         ep.arrays.get_mut("action").unwrap().row_mut(3)[26] = 2.0;
-        assert_eq!(codes(&ep, task), vec![(ProblemCode::NotUnitQuaternion, Some("action[26..30]".into()), Some(3))]);
+        assert_eq!(
+            codes(&ep, task),
+            vec![(
+                ProblemCode::NotUnitQuaternion,
+                Some("action[26..30]".into()),
+                Some(3)
+            )]
+        );
 
         // An all-zero pose holds the target: no quaternion to check.
         let mut ep = base.clone();
@@ -385,11 +399,19 @@ mod tests {
         ep.arrays.get_mut("action").unwrap().row_mut(0)[7..23].fill(0.0);
         assert_eq!(codes(&ep, task), vec![]);
         ep.arrays.get_mut("action").unwrap().row_mut(1)[7 + 12] = 0.0;
-        assert_eq!(codes(&ep, task), vec![(ProblemCode::HandOutOfRange, Some("action[19]".into()), Some(1))]);
+        assert_eq!(
+            codes(&ep, task),
+            vec![(
+                ProblemCode::HandOutOfRange,
+                Some("action[19]".into()),
+                Some(1)
+            )]
+        );
 
         // Timestamps at the wrong rate.
         let mut ep = base.clone();
-        ep.arrays.insert("timestamp".into(), Episode::regular_timestamps(30, 15.0));
+        ep.arrays
+            .insert("timestamp".into(), Episode::regular_timestamps(30, 15.0));
         assert_eq!(codes(&ep, task)[0].0, ProblemCode::Timestamps);
 
         // Object pose quaternion in the privileged state: the peg at [53:60].
@@ -402,7 +424,10 @@ mod tests {
         // Wrong task width stops before value checks.
         let other = task_info("click_mouse").unwrap();
         let c = codes(&base, other);
-        assert!(c.iter().all(|x| x.0 == ProblemCode::WrongDimensions), "{c:?}");
+        assert!(
+            c.iter().all(|x| x.0 == ProblemCode::WrongDimensions),
+            "{c:?}"
+        );
         assert!(c.iter().any(|x| x.1.as_deref() == Some("action")));
     }
 }

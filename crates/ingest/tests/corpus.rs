@@ -33,16 +33,26 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
     ok.push(p);
     let p = root.join("good.mcap");
     let ep = good("pinch_tongs", 40, 3);
-    write_episode_mcap(&p, &ep, task_info("pinch_tongs").unwrap(), &EpisodeMeta::default())
-        .unwrap();
+    write_episode_mcap(
+        &p,
+        &ep,
+        task_info("pinch_tongs").unwrap(),
+        &EpisodeMeta::default(),
+    )
+    .unwrap();
     ok.push(p.clone());
 
     // Truncated MCAP: a good file cut in half.
     let bytes = std::fs::read(&p).unwrap();
     let t = root.join("truncated.mcap");
     let ep = good("water_plant", 40, 4);
-    write_episode_mcap(&t, &ep, task_info("water_plant").unwrap(), &EpisodeMeta::default())
-        .unwrap();
+    write_episode_mcap(
+        &t,
+        &ep,
+        task_info("water_plant").unwrap(),
+        &EpisodeMeta::default(),
+    )
+    .unwrap();
     let full = std::fs::read(&t).unwrap();
     std::fs::write(&t, &full[..full.len() / 2]).unwrap();
     assert_ne!(bytes.len(), 0);
@@ -73,7 +83,9 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
     let p = root.join("hammer_nail/episode_000002");
     write_raw(&p, &good("hammer_nail", 40, 8));
     let zarray = p.join("replay.zarr/data/action/.zarray");
-    let text = std::fs::read_to_string(&zarray).unwrap().replace("<f8", "<i4");
+    let text = std::fs::read_to_string(&zarray)
+        .unwrap()
+        .replace("<f8", "<i4");
     std::fs::write(&zarray, text).unwrap();
     bad.push((p, ProblemCode::WrongDtype));
 
@@ -184,14 +196,37 @@ fn broken_inputs_are_quarantined_with_named_problems_and_good_ones_land() {
         }
     }
     // Field and frame where the problem has them.
-    let nan = summary.sources.iter().find(|s| s.source.ends_with("hammer_nail/episode_000000")).unwrap();
+    let nan = summary
+        .sources
+        .iter()
+        .find(|s| s.source.ends_with("hammer_nail/episode_000000"))
+        .unwrap();
     let p = &nan.problems[0];
-    assert_eq!((p.field.as_deref(), p.frame), (Some("state[4]"), Some(17)), "{p:?}");
-    assert!(p.message.contains("frame 17") && p.message.contains("state[4]"), "{}", p.message);
-    let dims = summary.sources.iter().find(|s| s.source.ends_with("click_mouse/episode_000001")).unwrap();
+    assert_eq!(
+        (p.field.as_deref(), p.frame),
+        (Some("state[4]"), Some(17)),
+        "{p:?}"
+    );
+    assert!(
+        p.message.contains("frame 17") && p.message.contains("state[4]"),
+        "{}",
+        p.message
+    );
+    let dims = summary
+        .sources
+        .iter()
+        .find(|s| s.source.ends_with("click_mouse/episode_000001"))
+        .unwrap();
     assert_eq!(dims.problems[0].field.as_deref(), Some("state"));
-    let hand = summary.sources.iter().find(|s| s.source.ends_with("pinch_tongs/episode_000001")).unwrap();
-    assert_eq!((hand.problems[0].field.as_deref(), hand.problems[0].frame), (Some("action[19]"), Some(9)));
+    let hand = summary
+        .sources
+        .iter()
+        .find(|s| s.source.ends_with("pinch_tongs/episode_000001"))
+        .unwrap();
+    assert_eq!(
+        (hand.problems[0].field.as_deref(), hand.problems[0].frame),
+        (Some("action[19]"), Some(9))
+    );
 
     for path in &ok {
         let r = summary.sources.iter().find(|s| &s.source == path).unwrap();
@@ -204,11 +239,26 @@ fn broken_inputs_are_quarantined_with_named_problems_and_good_ones_land() {
     let opened = Store::open(&store).unwrap();
     let m = opened.manifest();
     assert_eq!(m.episodes.len(), bad.len() + ok.len());
-    assert_eq!(m.episodes.iter().filter(|e| e.status == Status::Ok).count(), ok.len());
+    assert_eq!(
+        m.episodes.iter().filter(|e| e.status == Status::Ok).count(),
+        ok.len()
+    );
     let json = std::fs::read_to_string(store.join("manifest.json")).unwrap();
-    for code in ["truncated", "wrong_dimensions", "not_finite", "missing_array", "wrong_dtype",
-        "episode_ends_mismatch", "unknown_task", "empty_file", "unreadable"] {
-        assert!(json.contains(&format!("\"code\": \"{code}\"")), "manifest names {code}");
+    for code in [
+        "truncated",
+        "wrong_dimensions",
+        "not_finite",
+        "missing_array",
+        "wrong_dtype",
+        "episode_ends_mismatch",
+        "unknown_task",
+        "empty_file",
+        "unreadable",
+    ] {
+        assert!(
+            json.contains(&format!("\"code\": \"{code}\"")),
+            "manifest names {code}"
+        );
     }
     assert!(!store.join(".staging").exists());
 }
@@ -235,7 +285,11 @@ fn reruns_are_idempotent_and_force_redoes_in_place() {
     let third = run(&input, &store, true);
     assert_eq!(third.count(Outcome::Replaced), ok.len());
     for (a, b) in first.sources.iter().zip(&third.sources) {
-        assert_eq!((&a.id, &a.path), (&b.id, &b.path), "force keeps ids and folders");
+        assert_eq!(
+            (&a.id, &a.path),
+            (&b.id, &b.path),
+            "force keeps ids and folders"
+        );
     }
     // One folder per good episode, nothing else.
     let mut dirs = 0;

@@ -56,11 +56,7 @@ fn raw_folders_written_by_zarr_python_are_ingested_bit_exact() {
         (
             "pick_bucket",
             30,
-            &[
-                "--float32-state",
-                "--no-rotvec",
-                "--old-pick-bucket-order",
-            ],
+            &["--float32-state", "--no-rotvec", "--old-pick-bucket-order"],
         ),
         ("bimanual_hanoi", 12, &["--no-rotvec"]),
     ];
@@ -80,13 +76,25 @@ fn raw_folders_written_by_zarr_python_are_ingested_bit_exact() {
     assert_eq!(summary.sources.len(), cases.len());
     for (c, (task, frames, flags)) in cases.iter().enumerate() {
         // Discovery walks folders in name order: find each case's report by its path.
-        let i = summary.sources.iter().position(|s| s.source == dirs[c]).unwrap();
+        let i = summary
+            .sources
+            .iter()
+            .position(|s| s.source == dirs[c])
+            .unwrap();
         let ep = landed_episode(&store, &summary, i);
         let want = &expected[c];
         assert_eq!(ep.task, *task);
         assert_eq!(ep.len(), *frames);
-        assert_bits("action", ep.array("action").unwrap().as_slice(), &values(&want["action"]));
-        assert_bits("timestamp", ep.array("timestamp").unwrap().as_slice(), &values(&want["timestamp"]));
+        assert_bits(
+            "action",
+            ep.array("action").unwrap().as_slice(),
+            &values(&want["action"]),
+        );
+        assert_bits(
+            "timestamp",
+            ep.array("timestamp").unwrap().as_slice(),
+            &values(&want["timestamp"]),
+        );
         let mut state = values(&want["state"]);
         if flags.contains(&"--old-pick-bucket-order") {
             let w = 38;
@@ -95,7 +103,12 @@ fn raw_folders_written_by_zarr_python_are_ingested_bit_exact() {
                 row.copy_within(30..37, 23);
                 row[30..37].copy_from_slice(&food);
             }
-            assert!(summary.sources[i].notes.iter().any(|n| n.contains("older object order")));
+            assert!(
+                summary.sources[i]
+                    .notes
+                    .iter()
+                    .any(|n| n.contains("older object order"))
+            );
         }
         assert_bits("state", ep.array("state").unwrap().as_slice(), &state);
         let rotvec = ep.array("action_rotvec").unwrap().as_slice();
@@ -105,7 +118,12 @@ fn raw_folders_written_by_zarr_python_are_ingested_bit_exact() {
             for (g, w) in rotvec.iter().zip(&scipy) {
                 assert!((g - w).abs() < 1e-12, "computed rotvec {g} vs SciPy {w}");
             }
-            assert!(summary.sources[i].notes.iter().any(|n| n.contains("computed")));
+            assert!(
+                summary.sources[i]
+                    .notes
+                    .iter()
+                    .any(|n| n.contains("computed"))
+            );
         } else {
             assert_bits("action_rotvec", rotvec, &values(&want["action_rotvec"]));
         }
@@ -116,15 +134,35 @@ fn raw_folders_written_by_zarr_python_are_ingested_bit_exact() {
 fn stored_episodes_are_read_by_zarr_python_as_the_recorder_writes_them() {
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("in/water_plant/episode_000000");
-    let want = run_python_json("make_raw_fixture.py", &[path_str(&input), "water_plant", "50", "9", "--float32-state"]);
+    let want = run_python_json(
+        "make_raw_fixture.py",
+        &[
+            path_str(&input),
+            "water_plant",
+            "50",
+            "9",
+            "--float32-state",
+        ],
+    );
     let store = tmp.path().join("store");
     let summary = ingest_all(&[tmp.path().join("in")], &store);
     let ep_dir = store.join(&summary.sources[0].path);
-    assert_eq!(summary.sources[0].path, Path::new("water_plant/episode_000000"));
+    assert_eq!(
+        summary.sources[0].path,
+        Path::new("water_plant/episode_000000")
+    );
     let got = run_python_json("read_raw_episode.py", &[path_str(&ep_dir)]);
 
-    let files: Vec<&str> = got["files"].as_array().unwrap().iter().map(|f| f.as_str().unwrap()).collect();
-    assert!(!files.iter().any(|f| f.ends_with(".zattrs")), "no .zattrs: {files:?}");
+    let files: Vec<&str> = got["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    assert!(
+        !files.iter().any(|f| f.ends_with(".zattrs")),
+        "no .zattrs: {files:?}"
+    );
     for name in ["action", "action_rotvec", "state", "timestamp"] {
         let a = &got["arrays"][format!("data/{name}")];
         assert_eq!(a["dtype"], "float64", "{name}");
@@ -135,8 +173,14 @@ fn stored_episodes_are_read_by_zarr_python_as_the_recorder_writes_them() {
         assert_eq!(a["zarray"]["chunks"][0], 50, "one chunk per episode");
         assert_eq!(a["zarray"]["fill_value"], 0.0);
     }
-    assert_eq!(got["arrays"]["data/timestamp"]["shape"], serde_json::json!([50]));
-    assert_eq!(got["arrays"]["data/state"]["shape"], serde_json::json!([50, 38]));
+    assert_eq!(
+        got["arrays"]["data/timestamp"]["shape"],
+        serde_json::json!([50])
+    );
+    assert_eq!(
+        got["arrays"]["data/state"]["shape"],
+        serde_json::json!([50, 38])
+    );
     let ends = &got["arrays"]["meta/episode_ends"];
     assert_eq!(ends["dtype"], "int64");
     assert_eq!(ends["compressor"], Value::Null);
@@ -144,7 +188,11 @@ fn stored_episodes_are_read_by_zarr_python_as_the_recorder_writes_them() {
     assert_eq!(ends["values"], serde_json::json!([50]));
     // Values: the float32 state was widened exactly; the rest is bit-identical.
     for name in ["action", "action_rotvec", "state", "timestamp"] {
-        assert_bits(name, &values(&got["arrays"][format!("data/{name}")]), &values(&want[name]));
+        assert_bits(
+            name,
+            &values(&got["arrays"][format!("data/{name}")]),
+            &values(&want[name]),
+        );
     }
 }
 
@@ -173,15 +221,30 @@ fn mcap_files_written_by_python_are_ingested_bit_exact() {
         assert_eq!(ep.task, *task);
         let want = &expected[i];
         for name in ["action", "state", "timestamp"] {
-            assert_bits(name, ep.array(name).unwrap().as_slice(), &values(&want[name]));
+            assert_bits(
+                name,
+                ep.array(name).unwrap().as_slice(),
+                &values(&want[name]),
+            );
         }
         if flags.is_empty() {
-            assert_bits("action_rotvec", ep.array("action_rotvec").unwrap().as_slice(), &values(&want["action_rotvec"]));
+            assert_bits(
+                "action_rotvec",
+                ep.array("action_rotvec").unwrap().as_slice(),
+                &values(&want["action_rotvec"]),
+            );
         }
         let notes = &summary.sources[i].notes;
         if flags.contains(&"--extras") {
-            for topic in ["/camera/front/image", "/teleop/right/fingertips", "/teleop/right/wrist_pose"] {
-                assert!(notes.iter().any(|n| n.contains(topic)), "{topic} named in {notes:?}");
+            for topic in [
+                "/camera/front/image",
+                "/teleop/right/fingertips",
+                "/teleop/right/wrist_pose",
+            ] {
+                assert!(
+                    notes.iter().any(|n| n.contains(topic)),
+                    "{topic} named in {notes:?}"
+                );
             }
         }
     }
@@ -189,7 +252,10 @@ fn mcap_files_written_by_python_are_ingested_bit_exact() {
     let bytes = std::fs::read(input.join("0_click_mouse.mcap")).unwrap();
     let t = read_episode_mcap(Path::new("x.mcap"), &bytes).unwrap();
     assert_eq!(t.meta.operator.as_deref(), Some("fixture"));
-    assert_eq!(t.meta.extra.get("rig").map(String::as_str), Some("vision-pro"));
+    assert_eq!(
+        t.meta.extra.get("rig").map(String::as_str),
+        Some("vision-pro")
+    );
 }
 
 #[test]
@@ -197,9 +263,17 @@ fn raw_to_mcap_to_raw_is_bit_exact_and_python_reads_our_mcap() {
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("in");
     let mut expected = Vec::new();
-    for (i, task) in ["hammer_nail", "bimanual_microwave_cook"].iter().enumerate() {
-        let dir = input.join(i.to_string()).join(format!("{task}_demo_{i}_2026-01-02_03-04-05_000000"));
-        expected.push(run_python_json("make_raw_fixture.py", &[path_str(&dir), task, "21", "5"]));
+    for (i, task) in ["hammer_nail", "bimanual_microwave_cook"]
+        .iter()
+        .enumerate()
+    {
+        let dir = input
+            .join(i.to_string())
+            .join(format!("{task}_demo_{i}_2026-01-02_03-04-05_000000"));
+        expected.push(run_python_json(
+            "make_raw_fixture.py",
+            &[path_str(&dir), task, "21", "5"],
+        ));
     }
     let store = tmp.path().join("store");
     let summary = ingest_all(std::slice::from_ref(&input), &store);
@@ -217,17 +291,29 @@ fn raw_to_mcap_to_raw_is_bit_exact_and_python_reads_our_mcap() {
         assert_eq!(py["metadata"]["dexjoco.episode"]["episode_id"], stored.id);
         let arms = task.setup.arm_names();
         for arm in arms {
-            assert_eq!(py["channels"][format!("/{arm}/pose_command")]["schema"], "foxglove.PoseInFrame");
+            assert_eq!(
+                py["channels"][format!("/{arm}/pose_command")]["schema"],
+                "foxglove.PoseInFrame"
+            );
             assert_eq!(py["counts"][format!("/{arm}/hand_target")], 21);
         }
-        let state: Vec<f64> = py["state"].as_array().unwrap().iter()
+        let state: Vec<f64> = py["state"]
+            .as_array()
+            .unwrap()
+            .iter()
             .flat_map(|r| r.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()))
             .collect();
         assert_bits("python state", &state, &values(&want["state"]));
         let mut action = Vec::new();
         for k in 0..21 {
             for arm in arms {
-                action.extend(py["actions"][arm][k].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()));
+                action.extend(
+                    py["actions"][arm][k]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|x| x.as_f64().unwrap()),
+                );
             }
         }
         assert_bits("python action", &action, &values(&want["action"]));
@@ -239,11 +325,18 @@ fn raw_to_mcap_to_raw_is_bit_exact_and_python_reads_our_mcap() {
     for (i, want) in expected.iter().enumerate() {
         let ep = landed_episode(&store2, &summary2, i);
         for name in ["action", "action_rotvec", "state", "timestamp"] {
-            assert_bits(name, ep.array(name).unwrap().as_slice(), &values(&want[name]));
+            assert_bits(
+                name,
+                ep.array(name).unwrap().as_slice(),
+                &values(&want[name]),
+            );
         }
     }
     let m = Store::open(&store2).unwrap();
     assert!(m.manifest().episodes.iter().all(|e| e.status == Status::Ok));
     // A store's replay.zarr was written by zarrs: reading it with zarr-python works too.
-    run_python("read_raw_episode.py", &[path_str(&store2.join(&summary2.sources[1].path))]);
+    run_python(
+        "read_raw_episode.py",
+        &[path_str(&store2.join(&summary2.sources[1].path))],
+    );
 }
