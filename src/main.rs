@@ -16,11 +16,9 @@ use crate::exit::{CliError, ExitStatus};
 fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging(cli.global.verbose, cli.global.quiet);
-    if let Some(jobs) = cli.global.jobs {
-        if jobs == 0 {
-            eprintln!("error: --jobs must be at least 1");
-            return ExitStatus::Usage.into();
-        }
+    if cli.global.jobs == Some(0) {
+        eprintln!("error: --jobs must be at least 1");
+        return ExitStatus::Usage.into();
     }
     let result = match cli.command {
         Command::Doctor(args) => commands::doctor::run(&cli.global, &args),

@@ -49,16 +49,18 @@ pub fn run(global: &GlobalArgs, args: &IngestArgs) -> anyhow::Result<ExitStatus>
         .store
         .clone()
         .unwrap_or_else(|| global.work_dir.join("ingest"));
-    if let Some(t) = &args.task {
-        if dexjoco_core::task_info(t).is_none() {
-            let known: Vec<&str> = dexjoco_core::TASKS.iter().map(|t| t.id).collect();
-            return Err(CliError {
-                message: format!("unknown task '{t}'"),
-                hint: Some(format!("known tasks: {}", known.join(", "))),
-                status: ExitStatus::Usage,
-            }
-            .into());
+    if let Some(t) = args
+        .task
+        .as_deref()
+        .filter(|t| dexjoco_core::task_info(t).is_none())
+    {
+        let known: Vec<&str> = dexjoco_core::TASKS.iter().map(|t| t.id).collect();
+        return Err(CliError {
+            message: format!("unknown task '{t}'"),
+            hint: Some(format!("known tasks: {}", known.join(", "))),
+            status: ExitStatus::Usage,
         }
+        .into());
     }
     for input in &args.inputs {
         if std::fs::symlink_metadata(input).is_err() {

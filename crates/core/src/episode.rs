@@ -17,7 +17,7 @@ pub struct FrameArray {
 impl FrameArray {
     /// Wraps a flat row-major buffer; it must hold a whole number of frames.
     pub fn new(width: usize, data: Vec<f64>) -> Result<Self, CoreError> {
-        if width == 0 || data.len() % width != 0 {
+        if width == 0 || !data.len().is_multiple_of(width) {
             return Err(CoreError::Ragged {
                 at: Location::default(),
                 len: data.len(),

@@ -21,7 +21,7 @@ pub enum PrivilegedKind {
 
 impl PrivilegedKind {
     /// Number of columns.
-    pub fn len(self) -> usize {
+    pub fn width(self) -> usize {
         match self {
             Self::Pose => 7,
             Self::Position => 3,
@@ -231,7 +231,7 @@ impl TaskInfo {
     pub fn state_layout(&self) -> ArrayLayout {
         let mut l = self.setup.proprio_layout();
         for f in self.privileged {
-            l.push(f.name, f.kind.len());
+            l.push(f.name, f.kind.width());
         }
         l
     }

@@ -144,7 +144,7 @@ pub enum IngestError {
     },
     /// An input has one problem that stops reading it.
     #[error("{0}")]
-    Input(Problem),
+    Input(Box<Problem>),
     /// An episode failed validation (every problem found is listed).
     #[error("{} problem(s); first: {}", .0.len(), .0.first().map(ToString::to_string).unwrap_or_default())]
     Invalid(Vec<Problem>),
@@ -163,7 +163,7 @@ pub enum IngestError {
         at: Location,
         /// The cause.
         #[source]
-        source: mcap::McapError,
+        source: Box<mcap::McapError>,
     },
     /// A manifest could not be read or written.
     #[error("manifest '{}': {message}", path.display())]
@@ -181,13 +181,13 @@ pub enum IngestError {
 impl IngestError {
     /// An input problem.
     pub fn input(code: ProblemCode, at: &Location, detail: impl std::fmt::Display) -> Self {
-        Self::Input(Problem::new(code, at, detail))
+        Self::Input(Box::new(Problem::new(code, at, detail)))
     }
 
     /// The problems this error stands for, as recorded in a manifest.
     pub fn problems(&self) -> Vec<Problem> {
         match self {
-            Self::Input(p) => vec![p.clone()],
+            Self::Input(p) => vec![(**p).clone()],
             Self::Invalid(ps) => ps.clone(),
             Self::Io { path, source, .. } => vec![Problem::new(
                 if source.kind() == std::io::ErrorKind::UnexpectedEof {

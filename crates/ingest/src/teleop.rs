@@ -107,7 +107,7 @@ pub fn write_episode_mcap(
     let at = Location::episode(&ep.id).path(path);
     let mcap_err = |source| IngestError::Mcap {
         at: at.clone(),
-        source,
+        source: Box::new(source),
     };
     {
         let file = tmp
@@ -258,6 +258,9 @@ fn write_into<W: std::io::Write + std::io::Seek>(
     Ok(())
 }
 
+/// A topic's schema name and messages.
+type TopicMessages = (Option<String>, Vec<Msg>);
+
 struct Msg {
     log_time: u64,
     sequence: u32,
@@ -332,14 +335,12 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
         )
     })?;
     let get = |k: &str| md.get(k).map(String::as_str);
-    if let Some(v) = get("schema_version") {
-        if v != SCHEMA_VERSION {
-            return Err(IngestError::input(
-                ProblemCode::Corrupt,
-                &md_at,
-                format!("schema_version {v} is not {SCHEMA_VERSION}"),
-            ));
-        }
+    if let Some(v) = get("schema_version").filter(|v| *v != SCHEMA_VERSION) {
+        return Err(IngestError::input(
+            ProblemCode::Corrupt,
+            &md_at,
+            format!("schema_version {v} is not {SCHEMA_VERSION}"),
+        ));
     }
     let task_id = get("task").unwrap_or_default();
     let task = task_info(task_id).ok_or_else(|| {
@@ -374,7 +375,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     };
 
     // Messages per topic, in time order (file order breaks ties).
-    let mut topics: HashMap<String, (Option<String>, Vec<Msg>)> = HashMap::new();
+    let mut topics: HashMap<String, TopicMessages> = HashMap::new();
     for (ch, mut msgs) in by_channel {
         let (topic, schema_id) = channels.get(&ch).cloned().ok_or_else(|| {
             IngestError::input(
@@ -571,7 +572,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     }
 
     // Streams the raw layout has no place for are named, never dropped silently.
-    let mut other: Vec<(&String, &(Option<String>, Vec<Msg>))> = topics
+    let mut other: Vec<(&String, &TopicMessages)> = topics
         .iter()
         .filter(|(t, _)| {
             *t != STATE_TOPIC

@@ -27,6 +27,9 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
     // Good: two raw folders and one MCAP file.
     let p = root.join("click_mouse/episode_000000");
     write_raw(&p, &good("click_mouse", 40, 1));
+    std::fs::create_dir_all(p.join("videos")).unwrap();
+    std::fs::write(p.join("videos/front.mp4"), b"not really h264").unwrap();
+    std::fs::write(p.join("videos/front_depth.npz"), b"not really npz").unwrap();
     ok.push(p);
     let p = root.join("bimanual_hanoi/episode_000000");
     write_raw(&p, &good("bimanual_hanoi", 40, 2));
@@ -234,6 +237,17 @@ fn broken_inputs_are_quarantined_with_named_problems_and_good_ones_land() {
         let ep = read_stored_episode(&store.join(&r.path)).unwrap();
         assert_eq!(ep.len(), 40);
     }
+    // Videos travel with their episode, byte for byte.
+    let r = summary.sources.iter().find(|s| s.source == ok[0]).unwrap();
+    let landed = store.join(&r.path);
+    assert_eq!(
+        std::fs::read(landed.join("videos/front.mp4")).unwrap(),
+        b"not really h264"
+    );
+    let ep = read_stored_episode(&landed).unwrap();
+    assert_eq!(ep.cameras.len(), 1);
+    assert_eq!(ep.cameras[0].name, "front");
+    assert!(ep.cameras[0].depth.is_some());
     assert_eq!(summary.rejected(), bad.len());
 
     let opened = Store::open(&store).unwrap();
