@@ -687,12 +687,20 @@ impl Store {
                 format!("same content as '{}', ingested once", first.display()),
             );
             tracing::info!("{problem}");
+            // A copy of a rejected input is rejected too (and counted so).
+            let rejected = entry.status == Status::Quarantined;
+            let mut problems = if rejected { entry.problems } else { Vec::new() };
+            problems.push(problem);
             return Ok(SourceReport {
                 source: source.path,
                 id: entry.id,
-                outcome: Outcome::Duplicate,
+                outcome: if rejected {
+                    Outcome::Quarantined
+                } else {
+                    Outcome::Duplicate
+                },
                 path: entry.path,
-                problems: vec![problem],
+                problems,
                 notes: Vec::new(),
             });
         }

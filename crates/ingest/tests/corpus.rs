@@ -318,4 +318,28 @@ fn reruns_are_idempotent_and_force_redoes_in_place() {
     let fourth = run(&input, &store, false);
     let r = fourth.sources.iter().find(|s| s.source == copy).unwrap();
     assert_eq!(r.outcome, Outcome::AlreadyPresent);
+
+    // Within one run: a second copy of a good input is a duplicate; a second empty file
+    // is rejected like the first.
+    let fresh = tmp.path().join("store-fresh");
+    std::fs::write(input.join("zz_empty_again.mcap"), b"").unwrap();
+    let fifth = run(&input, &fresh, false);
+    // Inputs are taken in path order: copy_of_good.mcap comes first.
+    let r = fifth.sources.iter().find(|s| s.source == copy).unwrap();
+    assert_eq!(r.outcome, Outcome::Landed);
+    let r = fifth
+        .sources
+        .iter()
+        .find(|s| s.source == input.join("good.mcap"))
+        .unwrap();
+    assert_eq!(r.outcome, Outcome::Duplicate);
+    assert_eq!(r.problems[0].code, ProblemCode::Duplicate);
+    let r = fifth
+        .sources
+        .iter()
+        .find(|s| s.source.ends_with("zz_empty_again.mcap"))
+        .unwrap();
+    assert_eq!(r.outcome, Outcome::Quarantined);
+    assert_eq!(r.problems[0].code, ProblemCode::EmptyFile);
+    assert_eq!(fifth.rejected(), bad.len() + 1);
 }
