@@ -173,6 +173,17 @@ pub enum IngestError {
         /// What is wrong.
         message: String,
     },
+    /// Another process is using the store.
+    #[error(
+        "the store '{}' is in use by process {pid} (if no ingest is running, remove its .lock file)",
+        path.display()
+    )]
+    Locked {
+        /// The store.
+        path: PathBuf,
+        /// The process holding it.
+        pid: u32,
+    },
     /// An episode breaks the core data model.
     #[error(transparent)]
     Core(#[from] CoreError),

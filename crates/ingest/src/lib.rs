@@ -17,8 +17,9 @@ mod validate;
 
 pub use error::{IngestError, Problem, ProblemCode, Result};
 pub use store::{
-    ENTRY_FILE, IngestOptions, IngestSummary, MANIFEST, Manifest, ManifestEntry, NoReporter,
-    Outcome, QUARANTINE, REASON_FILE, Reporter, STAGING, Source, SourceKind, SourceReport, Status,
-    Store, discover, landed_by_task, read_stored_episode, stored_episode_dirs, write_atomic,
+    ENTRY_FILE, IngestOptions, IngestSummary, LOCK_FILE, MANIFEST, Manifest, ManifestEntry,
+    NoReporter, Outcome, QUARANTINE, REASON_FILE, Reporter, STAGING, Source, SourceKind,
+    SourceReport, Status, Store, discover, landed_by_task, read_stored_episode,
+    stored_episode_dirs, write_atomic,
 };
 pub use validate::{ValidationOptions, validate};

@@ -11,6 +11,7 @@
 //! <store>/quarantine/<id>/reason.json         a rejected input's manifest entry
 //! <store>/quarantine/<id>/source/...          a copy of the rejected input
 //! <store>/.staging/                           work in progress (removed on open)
+//! <store>/.lock                               the pid of the process using the store
 //! ```
 //! An episode is written whole under `.staging/` and renamed into place, so a store never
 //! holds half an episode. Each landed folder carries its own manifest entry, so an
@@ -38,6 +39,8 @@ pub const MANIFEST: &str = "manifest.json";
 pub const QUARANTINE: &str = "quarantine";
 /// Folder of work in progress.
 pub const STAGING: &str = ".staging";
+/// Held by the process using a store; holds its pid.
+pub const LOCK_FILE: &str = ".lock";
 /// A landed episode's own manifest entry, inside its folder.
 pub const ENTRY_FILE: &str = ".dexjoco-ingest.json";
 /// A quarantined input's manifest entry.
@@ -301,6 +304,68 @@ fn walk(dir: &Path, exclude: Option<&Path>, out: &mut Vec<Source>) -> Result<()>
 pub struct Store {
     root: PathBuf,
     manifest: Manifest,
+    _lock: StoreLock,
+}
+
+/// Exclusive use of a store by one process (`<store>/.lock` holds its pid). A lock left
+/// by a process that no longer exists (killed) is taken over.
+#[derive(Debug)]
+struct StoreLock {
+    path: PathBuf,
+}
+
+impl StoreLock {
+    fn acquire(root: &Path) -> Result<Self> {
+        use std::io::Write;
+        let path = root.join(LOCK_FILE);
+        for _ in 0..3 {
+            match std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&path)
+            {
+                Ok(mut f) => {
+                    write!(f, "{}", std::process::id()).map_err(io_err("write", &path))?;
+                    return Ok(Self { path });
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let owner = std::fs::read_to_string(&path)
+                        .ok()
+                        .and_then(|s| s.trim().parse::<u32>().ok());
+                    match owner {
+                        Some(pid) if process_exists(pid) => {
+                            return Err(IngestError::Locked {
+                                path: root.to_owned(),
+                                pid,
+                            });
+                        }
+                        _ => {
+                            tracing::info!("taking over the lock of a process that has ended");
+                            let _ = std::fs::remove_file(&path);
+                        }
+                    }
+                }
+                Err(e) => return Err(io_err("create", &path)(e)),
+            }
+        }
+        Err(IngestError::Locked {
+            path: root.to_owned(),
+            pid: 0,
+        })
+    }
+}
+
+impl Drop for StoreLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// Whether a process exists (Linux: /proc; elsewhere assumed alive, so a stale lock must
+/// be removed by hand).
+fn process_exists(pid: u32) -> bool {
+    let proc = Path::new("/proc");
+    !proc.is_dir() || proc.join(pid.to_string()).exists()
 }
 
 /// A source read, checked and written to staging, waiting to be committed.
@@ -311,6 +376,20 @@ struct Prepared {
     staged: Option<PathBuf>,
     outcome: Outcome,
     bytes: u64,
+    /// A failure of the store itself (not of the input): stops the run.
+    fatal: Option<IngestError>,
+}
+
+/// Why staging an input failed: the input is bad, or the store could not be written.
+enum StageFailure {
+    Input(IngestError),
+    Store(IngestError),
+}
+
+impl From<IngestError> for StageFailure {
+    fn from(e: IngestError) -> Self {
+        Self::Input(e)
+    }
 }
 
 impl Store {
@@ -319,6 +398,7 @@ impl Store {
     pub fn open(root: impl Into<PathBuf>) -> Result<Self> {
         let root = root.into();
         fs_err::create_dir_all(&root).map_err(io_err("create", &root))?;
+        let lock = StoreLock::acquire(&root)?;
         let staging = root.join(STAGING);
         if staging.exists() {
             fs_err::remove_dir_all(&staging).map_err(io_err("remove", &staging))?;
@@ -346,7 +426,11 @@ impl Store {
                 recovered += 1;
             }
         }
-        let mut store = Self { root, manifest };
+        let mut store = Self {
+            root,
+            manifest,
+            _lock: lock,
+        };
         if recovered > 0 {
             tracing::info!(
                 recovered,
@@ -483,6 +567,7 @@ impl Store {
                         staged: None,
                         outcome: Outcome::Quarantined,
                         bytes: 0,
+                        fatal: None,
                     };
                 }
                 let entry = ManifestEntry {
@@ -513,6 +598,7 @@ impl Store {
                         Status::Quarantined => Outcome::Quarantined,
                     },
                     bytes,
+                    fatal: None,
                 };
             }
         }
@@ -535,8 +621,17 @@ impl Store {
                 staged: Some(staged),
                 outcome: Outcome::Landed,
                 bytes,
+                fatal: None,
             },
-            Err(e) => {
+            Err(StageFailure::Store(e)) => Prepared {
+                source: source.clone(),
+                entry,
+                staged: None,
+                outcome: Outcome::Landed,
+                bytes,
+                fatal: Some(e),
+            },
+            Err(StageFailure::Input(e)) => {
                 entry.problems = name_problems(e.problems(), &source.path, &id);
                 entry.status = Status::Quarantined;
                 entry.path = Path::new(QUARANTINE).join(&id);
@@ -552,7 +647,7 @@ impl Store {
         opts: &IngestOptions,
         staging: &Path,
         entry: &mut ManifestEntry,
-    ) -> Result<PathBuf> {
+    ) -> std::result::Result<PathBuf, StageFailure> {
         let (mut ep, videos, notes) = match source.kind {
             SourceKind::Mcap => {
                 let bytes = content.unwrap_or_default();
@@ -568,14 +663,14 @@ impl Store {
                 let task = match name.as_deref().and_then(task_info) {
                     Some(t) => t,
                     None => {
-                        return Err(IngestError::input(
+                        return Err(StageFailure::Input(IngestError::input(
                             ProblemCode::UnknownTask,
                             &at,
                             match name {
                                 Some(n) => format!("unknown task '{n}'"),
                                 None => "the path names no task (<task>/episode_N or <task>_demo_...); pass --task".into(),
                             },
-                        ));
+                        )));
                     }
                 };
                 let r = raw::read_raw_episode(&source.path, task)?;
@@ -595,13 +690,15 @@ impl Store {
         })?;
         let problems = validate(&ep, task, &source.path, &opts.validation);
         if !problems.is_empty() {
-            return Err(IngestError::Invalid(problems));
+            return Err(StageFailure::Input(IngestError::Invalid(problems)));
         }
         let dir = staging.join(&entry.id);
         if dir.exists() {
-            fs_err::remove_dir_all(&dir).map_err(io_err("remove", &dir))?;
+            fs_err::remove_dir_all(&dir)
+                .map_err(io_err("remove", &dir))
+                .map_err(StageFailure::Store)?;
         }
-        raw::write_replay_zarr(&dir, &ep)?;
+        raw::write_replay_zarr(&dir, &ep).map_err(StageFailure::Store)?;
         for v in &videos {
             let to = dir.join(v);
             if let Some(parent) = to.parent() {
@@ -660,6 +757,7 @@ impl Store {
             staged,
             outcome: Outcome::Quarantined,
             bytes,
+            fatal: None,
         }
     }
 
@@ -676,7 +774,11 @@ impl Store {
             staged,
             mut outcome,
             bytes: _,
+            fatal,
         } = p;
+        if let Some(e) = fatal {
+            return Err(e);
+        }
         if let Some(first) = seen.get(&entry.id) {
             if let Some(dir) = &staged {
                 let _ = std::fs::remove_dir_all(dir);

@@ -343,3 +343,19 @@ fn reruns_are_idempotent_and_force_redoes_in_place() {
     assert_eq!(r.problems[0].code, ProblemCode::EmptyFile);
     assert_eq!(fifth.rejected(), bad.len() + 1);
 }
+
+#[test]
+fn a_store_is_used_by_one_process_at_a_time_and_stale_locks_are_taken_over() {
+    let tmp = tempfile::tempdir().unwrap();
+    let store = tmp.path().join("store");
+    let first = Store::open(&store).unwrap();
+    match Store::open(&store) {
+        Err(dexjoco_ingest::IngestError::Locked { pid, .. }) => assert_eq!(pid, std::process::id()),
+        other => panic!("expected Locked, got {other:?}"),
+    }
+    drop(first);
+    assert!(!store.join(dexjoco_ingest::LOCK_FILE).exists());
+    // A lock left by a process that has ended (a killed run) does not block.
+    std::fs::write(store.join(dexjoco_ingest::LOCK_FILE), u32::MAX.to_string()).unwrap();
+    Store::open(&store).unwrap();
+}
