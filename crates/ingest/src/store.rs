@@ -251,7 +251,7 @@ pub fn discover(inputs: &[PathBuf], exclude: &Path) -> Result<Vec<Source>> {
                     kind: SourceKind::Raw,
                 });
             } else {
-                walk(input, exclude.as_deref(), &mut out)?;
+                walk(input, exclude.as_deref(), &mut HashSet::new(), &mut out)?;
             }
         } else {
             let _ = meta;
@@ -266,8 +266,15 @@ pub fn discover(inputs: &[PathBuf], exclude: &Path) -> Result<Vec<Source>> {
     Ok(out)
 }
 
-fn walk(dir: &Path, exclude: Option<&Path>, out: &mut Vec<Source>) -> Result<()> {
-    if exclude.is_some_and(|x| dir.canonicalize().ok().as_deref() == Some(x)) {
+fn walk(
+    dir: &Path,
+    exclude: Option<&Path>,
+    visited: &mut HashSet<PathBuf>,
+    out: &mut Vec<Source>,
+) -> Result<()> {
+    let real = dir.canonicalize().map_err(io_err("resolve", dir))?;
+    // Linked folders are followed once (no loops); the store itself is never entered.
+    if exclude == Some(real.as_path()) || !visited.insert(real) {
         return Ok(());
     }
     if dir.join(REPLAY_ZARR).is_dir() {
@@ -288,7 +295,7 @@ fn walk(dir: &Path, exclude: Option<&Path>, out: &mut Vec<Source>) -> Result<()>
             .extension()
             .is_some_and(|x| x.eq_ignore_ascii_case("mcap"));
         if p.is_dir() {
-            walk(&p, exclude, out)?;
+            walk(&p, exclude, visited, out)?;
         } else if is_mcap {
             out.push(Source {
                 path: p,

@@ -359,3 +359,43 @@ fn a_store_is_used_by_one_process_at_a_time_and_stale_locks_are_taken_over() {
     std::fs::write(store.join(dexjoco_ingest::LOCK_FILE), u32::MAX.to_string()).unwrap();
     Store::open(&store).unwrap();
 }
+
+#[test]
+fn discovery_finds_raw_folders_and_mcap_files_and_survives_link_loops() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().join("in");
+    write_raw(
+        &root.join("a/click_mouse/episode_000000"),
+        &good("click_mouse", 5, 1),
+    );
+    write_raw(
+        &root.join("b/pick_bucket_demo_3_2026-01-01_00-00-00_000000"),
+        &good("pick_bucket", 5, 2),
+    );
+    std::fs::write(root.join("b/x.MCAP"), b"").unwrap();
+    std::fs::write(root.join("b/notes.txt"), b"ignored").unwrap();
+    std::os::unix::fs::symlink(&root, root.join("a/loop")).unwrap();
+    let store = root.join("store");
+    std::fs::create_dir_all(&store).unwrap();
+    std::fs::write(store.join("inside_the_store.mcap"), b"").unwrap();
+    let found = discover(&[root.clone()], &store).unwrap();
+    let names: Vec<String> = found
+        .iter()
+        .map(|s| s.path.strip_prefix(&root).unwrap().display().to_string())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "a/click_mouse/episode_000000",
+            "b/pick_bucket_demo_3_2026-01-01_00-00-00_000000",
+            "b/x.MCAP"
+        ]
+    );
+    // A replay.zarr given directly means its episode folder.
+    let one = discover(
+        &[root.join("a/click_mouse/episode_000000/replay.zarr")],
+        &store,
+    )
+    .unwrap();
+    assert_eq!(one[0].path, root.join("a/click_mouse/episode_000000"));
+}
