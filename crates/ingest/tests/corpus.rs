@@ -378,7 +378,7 @@ fn discovery_finds_raw_folders_and_mcap_files_and_survives_link_loops() {
     let store = root.join("store");
     std::fs::create_dir_all(&store).unwrap();
     std::fs::write(store.join("inside_the_store.mcap"), b"").unwrap();
-    let found = discover(&[root.clone()], &store).unwrap();
+    let found = discover(std::slice::from_ref(&root), &store).unwrap();
     let names: Vec<String> = found
         .iter()
         .map(|s| s.path.strip_prefix(&root).unwrap().display().to_string())
