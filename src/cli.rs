@@ -10,6 +10,8 @@ Examples:
   dexjoco-data render                         # render the built-in tabletop scene's cameras
   dexjoco-data render scene.xml --camera front --depth
   dexjoco-data bench render --frames 20       # rendering frames/s per quality preset
+  dexjoco-data ingest recordings/             # validate and store MCAP logs and raw folders
+  dexjoco-data export --to mcap               # stored episodes -> MCAP teleop logs
   dexjoco-data augment --replays 10           # randomized replays of the sample demos
   dexjoco-data convert                        # augment output -> LeRobot v3.0
   dexjoco-data stats --language-eval
@@ -77,7 +79,9 @@ pub enum Command {
     #[command(subcommand)]
     Bench(BenchCommand),
     /// Read raw teleop episodes (MCAP logs, DexJoCo raw folders), validate and store them.
-    Ingest(PendingArgs),
+    Ingest(IngestArgs),
+    /// Write stored episodes in another container (MCAP teleop logs).
+    Export(ExportArgs),
     /// Replay each episode under sampled camera/light/texture randomization; keep successes.
     Augment(PendingArgs),
     /// Convert episodes to LeRobot v3.0 / v2.1 or Diffusion Policy Zarr.
@@ -171,6 +175,8 @@ pub struct RenderArgs {
 pub enum BenchCommand {
     /// Frames/s of offscreen rendering per scene, resolution and quality preset.
     Render(BenchRenderArgs),
+    /// Episodes/s and MB/s of `ingest` on generated raw folders and MCAP files.
+    Ingest(BenchIngestArgs),
 }
 
 /// `bench render` options.
@@ -252,6 +258,84 @@ pub struct StatsArgs {
     /// Print the reports as JSON on stdout instead of the Markdown summaries.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `ingest` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data ingest recordings/                      # raw folders and *.mcap, recursively
+  dexjoco-data ingest teleop.mcap ../raw/click_mouse/episode_000003
+  dexjoco-data ingest old_demos/ --task pick_bucket    # folders whose path names no task
+  dexjoco-data ingest recordings/ --force              # redo inputs already in the store
+
+Good episodes land in the store (<work-dir>/ingest by default) in the DexJoCo raw layout,
+<task>/episode_NNNNNN/{replay.zarr, videos/}; rejected inputs are copied under
+quarantine/<id>/ with reason.json. manifest.json lists both, with every problem's file,
+episode, field and frame. Re-running skips inputs already stored (ids are content
+hashes). Exit code 3 when any input was rejected.")]
+pub struct IngestArgs {
+    /// MCAP files and folders; folders are searched recursively for DexJoCo raw episode
+    /// folders (holding replay.zarr) and *.mcap files.
+    #[arg(required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// The episode store to add to (default: <work-dir>/ingest).
+    #[arg(long, env = "DEXJOCO_STORE")]
+    pub store: Option<PathBuf>,
+    /// Re-read and rewrite inputs already in the store (they keep their folders and ids).
+    #[arg(long)]
+    pub force: bool,
+    /// Task of raw folders whose path does not name one (<task>/episode_N or <task>_demo_...).
+    #[arg(long)]
+    pub task: Option<String>,
+    /// Allowed deviation of a quaternion's norm from 1.
+    #[arg(long, default_value_t = 1e-3)]
+    pub quat_tolerance: f64,
+    /// Allowed relative deviation of a timestamp step from 1/fps.
+    #[arg(long, default_value_t = 0.1)]
+    pub timestep_tolerance: f64,
+    /// Print the run's report as JSON on stdout instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Containers `export` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ExportFormat {
+    /// One MCAP teleop log per episode (schemas/mcap-teleop.md), readable in Foxglove.
+    Mcap,
+}
+
+/// `export` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data export --to mcap                        # every episode of <work-dir>/ingest
+  dexjoco-data export --to mcap store/click_mouse/episode_000002 --out logs/")]
+pub struct ExportArgs {
+    /// Output container.
+    #[arg(long, value_enum)]
+    pub to: ExportFormat,
+    /// Episode folders, or stores (every landed episode) (default: <work-dir>/ingest).
+    pub episodes: Vec<PathBuf>,
+    /// Output folder (default: <work-dir>/export).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+}
+
+/// `bench ingest` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data bench ingest
+  dexjoco-data bench ingest --episodes 20 --frames 300")]
+pub struct BenchIngestArgs {
+    /// Generated episodes per input format (tasks cycle through all 11).
+    #[arg(long, default_value_t = 100)]
+    pub episodes: usize,
+    /// Frames per episode.
+    #[arg(long, default_value_t = 600)]
+    pub frames: usize,
 }
 
 /// Arguments of subcommands that are not built yet: accepted, so `--help` works, and

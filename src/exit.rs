@@ -10,11 +10,9 @@ pub enum ExitStatus {
     Success = 0,
     /// The command failed.
     Failure = 1,
-    /// Bad flags or values (clap exits with 2 itself; listed for the record).
-    #[allow(dead_code)] // clap reports usage errors before any command runs
+    /// Bad flags or values (clap exits with 2 itself for what it parses).
     Usage = 2,
     /// Done, but some episodes were rejected.
-    #[allow(dead_code)] // used by the ingest/augment stages as they land
     Partial = 3,
     /// The subcommand is not built yet.
     NotAvailable = 4,

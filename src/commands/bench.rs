@@ -7,13 +7,14 @@ use dexjoco_sim::mujoco_rs::prelude::MjData;
 use dexjoco_sim::{CameraView, RenderQuality, RenderSettings, Renderer};
 use serde::Serialize;
 
-use crate::cli::{BenchCommand, BenchRenderArgs, GlobalArgs, QualityArg};
+use crate::cli::{BenchCommand, BenchIngestArgs, BenchRenderArgs, GlobalArgs, QualityArg};
 use crate::exit::ExitStatus;
 
 /// Runs a `bench` subcommand.
 pub fn run(global: &GlobalArgs, cmd: &BenchCommand) -> anyhow::Result<ExitStatus> {
     match cmd {
         BenchCommand::Render(args) => render(global, args),
+        BenchCommand::Ingest(args) => ingest(global, args),
     }
 }
 
@@ -129,6 +130,99 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
     fs_err::write(
         &json,
         serde_json::to_string_pretty(&serde_json::json!({ "device": device, "rows": rows }))?,
+    )?;
+    eprintln!("wrote {}", json.display());
+    Ok(ExitStatus::Success)
+}
+
+#[derive(Debug, Serialize)]
+struct IngestRow {
+    format: &'static str,
+    episodes: usize,
+    frames: usize,
+    megabytes: f64,
+    seconds: f64,
+    episodes_per_s: f64,
+    mb_per_s: f64,
+}
+
+/// Generates `episodes` valid episodes (tasks cycling through all 11) as DexJoCo raw
+/// folders and as MCAP files, then times `ingest` of each set into an empty store.
+fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitStatus> {
+    use dexjoco_ingest::{IngestOptions, Outcome, Store, discover, raw, synth, teleop};
+
+    let tmp = tempfile::tempdir()?;
+    let raw_in = tmp.path().join("raw");
+    let mcap_in = tmp.path().join("mcap");
+    let pb = crate::progress::bar(args.episodes as u64, "generate", global.quiet);
+    for i in 0..args.episodes {
+        let task = &dexjoco_core::TASKS[i % dexjoco_core::TASKS.len()];
+        let ep = synth::episode(task, args.frames, i as u64);
+        let dir = raw_in.join(task.id).join(format!("episode_{i:06}"));
+        raw::write_replay_zarr(&dir, &ep)?;
+        teleop::write_episode_mcap(
+            &mcap_in.join(format!("{}_{i:06}.mcap", task.id)),
+            &ep,
+            task,
+            &teleop::EpisodeMeta::default(),
+        )?;
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+
+    let mut rows = Vec::new();
+    for (format, input) in [
+        ("DexJoCo raw (zarr)", &raw_in),
+        ("MCAP (json, zstd)", &mcap_in),
+    ] {
+        let store_dir = tmp.path().join(format!("store-{}", rows.len()));
+        let mut store = Store::open(&store_dir)?;
+        let sources = discover(std::slice::from_ref(input), &store_dir)?;
+        let pb = crate::progress::bar(sources.len() as u64, "ingest", global.quiet);
+        let reporter = super::ingest::BarReporter(pb.clone());
+        let summary = super::ingest::with_pool(global, || {
+            store.ingest(&sources, &IngestOptions::default(), &reporter)
+        })??;
+        pb.finish_and_clear();
+        let landed = summary.count(Outcome::Landed);
+        anyhow::ensure!(
+            landed == args.episodes,
+            "benchmark episodes were rejected: {landed} of {} landed",
+            args.episodes
+        );
+        let megabytes = summary.bytes_read as f64 / 1e6;
+        rows.push(IngestRow {
+            format,
+            episodes: landed,
+            frames: args.frames,
+            megabytes,
+            seconds: summary.seconds,
+            episodes_per_s: landed as f64 / summary.seconds,
+            mb_per_s: megabytes / summary.seconds,
+        });
+    }
+    let threads = global.jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+    });
+    println!(
+        "Ingest (read, hash, validate, write Zarr, commit) of {} generated episodes x {} frames, {threads} thread(s)",
+        args.episodes, args.frames
+    );
+    println!();
+    println!("| input | episodes | MB read | seconds | episodes/s | MB/s |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    for r in &rows {
+        println!(
+            "| {} | {} | {:.1} | {:.2} | {:.1} | {:.1} |",
+            r.format, r.episodes, r.megabytes, r.seconds, r.episodes_per_s, r.mb_per_s
+        );
+    }
+    let out = global.work_dir.join("bench");
+    fs_err::create_dir_all(&out)?;
+    let json = out.join("ingest.json");
+    fs_err::write(
+        &json,
+        serde_json::to_string_pretty(&serde_json::json!({ "threads": threads, "rows": rows }))?,
     )?;
     eprintln!("wrote {}", json.display());
     Ok(ExitStatus::Success)

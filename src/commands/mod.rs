@@ -2,6 +2,8 @@
 
 pub mod bench;
 pub mod doctor;
+pub mod export;
+pub mod ingest;
 pub mod render;
 pub mod stats;
 

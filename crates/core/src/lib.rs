@@ -10,6 +10,7 @@ mod error;
 mod layout;
 mod rotation;
 mod task_spec;
+mod tasks;
 
 pub use episode::{CameraStream, Episode, FrameArray};
 pub use error::{CoreError, Location};
@@ -20,4 +21,8 @@ pub use task_spec::{
     DynamicsRandomization, FrameRef, GeomSet, HandSource, HanoiDisk, JointRef, KeypadButton,
     LegStyle, NameKind, Node, Placement, PointRef, PoseSource, ResetSpec, StateObject, StateSpec,
     TableSpec, TaskSpec, TaskSpecError, Threshold, ZRule,
+};
+pub use tasks::{
+    DEXJOCO_FPS, HAND_CTRL_RANGES, PrivilegedField, PrivilegedKind, TABLE_OFFSET_RANGE, TASKS,
+    TaskInfo, task_info,
 };

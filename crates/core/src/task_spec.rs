@@ -1315,12 +1315,37 @@ mod tests {
     /// schema and reader agree. Regenerate with `DEXJOCO_UPDATE_SCHEMA=1 cargo test`.
     #[test]
     fn json_schema_matches_the_types() {
-        let path = schemas_dir().join("task-spec.schema.json");
-        let generated = serde_json::to_string_pretty(&TaskSpec::json_schema()).unwrap() + "\n";
-        if std::env::var_os("DEXJOCO_UPDATE_SCHEMA").is_some() {
-            std::fs::write(&path, &generated).unwrap();
+        // Keys sorted, whatever serde_json's `preserve_order` feature (which other crates
+        // of the workspace turn on) makes of map order.
+        fn sorted(v: &serde_json::Value) -> serde_json::Value {
+            match v {
+                serde_json::Value::Object(m) => {
+                    let mut keys: Vec<&String> = m.keys().collect();
+                    keys.sort();
+                    serde_json::Value::Object(
+                        keys.into_iter()
+                            .map(|k| (k.clone(), sorted(&m[k])))
+                            .collect(),
+                    )
+                }
+                serde_json::Value::Array(a) => {
+                    serde_json::Value::Array(a.iter().map(sorted).collect())
+                }
+                other => other.clone(),
+            }
         }
-        let committed = std::fs::read_to_string(&path).unwrap_or_default();
+        let path = schemas_dir().join("task-spec.schema.json");
+        let generated = sorted(&TaskSpec::json_schema());
+        if std::env::var_os("DEXJOCO_UPDATE_SCHEMA").is_some() {
+            std::fs::write(
+                &path,
+                serde_json::to_string_pretty(&generated).unwrap() + "\n",
+            )
+            .unwrap();
+        }
+        let committed: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap_or_default())
+                .unwrap_or_default();
         assert!(
             committed == generated,
             "{} is stale: run DEXJOCO_UPDATE_SCHEMA=1 cargo test -p dexjoco-core",

@@ -1,0 +1,531 @@
+//! The DexJoCo raw layout: `replay.zarr` (Zarr v2, one episode) + `videos/`, read and
+//! written with `zarrs` exactly as the reference recorder (zarr-python 2) lays it out.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use dexjoco_core::{CameraStream, Episode, FrameArray, Location, TaskInfo};
+use serde_json::{Value, json};
+use zarrs::array::{Array, ArrayMetadata, ArrayMetadataOptions, ArrayMetadataV2, CodecOptions};
+use zarrs::filesystem::FilesystemStore;
+use zarrs::group::{Group, GroupMetadata, GroupMetadataOptions};
+use zarrs::metadata::v2::GroupMetadataV2;
+
+use crate::error::{IngestError, ProblemCode, Result, io_err};
+
+/// Name of the Zarr store inside an episode folder.
+pub const REPLAY_ZARR: &str = "replay.zarr";
+/// Name of the video folder inside an episode folder.
+pub const VIDEOS: &str = "videos";
+/// Largest chunk the recorder makes, in bytes (`2e6 // bytes_per_step` frames).
+pub const CHUNK_BYTES: usize = 2_000_000;
+
+/// An episode read from a raw folder, with what reading it changed or left out.
+#[derive(Debug, Clone)]
+pub struct RawEpisode {
+    /// The episode (`id` is empty until the store gives it one).
+    pub episode: Episode,
+    /// Files under `videos/`, relative to the episode folder.
+    pub videos: Vec<PathBuf>,
+    /// Normalisations applied (float32 widened, object order fixed, rotvec computed) and
+    /// things not carried over.
+    pub notes: Vec<String>,
+}
+
+/// The dtype of a stored array, from its `.zarray`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Dtype {
+    F64,
+    F32,
+    I64,
+}
+
+struct ArrayInfo {
+    dtype: Dtype,
+    shape: Vec<u64>,
+    chunks: Vec<u64>,
+}
+
+fn read_json(path: &Path, at: &Location) -> Result<Value> {
+    let bytes = fs_err::read(path).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::NotFound {
+            IngestError::input(
+                ProblemCode::MissingArray,
+                at,
+                format!("'{}' is missing", path.display()),
+            )
+        } else {
+            IngestError::input(ProblemCode::Unreadable, at, e)
+        }
+    })?;
+    if bytes.is_empty() {
+        return Err(IngestError::input(
+            ProblemCode::EmptyFile,
+            at,
+            format!("'{}' is empty", path.display()),
+        ));
+    }
+    serde_json::from_slice(&bytes).map_err(|e| {
+        IngestError::input(
+            ProblemCode::Corrupt,
+            at,
+            format!("'{}' is not valid JSON: {e}", path.display()),
+        )
+    })
+}
+
+fn array_info(zarr: &Path, key: &str, at: &Location) -> Result<ArrayInfo> {
+    let meta = read_json(&zarr.join(key).join(".zarray"), at)?;
+    let corrupt = |what: &str| {
+        IngestError::input(
+            ProblemCode::Corrupt,
+            at,
+            format!("'.zarray' has no valid {what}"),
+        )
+    };
+    if meta.get("zarr_format").and_then(Value::as_u64) != Some(2) {
+        return Err(corrupt("zarr_format 2"));
+    }
+    let dims = |k: &str| -> Option<Vec<u64>> {
+        meta.get(k)?
+            .as_array()?
+            .iter()
+            .map(Value::as_u64)
+            .collect::<Option<Vec<_>>>()
+    };
+    let shape = dims("shape").ok_or_else(|| corrupt("shape"))?;
+    let chunks = dims("chunks").ok_or_else(|| corrupt("chunks"))?;
+    if chunks.len() != shape.len() || chunks.contains(&0) {
+        return Err(corrupt("chunks"));
+    }
+    let dtype_str = meta.get("dtype").and_then(Value::as_str).unwrap_or("?");
+    let dtype = match dtype_str {
+        "<f8" | ">f8" => Dtype::F64,
+        "<f4" | ">f4" => Dtype::F32,
+        "<i8" | ">i8" => Dtype::I64,
+        other => {
+            return Err(IngestError::input(
+                ProblemCode::WrongDtype,
+                at,
+                format!("dtype '{other}' is not float64 (or the older float32)"),
+            ));
+        }
+    };
+    if meta.get("order").and_then(Value::as_str) == Some("F") {
+        return Err(IngestError::input(
+            ProblemCode::Corrupt,
+            at,
+            "Fortran-ordered chunks are not written by the recorder",
+        ));
+    }
+    Ok(ArrayInfo {
+        dtype,
+        shape,
+        chunks,
+    })
+}
+
+/// Keys of every chunk of an array (default `.` separator).
+fn chunk_keys(info: &ArrayInfo, separator: &str) -> Vec<String> {
+    let counts: Vec<u64> = info
+        .shape
+        .iter()
+        .zip(&info.chunks)
+        .map(|(s, c)| s.div_ceil(*c))
+        .collect();
+    let mut keys = vec![String::new()];
+    for (d, n) in counts.iter().enumerate() {
+        let mut next = Vec::new();
+        for k in &keys {
+            for i in 0..*n {
+                next.push(if d == 0 {
+                    i.to_string()
+                } else {
+                    format!("{k}{separator}{i}")
+                });
+            }
+        }
+        keys = next;
+    }
+    if counts.contains(&0) {
+        Vec::new()
+    } else {
+        keys
+    }
+}
+
+fn open_store(zarr: &Path, at: &Location) -> Result<Arc<FilesystemStore>> {
+    FilesystemStore::new(zarr)
+        .map(Arc::new)
+        .map_err(|e| IngestError::input(ProblemCode::Unreadable, at, e))
+}
+
+fn zarr_corrupt(at: &Location, e: impl std::fmt::Display) -> IngestError {
+    IngestError::input(ProblemCode::Corrupt, at, format!("cannot decode: {e}"))
+}
+
+/// Reads one array as f64 (float32 is widened exactly), checking every chunk is present.
+fn read_array(
+    store: &Arc<FilesystemStore>,
+    zarr: &Path,
+    key: &str,
+    info: &ArrayInfo,
+    at: &Location,
+) -> Result<Vec<f64>> {
+    let meta = read_json(&zarr.join(key).join(".zarray"), at)?;
+    let sep = meta
+        .get("dimension_separator")
+        .and_then(Value::as_str)
+        .unwrap_or(".");
+    for ck in chunk_keys(info, sep) {
+        let p = zarr.join(key).join(&ck);
+        if !p.is_file() {
+            return Err(IngestError::input(
+                ProblemCode::MissingArray,
+                at,
+                format!("chunk file '{}' is missing", p.display()),
+            ));
+        }
+    }
+    let array = Array::open(store.clone(), &format!("/{key}")).map_err(|e| zarr_corrupt(at, e))?;
+    let subset = array.subset_all();
+    Ok(match info.dtype {
+        Dtype::F64 => array
+            .retrieve_array_subset::<Vec<f64>>(&subset)
+            .map_err(|e| zarr_corrupt(at, e))?,
+        Dtype::F32 => array
+            .retrieve_array_subset::<Vec<f32>>(&subset)
+            .map_err(|e| zarr_corrupt(at, e))?
+            .into_iter()
+            .map(f64::from)
+            .collect(),
+        Dtype::I64 => {
+            return Err(IngestError::input(
+                ProblemCode::WrongDtype,
+                at,
+                "dtype int64 where float64 is expected",
+            ));
+        }
+    })
+}
+
+fn read_episode_ends(store: &Arc<FilesystemStore>, zarr: &Path, at: &Location) -> Result<Vec<i64>> {
+    let key = "meta/episode_ends";
+    let info = array_info(zarr, key, at)?;
+    if info.dtype != Dtype::I64 || info.shape.len() != 1 {
+        return Err(IngestError::input(
+            ProblemCode::WrongDtype,
+            at,
+            "episode_ends must be a 1-d int64 array",
+        ));
+    }
+    let array = Array::open(store.clone(), &format!("/{key}")).map_err(|e| zarr_corrupt(at, e))?;
+    array
+        .retrieve_array_subset::<Vec<i64>>(&array.subset_all())
+        .map_err(|e| zarr_corrupt(at, e))
+}
+
+/// The task of a raw folder from its path: `<task>/episode_NNNNNN/` or
+/// `<task>_demo_<k>_<date>/` (replays: `_replay_`).
+pub fn task_from_path(dir: &Path) -> Option<String> {
+    let name = dir.file_name()?.to_str()?;
+    for marker in ["_demo_", "_replay_"] {
+        if let Some(i) = name.find(marker) {
+            return Some(name[..i].to_owned());
+        }
+    }
+    if name.starts_with("episode_") {
+        return dir.parent()?.file_name()?.to_str().map(str::to_owned);
+    }
+    None
+}
+
+/// Reads a raw episode folder (holding `replay.zarr`, optionally `videos/`) of `task`.
+///
+/// Applies the documented normalisations: float32 `state` is widened to float64; the
+/// older pick_bucket object order (food before bucket) is put in the current order;
+/// `action_rotvec` is computed when absent. Each is recorded in [`RawEpisode::notes`].
+pub fn read_raw_episode(dir: &Path, task: &TaskInfo) -> Result<RawEpisode> {
+    let zarr = dir.join(REPLAY_ZARR);
+    let base = Location::default().path(dir);
+    if !zarr.is_dir() {
+        return Err(IngestError::input(
+            ProblemCode::MissingArray,
+            &base,
+            "no replay.zarr folder",
+        ));
+    }
+    read_json(&zarr.join(".zgroup"), &base.clone().field(".zgroup"))?;
+    let store = open_store(&zarr, &base)?;
+    let mut notes = Vec::new();
+    let mut arrays = BTreeMap::new();
+
+    // The standard arrays, then any other float array of data/ (carried unchanged).
+    let mut names: Vec<String> = [
+        Episode::ACTION,
+        Episode::STATE,
+        Episode::TIMESTAMP,
+        Episode::ACTION_ROTVEC,
+    ]
+    .map(str::to_owned)
+    .to_vec();
+    if let Ok(rd) = std::fs::read_dir(zarr.join("data")) {
+        let mut extra: Vec<String> = rd
+            .flatten()
+            .filter(|e| e.path().join(".zarray").is_file())
+            .filter_map(|e| e.file_name().to_str().map(str::to_owned))
+            .filter(|n| !names.contains(n))
+            .collect();
+        extra.sort();
+        names.extend(extra);
+    }
+    for name in &names {
+        let at = base.clone().field(name.as_str());
+        let key = format!("data/{name}");
+        if name == Episode::ACTION_ROTVEC && !zarr.join(&key).join(".zarray").exists() {
+            continue;
+        }
+        let info = array_info(&zarr, &key, &at)?;
+        let width = match info.shape.as_slice() {
+            [_] => 1,
+            [_, w] if name != Episode::TIMESTAMP || *w == 1 => *w as usize,
+            other => {
+                return Err(IngestError::input(
+                    ProblemCode::WrongDimensions,
+                    &at,
+                    format!("shape {other:?} is not (T,) or (T, width)"),
+                ));
+            }
+        };
+        if width == 0 {
+            return Err(IngestError::input(
+                ProblemCode::WrongDimensions,
+                &at,
+                "zero values per frame",
+            ));
+        }
+        if info.dtype == Dtype::F32 {
+            if name == Episode::STATE {
+                notes.push("state was float32 (older release): widened to float64".into());
+            } else {
+                return Err(IngestError::input(
+                    ProblemCode::WrongDtype,
+                    &at,
+                    "dtype float32 where float64 is expected (only the older `state` is float32)",
+                ));
+            }
+        }
+        let values = read_array(&store, &zarr, &key, &info, &at)?;
+        let fa = FrameArray::new(width, values).map_err(IngestError::Core)?;
+        arrays.insert(name.clone(), fa);
+    }
+
+    let frames = arrays.get(Episode::ACTION).map_or(0, FrameArray::len);
+    let at = base.clone().field("meta/episode_ends");
+    let ends = read_episode_ends(&store, &zarr, &at)?;
+    if ends != [frames as i64] {
+        return Err(IngestError::input(
+            ProblemCode::EpisodeEndsMismatch,
+            &at,
+            format!("episode_ends {ends:?} where the arrays hold one episode of {frames} frames"),
+        ));
+    }
+
+    let mut episode = Episode {
+        id: String::new(),
+        task: task.id.to_owned(),
+        prompt: task.prompt.to_owned(),
+        fps: dexjoco_core::DEXJOCO_FPS,
+        arrays,
+        cameras: Vec::new(),
+    };
+
+    if task.id == "pick_bucket" && fix_pick_bucket_order(&mut episode) {
+        notes.push(
+            "pick_bucket state had the older object order (food, bucket): reordered to bucket, food"
+                .into(),
+        );
+    }
+    if episode.array(Episode::ACTION_ROTVEC).is_none()
+        && episode
+            .array(Episode::ACTION)
+            .is_some_and(|a| a.width() == task.setup.action_dim())
+    {
+        episode.compute_action_rotvec(task.setup)?;
+        notes.push("action_rotvec was absent: computed from action".into());
+    }
+
+    let videos = list_files(&dir.join(VIDEOS), Path::new(VIDEOS))?;
+    episode.cameras = cameras_of(&videos);
+    Ok(RawEpisode {
+        episode,
+        videos,
+        notes,
+    })
+}
+
+/// In the older pick_bucket releases state[23:30] is the food and [30:37] the bucket.
+/// The bucket is reset at y in [-0.25, -0.20] and the food at y in [0.15, 0.20], so the
+/// sign of the first object's y tells the order. Returns whether it swapped.
+fn fix_pick_bucket_order(ep: &mut Episode) -> bool {
+    let Some(state) = ep.arrays.get_mut(Episode::STATE) else {
+        return false;
+    };
+    if state.width() != 38 || state.is_empty() || state.row(0)[24] <= 0.0 {
+        return false;
+    }
+    for i in 0..state.len() {
+        let row = state.row_mut(i);
+        let mut first = [0.0; 7];
+        first.copy_from_slice(&row[23..30]);
+        row.copy_within(30..37, 23);
+        row[30..37].copy_from_slice(&first);
+    }
+    true
+}
+
+/// Files under `dir`, recursively, relative paths prefixed with `prefix`, sorted.
+pub(crate) fn list_files(dir: &Path, prefix: &Path) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    if !dir.is_dir() {
+        return Ok(out);
+    }
+    let mut entries: Vec<_> = fs_err::read_dir(dir)
+        .map_err(|e| IngestError::Io {
+            op: "list",
+            path: dir.to_owned(),
+            source: e,
+        })?
+        .flatten()
+        .collect();
+    entries.sort_by_key(|e| e.file_name());
+    for e in entries {
+        let p = e.path();
+        let rel = prefix.join(e.file_name());
+        if p.is_dir() {
+            out.extend(list_files(&p, &rel)?);
+        } else {
+            out.push(rel);
+        }
+    }
+    Ok(out)
+}
+
+fn cameras_of(videos: &[PathBuf]) -> Vec<CameraStream> {
+    let mut cams = Vec::new();
+    for v in videos {
+        let Some(name) = v.file_name().and_then(|n| n.to_str()) else {
+            continue;
+        };
+        if let Some(cam) = name.strip_suffix(".mp4") {
+            if cam.ends_with("_depth") {
+                continue;
+            }
+            let depth = Path::new(VIDEOS).join(format!("{cam}_depth.npz"));
+            cams.push(CameraStream {
+                name: cam.to_owned(),
+                video: Some(v.clone()),
+                depth: videos.contains(&depth).then_some(depth),
+            });
+        }
+    }
+    cams
+}
+
+fn metadata_v2(
+    shape: &[u64],
+    chunks: &[u64],
+    dtype: &str,
+    compressed: bool,
+) -> Result<ArrayMetadataV2> {
+    let compressor = if compressed {
+        json!({"id": "blosc", "cname": "zstd", "clevel": 5, "shuffle": 2, "blocksize": 0})
+    } else {
+        Value::Null
+    };
+    let fill = if dtype == "<i8" { json!(0) } else { json!(0.0) };
+    let meta = json!({
+        "zarr_format": 2,
+        "shape": shape,
+        "chunks": chunks,
+        "dtype": dtype,
+        "compressor": compressor,
+        "fill_value": fill,
+        "order": "C",
+        "filters": null,
+        "dimension_separator": ".",
+    });
+    serde_json::from_value(meta).map_err(|e| IngestError::Zarr {
+        at: Location::default(),
+        message: format!("building .zarray: {e}"),
+    })
+}
+
+fn zarr_write_err(at: &Location) -> impl Fn(String) -> IngestError + '_ {
+    move |message| IngestError::Zarr {
+        at: at.clone(),
+        message,
+    }
+}
+
+/// Writes `replay.zarr` of one episode under `dir` (created), as the recorder does:
+/// float64 arrays, Blosc zstd clevel 5 bitshuffle, one chunk per episode up to 2 MB,
+/// `meta/episode_ends` int64 uncompressed in chunks of 1024, no `.zattrs`.
+pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
+    let zarr = dir.join(REPLAY_ZARR);
+    let at = Location::episode(&ep.id).path(&zarr);
+    let err = zarr_write_err(&at);
+    fs_err::create_dir_all(&zarr).map_err(io_err("create", &zarr))?;
+    let store = Arc::new(FilesystemStore::new(&zarr).map_err(|e| err(e.to_string()))?);
+    let group_opts = GroupMetadataOptions::default();
+    for path in ["/", "/data", "/meta"] {
+        Group::new_with_metadata(
+            store.clone(),
+            path,
+            GroupMetadata::V2(GroupMetadataV2::new()),
+        )
+        .map_err(|e| err(e.to_string()))?
+        .store_metadata_opt(&group_opts)
+        .map_err(|e| err(e.to_string()))?;
+    }
+    let array_opts = ArrayMetadataOptions::default().with_include_zarrs_metadata(false);
+    let codec_opts = CodecOptions::default().with_store_empty_chunks(true);
+    let frames = ep.len() as u64;
+    for (name, a) in &ep.arrays {
+        let width = a.width() as u64;
+        let per_step = (width as usize * 8).max(1);
+        let chunk_frames = ((CHUNK_BYTES / per_step) as u64).min(frames).max(1);
+        let (shape, chunks) = if name == Episode::TIMESTAMP && width == 1 {
+            (vec![frames], vec![chunk_frames])
+        } else {
+            (vec![frames, width], vec![chunk_frames, width])
+        };
+        let meta = metadata_v2(&shape, &chunks, "<f8", true)?;
+        let array = Array::new_with_metadata(
+            store.clone(),
+            &format!("/data/{name}"),
+            ArrayMetadata::V2(meta),
+        )
+        .map_err(|e| err(e.to_string()))?;
+        array
+            .store_metadata_opt(&array_opts)
+            .map_err(|e| err(e.to_string()))?;
+        if frames > 0 {
+            array
+                .store_array_subset_opt(&array.subset_all(), a.as_slice(), &codec_opts)
+                .map_err(|e| err(e.to_string()))?;
+        }
+    }
+    let meta = metadata_v2(&[1], &[1024], "<i8", false)?;
+    let array =
+        Array::new_with_metadata(store.clone(), "/meta/episode_ends", ArrayMetadata::V2(meta))
+            .map_err(|e| err(e.to_string()))?;
+    array
+        .store_metadata_opt(&array_opts)
+        .map_err(|e| err(e.to_string()))?;
+    array
+        .store_array_subset_opt(&array.subset_all(), &[frames as i64][..], &codec_opts)
+        .map_err(|e| err(e.to_string()))?;
+    Ok(())
+}

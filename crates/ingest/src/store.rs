@@ -1,0 +1,1024 @@
+//! The canonical episode store (the DexJoCo raw layout plus a manifest) and the ingest
+//! pipeline: discover inputs, read and validate them in parallel, land the good episodes
+//! atomically and quarantine the rest with their reasons.
+//!
+//! Store layout:
+//! ```text
+//! <store>/manifest.json                       every episode and rejected input, with problems
+//! <store>/<task>/episode_000000/replay.zarr   the DexJoCo raw layout
+//! <store>/<task>/episode_000000/videos/       copied from the source folder
+//! <store>/<task>/episode_000000/.dexjoco-ingest.json   this episode's manifest entry
+//! <store>/quarantine/<id>/reason.json         a rejected input's manifest entry
+//! <store>/quarantine/<id>/source/...          a copy of the rejected input
+//! <store>/.staging/                           work in progress (removed on open)
+//! <store>/.lock                               the pid of the process using the store
+//! ```
+//! An episode is written whole under `.staging/` and renamed into place, so a store never
+//! holds half an episode. Each landed folder carries its own manifest entry, so an
+//! interrupted run's manifest is rebuilt on the next open. Ids are the first 16 hex
+//! digits of the SHA-256 of the input's bytes, so re-running on the same input skips it.
+
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use dexjoco_core::{Episode, Location, task_info};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::error::{IngestError, Problem, ProblemCode, Result, io_err};
+use crate::raw::{self, REPLAY_ZARR};
+use crate::teleop;
+use crate::validate::{ValidationOptions, validate};
+
+/// File name of a store's manifest.
+pub const MANIFEST: &str = "manifest.json";
+/// Folder of rejected inputs.
+pub const QUARANTINE: &str = "quarantine";
+/// Folder of work in progress.
+pub const STAGING: &str = ".staging";
+/// Held by the process using a store; holds its pid.
+pub const LOCK_FILE: &str = ".lock";
+/// A landed episode's own manifest entry, inside its folder.
+pub const ENTRY_FILE: &str = ".dexjoco-ingest.json";
+/// A quarantined input's manifest entry.
+pub const REASON_FILE: &str = "reason.json";
+/// Format name written in manifests.
+pub const MANIFEST_FORMAT: &str = "dexjoco-data/ingest-manifest";
+/// Manifest format version.
+pub const MANIFEST_VERSION: u32 = 1;
+
+/// What kind of input a source is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SourceKind {
+    /// A DexJoCo raw episode folder (holding `replay.zarr`).
+    Raw,
+    /// An MCAP teleop log (one episode).
+    Mcap,
+}
+
+/// One input to ingest.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Source {
+    /// The file or folder.
+    pub path: PathBuf,
+    /// Its kind.
+    pub kind: SourceKind,
+}
+
+/// Whether an entry's episode landed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// Stored and valid.
+    Ok,
+    /// Rejected; the input is copied under `quarantine/<id>/`.
+    Quarantined,
+}
+
+/// One episode (or rejected input) of a store.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ManifestEntry {
+    /// Stable id: the first 16 hex digits of the input's SHA-256.
+    pub id: String,
+    /// Task id, when known.
+    pub task: Option<String>,
+    /// The input file or folder, as given.
+    pub source: PathBuf,
+    /// The input's kind.
+    pub source_kind: SourceKind,
+    /// `sha256:<hex>` of the input's bytes (folders: of every file's path and bytes).
+    pub source_hash: String,
+    /// Frames (0 when the input could not be read).
+    pub length: usize,
+    /// Landed or quarantined.
+    pub status: Status,
+    /// The episode folder (or quarantine folder), relative to the store.
+    pub path: PathBuf,
+    /// Why it was rejected (empty when landed).
+    #[serde(default)]
+    pub problems: Vec<Problem>,
+    /// What reading changed or left out.
+    #[serde(default)]
+    pub notes: Vec<String>,
+}
+
+/// A store's manifest.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    /// Always [`MANIFEST_FORMAT`].
+    pub format: String,
+    /// Always [`MANIFEST_VERSION`].
+    pub version: u32,
+    /// Every entry, landed first in (task, path) order, then quarantined by id.
+    pub episodes: Vec<ManifestEntry>,
+}
+
+impl Default for Manifest {
+    fn default() -> Self {
+        Self {
+            format: MANIFEST_FORMAT.into(),
+            version: MANIFEST_VERSION,
+            episodes: Vec::new(),
+        }
+    }
+}
+
+impl Manifest {
+    /// The entry with this id.
+    pub fn get(&self, id: &str) -> Option<&ManifestEntry> {
+        self.episodes.iter().find(|e| e.id == id)
+    }
+
+    fn upsert(&mut self, entry: ManifestEntry) {
+        match self.episodes.iter_mut().find(|e| e.id == entry.id) {
+            Some(e) => *e = entry,
+            None => self.episodes.push(entry),
+        }
+    }
+
+    fn sort(&mut self) {
+        self.episodes.sort_by(|a, b| {
+            (a.status != Status::Ok, &a.task, &a.path, &a.id).cmp(&(
+                b.status != Status::Ok,
+                &b.task,
+                &b.path,
+                &b.id,
+            ))
+        });
+    }
+}
+
+/// Options of an ingest run.
+#[derive(Debug, Clone, Default)]
+pub struct IngestOptions {
+    /// Re-read and rewrite inputs already in the store (same folders, same ids).
+    pub force: bool,
+    /// The task of raw folders whose path does not name one.
+    pub task: Option<String>,
+    /// Validation tolerances.
+    pub validation: ValidationOptions,
+}
+
+/// What happened to one source.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Stored.
+    Landed,
+    /// Stored again over the previous copy (`force`).
+    Replaced,
+    /// Already in the store; nothing done.
+    AlreadyPresent,
+    /// The same content appeared earlier in this run; nothing done.
+    Duplicate,
+    /// Rejected and quarantined (now or in an earlier run).
+    Quarantined,
+}
+
+/// The result for one source.
+#[derive(Debug, Clone, Serialize)]
+pub struct SourceReport {
+    /// The input.
+    pub source: PathBuf,
+    /// Its id.
+    pub id: String,
+    /// What happened.
+    pub outcome: Outcome,
+    /// The episode or quarantine folder, relative to the store.
+    pub path: PathBuf,
+    /// Why it was rejected.
+    pub problems: Vec<Problem>,
+    /// Notes from reading.
+    pub notes: Vec<String>,
+}
+
+/// The result of a run.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct IngestSummary {
+    /// One report per source, in input order.
+    pub sources: Vec<SourceReport>,
+    /// Bytes of input read.
+    pub bytes_read: u64,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+impl IngestSummary {
+    /// Sources with this outcome.
+    pub fn count(&self, outcome: Outcome) -> usize {
+        self.sources.iter().filter(|s| s.outcome == outcome).count()
+    }
+
+    /// Sources rejected (now or before).
+    pub fn rejected(&self) -> usize {
+        self.count(Outcome::Quarantined)
+    }
+}
+
+/// Progress callbacks of a long stage; the CLI draws them, libraries never do.
+pub trait Reporter: Sync {
+    /// The run will process `total` sources.
+    fn start(&self, _total: usize) {}
+    /// One source is done (called from worker threads).
+    fn source_done(&self, _source: &Path) {}
+}
+
+/// A reporter that reports nothing.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoReporter;
+
+impl Reporter for NoReporter {}
+
+/// Finds the sources under `inputs`: folders holding `replay.zarr` (searched
+/// recursively) and `*.mcap` files; files named explicitly are read as MCAP whatever
+/// their extension. `exclude` (the store itself) is never entered.
+pub fn discover(inputs: &[PathBuf], exclude: &Path) -> Result<Vec<Source>> {
+    let exclude = exclude.canonicalize().ok();
+    let mut out = Vec::new();
+    for input in inputs {
+        let meta = std::fs::symlink_metadata(input).map_err(io_err("read", input))?;
+        if input.is_dir() {
+            if input.file_name().is_some_and(|n| n == REPLAY_ZARR) {
+                let parent = input
+                    .parent()
+                    .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
+                out.push(Source {
+                    path: parent,
+                    kind: SourceKind::Raw,
+                });
+            } else {
+                walk(input, exclude.as_deref(), &mut HashSet::new(), &mut out)?;
+            }
+        } else {
+            let _ = meta;
+            out.push(Source {
+                path: input.clone(),
+                kind: SourceKind::Mcap,
+            });
+        }
+    }
+    let mut seen = HashSet::new();
+    out.retain(|s| seen.insert(s.path.clone()));
+    Ok(out)
+}
+
+fn walk(
+    dir: &Path,
+    exclude: Option<&Path>,
+    visited: &mut HashSet<PathBuf>,
+    out: &mut Vec<Source>,
+) -> Result<()> {
+    let real = dir.canonicalize().map_err(io_err("resolve", dir))?;
+    // Linked folders are followed once (no loops); the store itself is never entered.
+    if exclude == Some(real.as_path()) || !visited.insert(real) {
+        return Ok(());
+    }
+    if dir.join(REPLAY_ZARR).is_dir() {
+        out.push(Source {
+            path: dir.to_owned(),
+            kind: SourceKind::Raw,
+        });
+        return Ok(());
+    }
+    let mut entries: Vec<_> = fs_err::read_dir(dir)
+        .map_err(io_err("list", dir))?
+        .flatten()
+        .collect();
+    entries.sort_by_key(|e| e.file_name());
+    for e in entries {
+        let p = e.path();
+        let is_mcap = p
+            .extension()
+            .is_some_and(|x| x.eq_ignore_ascii_case("mcap"));
+        if p.is_dir() {
+            walk(&p, exclude, visited, out)?;
+        } else if is_mcap {
+            out.push(Source {
+                path: p,
+                kind: SourceKind::Mcap,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// A store of episodes in the DexJoCo raw layout with its manifest.
+#[derive(Debug)]
+pub struct Store {
+    root: PathBuf,
+    manifest: Manifest,
+    _lock: StoreLock,
+}
+
+/// Exclusive use of a store by one process (`<store>/.lock` holds its pid). A lock left
+/// by a process that no longer exists (killed) is taken over.
+#[derive(Debug)]
+struct StoreLock {
+    path: PathBuf,
+}
+
+impl StoreLock {
+    fn acquire(root: &Path) -> Result<Self> {
+        use std::io::Write;
+        let path = root.join(LOCK_FILE);
+        for _ in 0..3 {
+            match std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&path)
+            {
+                Ok(mut f) => {
+                    write!(f, "{}", std::process::id()).map_err(io_err("write", &path))?;
+                    return Ok(Self { path });
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let owner = std::fs::read_to_string(&path)
+                        .ok()
+                        .and_then(|s| s.trim().parse::<u32>().ok());
+                    match owner {
+                        Some(pid) if process_exists(pid) => {
+                            return Err(IngestError::Locked {
+                                path: root.to_owned(),
+                                pid,
+                            });
+                        }
+                        _ => {
+                            tracing::info!("taking over the lock of a process that has ended");
+                            let _ = std::fs::remove_file(&path);
+                        }
+                    }
+                }
+                Err(e) => return Err(io_err("create", &path)(e)),
+            }
+        }
+        Err(IngestError::Locked {
+            path: root.to_owned(),
+            pid: 0,
+        })
+    }
+}
+
+impl Drop for StoreLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// Whether a process exists (Linux: /proc; elsewhere assumed alive, so a stale lock must
+/// be removed by hand).
+fn process_exists(pid: u32) -> bool {
+    let proc = Path::new("/proc");
+    !proc.is_dir() || proc.join(pid.to_string()).exists()
+}
+
+/// A source read, checked and written to staging, waiting to be committed.
+struct Prepared {
+    source: Source,
+    entry: ManifestEntry,
+    /// The staged folder to rename into place (None: nothing to move).
+    staged: Option<PathBuf>,
+    outcome: Outcome,
+    bytes: u64,
+    /// A failure of the store itself (not of the input): stops the run.
+    fatal: Option<IngestError>,
+}
+
+/// Why staging an input failed: the input is bad, or the store could not be written.
+enum StageFailure {
+    Input(IngestError),
+    Store(IngestError),
+}
+
+impl From<IngestError> for StageFailure {
+    fn from(e: IngestError) -> Self {
+        Self::Input(e)
+    }
+}
+
+impl Store {
+    /// Opens (creating) a store; clears work left in `.staging/` by an interrupted run
+    /// and re-adds to the manifest any landed or quarantined folder it lacks.
+    pub fn open(root: impl Into<PathBuf>) -> Result<Self> {
+        let root = root.into();
+        fs_err::create_dir_all(&root).map_err(io_err("create", &root))?;
+        let lock = StoreLock::acquire(&root)?;
+        let staging = root.join(STAGING);
+        if staging.exists() {
+            fs_err::remove_dir_all(&staging).map_err(io_err("remove", &staging))?;
+        }
+        let mpath = root.join(MANIFEST);
+        let mut manifest = if mpath.exists() {
+            let bytes = fs_err::read(&mpath).map_err(io_err("read", &mpath))?;
+            serde_json::from_slice(&bytes).map_err(|e| IngestError::Manifest {
+                path: mpath.clone(),
+                message: e.to_string(),
+            })?
+        } else {
+            Manifest::default()
+        };
+        let mut recovered = 0;
+        for entry_file in Self::entry_files(&root)? {
+            let Ok(bytes) = std::fs::read(&entry_file) else {
+                continue;
+            };
+            let Ok(entry) = serde_json::from_slice::<ManifestEntry>(&bytes) else {
+                continue;
+            };
+            if manifest.get(&entry.id) != Some(&entry) {
+                manifest.upsert(entry);
+                recovered += 1;
+            }
+        }
+        let mut store = Self {
+            root,
+            manifest,
+            _lock: lock,
+        };
+        if recovered > 0 {
+            tracing::info!(
+                recovered,
+                "manifest: re-added entries of an interrupted run"
+            );
+            store.save_manifest()?;
+        }
+        Ok(store)
+    }
+
+    fn entry_files(root: &Path) -> Result<Vec<PathBuf>> {
+        let mut out = Vec::new();
+        for e in fs_err::read_dir(root)
+            .map_err(io_err("list", root))?
+            .flatten()
+        {
+            let name = e.file_name();
+            if name == STAGING || !e.path().is_dir() {
+                continue;
+            }
+            let file = if name == QUARANTINE {
+                REASON_FILE
+            } else {
+                ENTRY_FILE
+            };
+            let Ok(rd) = std::fs::read_dir(e.path()) else {
+                continue;
+            };
+            for sub in rd.flatten() {
+                let f = sub.path().join(file);
+                if f.is_file() {
+                    out.push(f);
+                }
+            }
+        }
+        out.sort();
+        Ok(out)
+    }
+
+    /// The store folder.
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// The manifest.
+    pub fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    fn save_manifest(&mut self) -> Result<()> {
+        self.manifest.sort();
+        let json = serde_json::to_vec_pretty(&self.manifest).expect("manifest serializes");
+        write_atomic(&self.root.join(MANIFEST), &json)
+    }
+
+    /// Ingests `sources` (in parallel over the current rayon pool), landing valid
+    /// episodes and quarantining the rest. A bad input never stops the run.
+    pub fn ingest(
+        &mut self,
+        sources: &[Source],
+        opts: &IngestOptions,
+        reporter: &dyn Reporter,
+    ) -> Result<IngestSummary> {
+        let t0 = Instant::now();
+        reporter.start(sources.len());
+        let staging = self.root.join(STAGING);
+        fs_err::create_dir_all(&staging).map_err(io_err("create", &staging))?;
+        let mut next_index = self.scan_indices()?;
+        let mut summary = IngestSummary::default();
+        let mut seen: HashMap<String, PathBuf> = HashMap::new();
+        // Batches keep memory bounded and commit in input order, so indices do not
+        // depend on thread timing; each batch is durable before the next starts.
+        let batch = (rayon::current_num_threads() * 4).max(8);
+        for chunk in sources.chunks(batch) {
+            let prepared: Vec<Prepared> = chunk
+                .par_iter()
+                .map(|s| {
+                    let p = self.prepare(s, opts, &staging);
+                    reporter.source_done(&s.path);
+                    p
+                })
+                .collect();
+            for p in prepared {
+                summary.bytes_read += p.bytes;
+                let report = self.commit(p, &mut next_index, &mut seen, opts)?;
+                summary.sources.push(report);
+            }
+            self.save_manifest()?;
+        }
+        let _ = std::fs::remove_dir_all(&staging);
+        summary.seconds = t0.elapsed().as_secs_f64();
+        Ok(summary)
+    }
+
+    /// The next free episode index of every task folder.
+    fn scan_indices(&self) -> Result<HashMap<String, usize>> {
+        let mut next = HashMap::new();
+        for e in fs_err::read_dir(&self.root)
+            .map_err(io_err("list", &self.root))?
+            .flatten()
+        {
+            let Some(task) = e.file_name().to_str().map(str::to_owned) else {
+                continue;
+            };
+            if task_info(&task).is_none() || !e.path().is_dir() {
+                continue;
+            }
+            let mut max = 0;
+            for ep in std::fs::read_dir(e.path()).into_iter().flatten().flatten() {
+                if let Some(n) = ep
+                    .file_name()
+                    .to_str()
+                    .and_then(|n| n.strip_prefix("episode_"))
+                    .and_then(|n| n.parse::<usize>().ok())
+                {
+                    max = max.max(n + 1);
+                }
+            }
+            next.insert(task, max);
+        }
+        Ok(next)
+    }
+
+    fn prepare(&self, source: &Source, opts: &IngestOptions, staging: &Path) -> Prepared {
+        let (hash, bytes, content) = match hash_source(source) {
+            Ok(x) => x,
+            Err(e) => {
+                // Unreadable: the id comes from the path, so a re-run finds the same entry.
+                let id = hex16(&Sha256::digest(source.path.to_string_lossy().as_bytes()));
+                if let Some(prev) = self.manifest.get(&id).filter(|_| !opts.force) {
+                    return Prepared {
+                        source: source.clone(),
+                        entry: prev.clone(),
+                        staged: None,
+                        outcome: Outcome::Quarantined,
+                        bytes: 0,
+                        fatal: None,
+                    };
+                }
+                let entry = ManifestEntry {
+                    id: id.clone(),
+                    task: None,
+                    source: source.path.clone(),
+                    source_kind: source.kind,
+                    source_hash: String::new(),
+                    length: 0,
+                    status: Status::Quarantined,
+                    path: Path::new(QUARANTINE).join(&id),
+                    problems: name_problems(e.problems(), &source.path, &id),
+                    notes: Vec::new(),
+                };
+                return self.quarantine(source, entry, staging, 0);
+            }
+        };
+        let id = hash[..16].to_owned();
+        if let Some(prev) = self.manifest.get(&id) {
+            let present = self.root.join(&prev.path).is_dir();
+            if present && !opts.force {
+                return Prepared {
+                    source: source.clone(),
+                    entry: prev.clone(),
+                    staged: None,
+                    outcome: match prev.status {
+                        Status::Ok => Outcome::AlreadyPresent,
+                        Status::Quarantined => Outcome::Quarantined,
+                    },
+                    bytes,
+                    fatal: None,
+                };
+            }
+        }
+        let mut entry = ManifestEntry {
+            id: id.clone(),
+            task: None,
+            source: source.path.clone(),
+            source_kind: source.kind,
+            source_hash: format!("sha256:{hash}"),
+            length: 0,
+            status: Status::Ok,
+            path: PathBuf::new(),
+            problems: Vec::new(),
+            notes: Vec::new(),
+        };
+        match self.read_and_stage(source, content, opts, staging, &mut entry) {
+            Ok(staged) => Prepared {
+                source: source.clone(),
+                entry,
+                staged: Some(staged),
+                outcome: Outcome::Landed,
+                bytes,
+                fatal: None,
+            },
+            Err(StageFailure::Store(e)) => Prepared {
+                source: source.clone(),
+                entry,
+                staged: None,
+                outcome: Outcome::Landed,
+                bytes,
+                fatal: Some(e),
+            },
+            Err(StageFailure::Input(e)) => {
+                entry.problems = name_problems(e.problems(), &source.path, &id);
+                entry.status = Status::Quarantined;
+                entry.path = Path::new(QUARANTINE).join(&id);
+                self.quarantine(source, entry, staging, bytes)
+            }
+        }
+    }
+
+    fn read_and_stage(
+        &self,
+        source: &Source,
+        content: Option<Vec<u8>>,
+        opts: &IngestOptions,
+        staging: &Path,
+        entry: &mut ManifestEntry,
+    ) -> std::result::Result<PathBuf, StageFailure> {
+        let (mut ep, videos, notes) = match source.kind {
+            SourceKind::Mcap => {
+                let bytes = content.unwrap_or_default();
+                let t = teleop::read_episode_mcap(&source.path, &bytes)?;
+                (t.episode, Vec::new(), t.notes)
+            }
+            SourceKind::Raw => {
+                let at = Location::default().path(&source.path);
+                let name = opts
+                    .task
+                    .clone()
+                    .or_else(|| raw::task_from_path(&source.path));
+                let task = match name.as_deref().and_then(task_info) {
+                    Some(t) => t,
+                    None => {
+                        return Err(StageFailure::Input(IngestError::input(
+                            ProblemCode::UnknownTask,
+                            &at,
+                            match name {
+                                Some(n) => format!("unknown task '{n}'"),
+                                None => "the path names no task (<task>/episode_N or <task>_demo_...); pass --task".into(),
+                            },
+                        )));
+                    }
+                };
+                let r = raw::read_raw_episode(&source.path, task)?;
+                (r.episode, r.videos, r.notes)
+            }
+        };
+        ep.id = entry.id.clone();
+        entry.task = Some(ep.task.clone());
+        entry.length = ep.len();
+        entry.notes = notes;
+        let task = task_info(&ep.task).ok_or_else(|| {
+            IngestError::input(
+                ProblemCode::UnknownTask,
+                &Location::default().path(&source.path),
+                format!("unknown task '{}'", ep.task),
+            )
+        })?;
+        let problems = validate(&ep, task, &source.path, &opts.validation);
+        if !problems.is_empty() {
+            return Err(StageFailure::Input(IngestError::Invalid(problems)));
+        }
+        let dir = staging.join(&entry.id);
+        if dir.exists() {
+            fs_err::remove_dir_all(&dir)
+                .map_err(io_err("remove", &dir))
+                .map_err(StageFailure::Store)?;
+        }
+        raw::write_replay_zarr(&dir, &ep).map_err(StageFailure::Store)?;
+        for v in &videos {
+            let to = dir.join(v);
+            if let Some(parent) = to.parent() {
+                fs_err::create_dir_all(parent).map_err(io_err("create", parent))?;
+            }
+            fs_err::copy(source.path.join(v), &to).map_err(io_err("copy", source.path.join(v)))?;
+        }
+        Ok(dir)
+    }
+
+    /// Copies a rejected input and its reason into staging, to be renamed under
+    /// `quarantine/<id>/` on commit.
+    fn quarantine(
+        &self,
+        source: &Source,
+        mut entry: ManifestEntry,
+        staging: &Path,
+        bytes: u64,
+    ) -> Prepared {
+        tracing::warn!(
+            source = %source.path.display(),
+            "rejected: {}",
+            entry.problems.first().map(ToString::to_string).unwrap_or_default()
+        );
+        let dir = staging.join(format!("q-{}", entry.id));
+        let _ = std::fs::remove_dir_all(&dir);
+        let copied = (|| -> Result<()> {
+            let dest = dir.join("source");
+            fs_err::create_dir_all(&dest).map_err(io_err("create", &dest))?;
+            let name = source
+                .path
+                .file_name()
+                .map_or_else(|| "input".into(), |n| n.to_owned());
+            copy_tree(&source.path, &dest.join(name))
+        })();
+        if let Err(e) = copied {
+            entry.notes.push(format!(
+                "the input could not be copied into quarantine: {e}"
+            ));
+        }
+        let staged = match write_atomic(
+            &dir.join(REASON_FILE),
+            &serde_json::to_vec_pretty(&entry).expect("entry serializes"),
+        ) {
+            Ok(()) => Some(dir),
+            Err(e) => {
+                entry
+                    .notes
+                    .push(format!("the quarantine folder could not be written: {e}"));
+                None
+            }
+        };
+        Prepared {
+            source: source.clone(),
+            entry,
+            staged,
+            outcome: Outcome::Quarantined,
+            bytes,
+            fatal: None,
+        }
+    }
+
+    fn commit(
+        &mut self,
+        p: Prepared,
+        next_index: &mut HashMap<String, usize>,
+        seen: &mut HashMap<String, PathBuf>,
+        opts: &IngestOptions,
+    ) -> Result<SourceReport> {
+        let Prepared {
+            source,
+            mut entry,
+            staged,
+            mut outcome,
+            bytes: _,
+            fatal,
+        } = p;
+        if let Some(e) = fatal {
+            return Err(e);
+        }
+        if let Some(first) = seen.get(&entry.id) {
+            if let Some(dir) = &staged {
+                let _ = std::fs::remove_dir_all(dir);
+            }
+            let problem = Problem::new(
+                ProblemCode::Duplicate,
+                &Location::episode(&entry.id).path(&source.path),
+                format!("same content as '{}', ingested once", first.display()),
+            );
+            tracing::info!("{problem}");
+            // A copy of a rejected input is rejected too (and counted so).
+            let rejected = entry.status == Status::Quarantined;
+            let mut problems = if rejected { entry.problems } else { Vec::new() };
+            problems.push(problem);
+            return Ok(SourceReport {
+                source: source.path,
+                id: entry.id,
+                outcome: if rejected {
+                    Outcome::Quarantined
+                } else {
+                    Outcome::Duplicate
+                },
+                path: entry.path,
+                problems,
+                notes: Vec::new(),
+            });
+        }
+        seen.insert(entry.id.clone(), source.path.clone());
+        if let Some(staged) = staged {
+            let previous = self.manifest.get(&entry.id).cloned();
+            if entry.status == Status::Ok {
+                // Force re-uses the episode's folder; otherwise the task's next index.
+                let reuse = previous
+                    .as_ref()
+                    .filter(|prev| prev.status == Status::Ok && opts.force)
+                    .map(|prev| prev.path.clone());
+                if reuse.is_some() {
+                    outcome = Outcome::Replaced;
+                }
+                let task = entry.task.clone().unwrap_or_default();
+                entry.path = reuse.unwrap_or_else(|| {
+                    let n = next_index.entry(task.clone()).or_insert(0);
+                    let path = Path::new(&task).join(format!("episode_{:06}", *n));
+                    *n += 1;
+                    path
+                });
+                write_atomic(
+                    &staged.join(ENTRY_FILE),
+                    &serde_json::to_vec_pretty(&entry).expect("entry serializes"),
+                )?;
+            }
+            if let Some(prev) = previous.filter(|prev| prev.path != entry.path) {
+                // A quarantined input that now passes (or the reverse, under force).
+                let old = self.root.join(&prev.path);
+                if old.exists() {
+                    fs_err::remove_dir_all(&old).map_err(io_err("remove", &old))?;
+                }
+            }
+            replace_dir(&staged, &self.root.join(&entry.path))?;
+        }
+        self.manifest.upsert(entry.clone());
+        Ok(SourceReport {
+            source: source.path,
+            id: entry.id,
+            outcome,
+            path: entry.path,
+            problems: entry.problems,
+            notes: entry.notes,
+        })
+    }
+}
+
+/// `sha256` hex of a source and its size; MCAP files' bytes are returned for reading.
+fn hash_source(source: &Source) -> Result<(String, u64, Option<Vec<u8>>)> {
+    match source.kind {
+        SourceKind::Mcap => {
+            let bytes = fs_err::read(&source.path).map_err(io_err("read", &source.path))?;
+            let hash = hex(&Sha256::digest(&bytes));
+            Ok((hash, bytes.len() as u64, Some(bytes)))
+        }
+        SourceKind::Raw => {
+            let files = raw::list_files(&source.path, Path::new(""))?;
+            let mut h = Sha256::new();
+            let mut total = 0u64;
+            let mut buf = vec![0u8; 1 << 16];
+            for rel in files {
+                let p = source.path.join(&rel);
+                let mut f = fs_err::File::open(&p).map_err(io_err("read", &p))?;
+                let name = rel.to_string_lossy();
+                h.update((name.len() as u64).to_le_bytes());
+                h.update(name.as_bytes());
+                let len = f.metadata().map_err(io_err("read", &p))?.len();
+                h.update(len.to_le_bytes());
+                loop {
+                    let n = f.read(&mut buf).map_err(io_err("read", &p))?;
+                    if n == 0 {
+                        break;
+                    }
+                    h.update(&buf[..n]);
+                    total += n as u64;
+                }
+            }
+            Ok((hex(&h.finalize()), total, None))
+        }
+    }
+}
+
+/// Every problem names the input and the episode id, also where the reader could not.
+fn name_problems(mut problems: Vec<Problem>, source: &Path, id: &str) -> Vec<Problem> {
+    for p in &mut problems {
+        if p.file.as_deref() != Some(source) {
+            if let Some(inner) = p.file.take().filter(|f| f != source) {
+                p.message = format!("{} (in '{}')", p.message, inner.display());
+            }
+            p.file = Some(source.to_owned());
+        }
+        if p.episode.is_none() {
+            p.episode = Some(id.to_owned());
+        }
+    }
+    problems
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn hex16(bytes: &[u8]) -> String {
+    hex(&bytes[..8])
+}
+
+/// Writes a file atomically: a temporary file in the same folder, synced, renamed.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    fs_err::create_dir_all(dir).map_err(io_err("create", dir))?;
+    let mut tmp =
+        tempfile::NamedTempFile::new_in(dir).map_err(io_err("create a temporary file in", dir))?;
+    tmp.write_all(bytes).map_err(io_err("write", tmp.path()))?;
+    tmp.as_file()
+        .sync_all()
+        .map_err(io_err("sync", tmp.path()))?;
+    tmp.persist(path).map_err(|e| IngestError::Io {
+        op: "rename into",
+        path: path.to_owned(),
+        source: e.error,
+    })?;
+    Ok(())
+}
+
+/// Moves a staged folder to `to`, replacing what is there (the old copy is moved aside
+/// first, so `to` is always either the old or the new folder, whole).
+fn replace_dir(staged: &Path, to: &Path) -> Result<()> {
+    if let Some(parent) = to.parent() {
+        fs_err::create_dir_all(parent).map_err(io_err("create", parent))?;
+    }
+    if to.exists() {
+        let aside = staged.with_extension("old");
+        let _ = std::fs::remove_dir_all(&aside);
+        fs_err::rename(to, &aside).map_err(io_err("rename", to))?;
+        fs_err::rename(staged, to).map_err(io_err("rename", staged))?;
+        let _ = std::fs::remove_dir_all(&aside);
+    } else {
+        fs_err::rename(staged, to).map_err(io_err("rename", staged))?;
+    }
+    Ok(())
+}
+
+/// Copies a file or a folder tree (symlinks are followed).
+fn copy_tree(from: &Path, to: &Path) -> Result<()> {
+    if from.is_dir() {
+        fs_err::create_dir_all(to).map_err(io_err("create", to))?;
+        for e in fs_err::read_dir(from).map_err(io_err("list", from))? {
+            let e = e.map_err(io_err("list", from))?;
+            copy_tree(&e.path(), &to.join(e.file_name()))?;
+        }
+        Ok(())
+    } else {
+        fs_err::copy(from, to).map_err(io_err("copy", from))?;
+        Ok(())
+    }
+}
+
+/// Reads a landed episode back from the store (or any raw episode folder whose task
+/// the path names): the arrays as stored, no normalisation needed.
+pub fn read_stored_episode(dir: &Path) -> Result<Episode> {
+    let entry: Option<ManifestEntry> = std::fs::read(dir.join(ENTRY_FILE))
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok());
+    let task_name = entry
+        .as_ref()
+        .and_then(|e| e.task.clone())
+        .or_else(|| raw::task_from_path(dir));
+    let at = Location::default().path(dir);
+    let task = task_name.as_deref().and_then(task_info).ok_or_else(|| {
+        IngestError::input(
+            ProblemCode::UnknownTask,
+            &at,
+            format!("cannot tell the task of '{}'", dir.display()),
+        )
+    })?;
+    let mut ep = raw::read_raw_episode(dir, task)?.episode;
+    ep.id = entry.map_or_else(
+        || {
+            dir.file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+        },
+        |e| e.id,
+    );
+    Ok(ep)
+}
+
+/// Landed episode folders of a store, in manifest order.
+pub fn stored_episode_dirs(store: &Path) -> Result<Vec<PathBuf>> {
+    let mpath = store.join(MANIFEST);
+    let bytes = fs_err::read(&mpath).map_err(io_err("read", &mpath))?;
+    let manifest: Manifest = serde_json::from_slice(&bytes).map_err(|e| IngestError::Manifest {
+        path: mpath.clone(),
+        message: e.to_string(),
+    })?;
+    Ok(manifest
+        .episodes
+        .iter()
+        .filter(|e| e.status == Status::Ok)
+        .map(|e| store.join(&e.path))
+        .collect())
+}
+
+/// Per-task counts of a manifest's landed episodes.
+pub fn landed_by_task(manifest: &Manifest) -> BTreeMap<String, usize> {
+    let mut m = BTreeMap::new();
+    for e in manifest.episodes.iter().filter(|e| e.status == Status::Ok) {
+        *m.entry(e.task.clone().unwrap_or_default()).or_default() += 1;
+    }
+    m
+}

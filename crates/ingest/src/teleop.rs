@@ -1,0 +1,703 @@
+//! Our MCAP schema for teleop episodes (documented in `schemas/mcap-teleop.md`), read and
+//! written with the `mcap` crate. One episode per file; JSON message encoding with
+//! JSON Schemas, so a file opens in Foxglove.
+//!
+//! Per-frame channels hold one message per control step, in order; the i-th message
+//! of each is frame i. Values are JSON numbers, written in shortest round-trip form and
+//! parsed exactly, so f64 data survives raw -> MCAP -> raw bit for bit.
+
+use std::collections::{BTreeMap, HashMap};
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use dexjoco_core::{ArmSetup, Episode, FrameArray, HAND_DOF, Location, TaskInfo, task_info};
+use mcap::records::{MessageHeader, Metadata, Record};
+use serde_json::{Value, json};
+
+use crate::error::{IngestError, ProblemCode, Result, io_err};
+
+/// Version of the schema this crate writes and reads.
+pub const SCHEMA_VERSION: &str = "1";
+/// Name of the MCAP Metadata record describing the episode.
+pub const EPISODE_METADATA: &str = "dexjoco.episode";
+/// Topic of the state channel.
+pub const STATE_TOPIC: &str = "/state";
+/// Topic of the optional rotation-vector action channel.
+pub const ACTION_ROTVEC_TOPIC: &str = "/action_rotvec";
+
+const POSE_SCHEMA: &str = include_str!("../../../schemas/mcap/foxglove.PoseInFrame.json");
+const HAND_SCHEMA: &str = include_str!("../../../schemas/mcap/dexjoco.HandJointTargets.json");
+const STATE_SCHEMA: &str = include_str!("../../../schemas/mcap/dexjoco.State.json");
+const ROTVEC_SCHEMA: &str = include_str!("../../../schemas/mcap/dexjoco.ActionRotvec.json");
+
+/// Topic of an arm's pose commands (`arm` is `arm`, `right` or `left`).
+pub fn pose_topic(arm: &str) -> String {
+    format!("/{arm}/pose_command")
+}
+
+/// Topic of an arm's hand joint targets.
+pub fn hand_topic(arm: &str) -> String {
+    format!("/{arm}/hand_target")
+}
+
+/// The joint order of a hand's targets (the left hand's is reversed by finger).
+pub fn joint_order(arm: &str) -> String {
+    let fingers: [&str; 4] = if arm == "left" {
+        ["rf", "mf", "ff", "th"]
+    } else {
+        ["ff", "mf", "rf", "th"]
+    };
+    fingers
+        .iter()
+        .flat_map(|f| (0..4).map(move |j| format!("{f}{j}")))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// Episode metadata beyond the arrays, as stored in the `dexjoco.episode` record.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct EpisodeMeta {
+    /// Operator, when known.
+    pub operator: Option<String>,
+    /// Recording date, when known.
+    pub date: Option<String>,
+    /// Where the episode came from.
+    pub source: Option<String>,
+    /// Other keys of the record, carried unchanged.
+    pub extra: BTreeMap<String, String>,
+}
+
+/// An episode read from an MCAP file, with what was not carried into the arrays.
+#[derive(Debug, Clone)]
+pub struct TeleopEpisode {
+    /// The episode (`id` from the file's `episode_id` when present, else empty).
+    pub episode: Episode,
+    /// The metadata record's other keys.
+    pub meta: EpisodeMeta,
+    /// Notes: computed arrays, streams the raw layout has no place for.
+    pub notes: Vec<String>,
+}
+
+fn stamp(t: f64) -> Value {
+    let t = if t.is_finite() && t > 0.0 { t } else { 0.0 };
+    let sec = t.floor();
+    let nsec = (((t - sec) * 1e9).round() as u64).min(999_999_999);
+    json!({"sec": sec as u64, "nsec": nsec})
+}
+
+fn log_time(t: f64) -> u64 {
+    if t.is_finite() && t > 0.0 {
+        (t * 1e9).round() as u64
+    } else {
+        0
+    }
+}
+
+/// Writes an episode as one MCAP file (atomically: a temporary file renamed into place).
+pub fn write_episode_mcap(
+    path: &Path,
+    ep: &Episode,
+    task: &TaskInfo,
+    meta: &EpisodeMeta,
+) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    fs_err::create_dir_all(dir).map_err(io_err("create", dir))?;
+    let tmp =
+        tempfile::NamedTempFile::new_in(dir).map_err(io_err("create a temporary file in", dir))?;
+    let at = Location::episode(&ep.id).path(path);
+    let mcap_err = |source| IngestError::Mcap {
+        at: at.clone(),
+        source: Box::new(source),
+    };
+    {
+        let file = tmp
+            .as_file()
+            .try_clone()
+            .map_err(io_err("open", tmp.path()))?;
+        let mut w = mcap::WriteOptions::new()
+            .library(concat!("dexjoco-data/", env!("CARGO_PKG_VERSION")))
+            .create(BufWriter::new(file))
+            .map_err(mcap_err)?;
+        write_into(&mut w, ep, task, meta).map_err(mcap_err)?;
+        w.finish().map_err(mcap_err)?;
+        let mut inner = w.into_inner();
+        inner.flush().map_err(io_err("write", tmp.path()))?;
+    }
+    tmp.as_file()
+        .sync_all()
+        .map_err(io_err("sync", tmp.path()))?;
+    tmp.persist(path).map_err(|e| IngestError::Io {
+        op: "rename into",
+        path: path.to_owned(),
+        source: e.error,
+    })?;
+    Ok(())
+}
+
+fn write_into<W: std::io::Write + std::io::Seek>(
+    w: &mut mcap::Writer<W>,
+    ep: &Episode,
+    task: &TaskInfo,
+    meta: &EpisodeMeta,
+) -> mcap::McapResult<()> {
+    let setup = task.setup;
+    let mut md = BTreeMap::new();
+    md.insert("schema_version".to_owned(), SCHEMA_VERSION.to_owned());
+    md.insert("task".to_owned(), ep.task.clone());
+    md.insert("prompt".to_owned(), ep.prompt.clone());
+    md.insert("fps".to_owned(), ep.fps.to_string());
+    md.insert(
+        "setup".to_owned(),
+        match setup {
+            ArmSetup::SingleArm => "single_arm",
+            ArmSetup::Bimanual => "bimanual",
+        }
+        .to_owned(),
+    );
+    if !ep.id.is_empty() {
+        md.insert("episode_id".to_owned(), ep.id.clone());
+    }
+    for (k, v) in [
+        ("operator", &meta.operator),
+        ("date", &meta.date),
+        ("source", &meta.source),
+    ] {
+        if let Some(v) = v {
+            md.insert(k.to_owned(), v.clone());
+        }
+    }
+    for (k, v) in &meta.extra {
+        md.entry(k.clone()).or_insert_with(|| v.clone());
+    }
+    w.write_metadata(&Metadata {
+        name: EPISODE_METADATA.to_owned(),
+        metadata: md,
+    })?;
+
+    let pose_schema = w.add_schema("foxglove.PoseInFrame", "jsonschema", POSE_SCHEMA.as_bytes())?;
+    let hand_schema = w.add_schema(
+        "dexjoco.HandJointTargets",
+        "jsonschema",
+        HAND_SCHEMA.as_bytes(),
+    )?;
+    let state_schema = w.add_schema("dexjoco.State", "jsonschema", STATE_SCHEMA.as_bytes())?;
+    let mut arm_channels = Vec::new();
+    for arm in setup.arm_names() {
+        let pose = w.add_channel(pose_schema, &pose_topic(arm), "json", &BTreeMap::new())?;
+        let mut hm = BTreeMap::new();
+        hm.insert("joint_order".to_owned(), joint_order(arm));
+        let hand = w.add_channel(hand_schema, &hand_topic(arm), "json", &hm)?;
+        arm_channels.push((pose, hand));
+    }
+    let mut sm = BTreeMap::new();
+    sm.insert(
+        "layout".to_owned(),
+        (0..task.state_dim)
+            .map(|c| task.state_layout().column_name(c))
+            .collect::<Vec<_>>()
+            .join(","),
+    );
+    let state_ch = w.add_channel(state_schema, STATE_TOPIC, "json", &sm)?;
+    let rotvec = ep.array(Episode::ACTION_ROTVEC);
+    let rotvec_ch = match rotvec {
+        Some(_) => {
+            let s = w.add_schema(
+                "dexjoco.ActionRotvec",
+                "jsonschema",
+                ROTVEC_SCHEMA.as_bytes(),
+            )?;
+            Some(w.add_channel(s, ACTION_ROTVEC_TOPIC, "json", &BTreeMap::new())?)
+        }
+        None => None,
+    };
+
+    let action = ep.array(Episode::ACTION);
+    let state = ep.array(Episode::STATE);
+    let ts = ep.array(Episode::TIMESTAMP);
+    let per_arm = setup.action_dim() / setup.arms();
+    let put = |w: &mut mcap::Writer<W>, ch: u16, k: usize, t: f64, v: &Value| {
+        let data = serde_json::to_vec(v).expect("JSON values serialize");
+        w.write_to_known_channel(
+            &MessageHeader {
+                channel_id: ch,
+                sequence: k as u32,
+                log_time: log_time(t),
+                publish_time: log_time(t),
+            },
+            &data,
+        )
+    };
+    for k in 0..ep.len() {
+        let t = ts.map_or(k as f64 / ep.fps, |a| a.row(k)[0]);
+        if let Some(action) = action {
+            let row = action.row(k);
+            for (arm, (pose_ch, hand_ch)) in arm_channels.iter().enumerate() {
+                let a = &row[arm * per_arm..(arm + 1) * per_arm];
+                let pose = json!({
+                    "timestamp": stamp(t),
+                    "frame_id": "world",
+                    "pose": {
+                        "position": {"x": a[0], "y": a[1], "z": a[2]},
+                        "orientation": {"x": a[4], "y": a[5], "z": a[6], "w": a[3]},
+                    }
+                });
+                put(w, *pose_ch, k, t, &pose)?;
+                let hand = json!({"timestamp": stamp(t), "frame": k, "position": &a[7..]});
+                put(w, *hand_ch, k, t, &hand)?;
+            }
+        }
+        if let Some(state) = state {
+            let msg = json!({"timestamp": stamp(t), "frame": k, "time": t, "values": state.row(k)});
+            put(w, state_ch, k, t, &msg)?;
+        }
+        if let (Some(rv), Some(ch)) = (rotvec, rotvec_ch) {
+            let msg = json!({"timestamp": stamp(t), "frame": k, "values": rv.row(k)});
+            put(w, ch, k, t, &msg)?;
+        }
+    }
+    Ok(())
+}
+
+/// A topic's schema name and messages.
+type TopicMessages = (Option<String>, Vec<Msg>);
+
+struct Msg {
+    log_time: u64,
+    sequence: u32,
+    order: usize,
+    data: Vec<u8>,
+}
+
+fn mcap_problem(e: &mcap::McapError, at: &Location) -> IngestError {
+    use mcap::McapError as E;
+    let code = match e {
+        E::UnexpectedEof | E::UnexpectedEoc | E::BadFooter => ProblemCode::Truncated,
+        E::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => ProblemCode::Truncated,
+        _ => ProblemCode::Corrupt,
+    };
+    let detail = match code {
+        ProblemCode::Truncated => format!("the MCAP file ends early ({e})"),
+        _ => format!("damaged MCAP file ({e})"),
+    };
+    IngestError::input(code, at, detail)
+}
+
+/// Reads an MCAP file's bytes (`path` only names it in problems).
+pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
+    let base = Location::default().path(path);
+    if bytes.is_empty() {
+        return Err(IngestError::input(
+            ProblemCode::EmptyFile,
+            &base,
+            "the file is empty",
+        ));
+    }
+    if !bytes.starts_with(mcap::MAGIC) {
+        return Err(IngestError::input(
+            ProblemCode::Corrupt,
+            &base,
+            "not an MCAP file (no MCAP magic at the start)",
+        ));
+    }
+    let reader = mcap::read::ChunkFlattener::new(bytes).map_err(|e| mcap_problem(&e, &base))?;
+    let mut metadata: Option<BTreeMap<String, String>> = None;
+    let mut schemas: HashMap<u16, String> = HashMap::new();
+    let mut channels: HashMap<u16, (String, u16)> = HashMap::new();
+    let mut by_channel: HashMap<u16, Vec<Msg>> = HashMap::new();
+    let mut order = 0usize;
+    for rec in reader {
+        match rec.map_err(|e| mcap_problem(&e, &base))? {
+            Record::Metadata(m) if m.name == EPISODE_METADATA => metadata = Some(m.metadata),
+            Record::Schema { header, .. } => {
+                schemas.insert(header.id, header.name);
+            }
+            Record::Channel(c) => {
+                channels.insert(c.id, (c.topic, c.schema_id));
+            }
+            Record::Message { header, data } => {
+                by_channel.entry(header.channel_id).or_default().push(Msg {
+                    log_time: header.log_time,
+                    sequence: header.sequence,
+                    order,
+                    data: data.into_owned(),
+                });
+                order += 1;
+            }
+            _ => {}
+        }
+    }
+    let md_at = base.clone().field(format!("metadata '{EPISODE_METADATA}'"));
+    let md = metadata.ok_or_else(|| {
+        IngestError::input(
+            ProblemCode::MissingArray,
+            &md_at,
+            "no episode metadata record (task, fps, setup)",
+        )
+    })?;
+    let get = |k: &str| md.get(k).map(String::as_str);
+    if let Some(v) = get("schema_version").filter(|v| *v != SCHEMA_VERSION) {
+        return Err(IngestError::input(
+            ProblemCode::Corrupt,
+            &md_at,
+            format!("schema_version {v} is not {SCHEMA_VERSION}"),
+        ));
+    }
+    let task_id = get("task").unwrap_or_default();
+    let task = task_info(task_id).ok_or_else(|| {
+        IngestError::input(
+            ProblemCode::UnknownTask,
+            &md_at.clone().field("task"),
+            format!("unknown task '{task_id}'"),
+        )
+    })?;
+    if let Some(setup) = get("setup") {
+        let expected = match task.setup {
+            ArmSetup::SingleArm => "single_arm",
+            ArmSetup::Bimanual => "bimanual",
+        };
+        if setup != expected {
+            return Err(IngestError::input(
+                ProblemCode::WrongDimensions,
+                &md_at.clone().field("setup"),
+                format!("setup '{setup}' but task {} is {expected}", task.id),
+            ));
+        }
+    }
+    let fps = match get("fps") {
+        None => dexjoco_core::DEXJOCO_FPS,
+        Some(s) => s.parse::<f64>().map_err(|_| {
+            IngestError::input(
+                ProblemCode::Corrupt,
+                &md_at.clone().field("fps"),
+                format!("fps '{s}' is not a number"),
+            )
+        })?,
+    };
+
+    // Messages per topic, in time order (file order breaks ties).
+    let mut topics: HashMap<String, TopicMessages> = HashMap::new();
+    for (ch, mut msgs) in by_channel {
+        let (topic, schema_id) = channels.get(&ch).cloned().ok_or_else(|| {
+            IngestError::input(
+                ProblemCode::Corrupt,
+                &base,
+                format!("messages on channel {ch}, which has no channel record"),
+            )
+        })?;
+        msgs.sort_by_key(|m| (m.log_time, m.sequence, m.order));
+        let schema = schemas.get(&schema_id).cloned();
+        topics
+            .entry(topic)
+            .or_insert((schema, Vec::new()))
+            .1
+            .extend(msgs);
+    }
+    let mut notes = Vec::new();
+
+    let parse = |topic: &str, k: usize, m: &Msg| -> Result<Value> {
+        serde_json::from_slice(&m.data).map_err(|e| {
+            IngestError::input(
+                ProblemCode::Corrupt,
+                &base.clone().field(topic).frame(k),
+                format!("message is not valid JSON: {e}"),
+            )
+        })
+    };
+    let num = |v: &Value, topic: &str, k: usize, what: &str| -> Result<f64> {
+        v.as_f64().ok_or_else(|| {
+            IngestError::input(
+                ProblemCode::Corrupt,
+                &base.clone().field(topic).frame(k),
+                format!("{what} is not a number"),
+            )
+        })
+    };
+    let numbers = |v: Option<&Value>, topic: &str, k: usize, what: &str| -> Result<Vec<f64>> {
+        let arr = v.and_then(Value::as_array).ok_or_else(|| {
+            IngestError::input(
+                ProblemCode::Corrupt,
+                &base.clone().field(topic).frame(k),
+                format!("`{what}` is not an array of numbers"),
+            )
+        })?;
+        arr.iter().map(|x| num(x, topic, k, what)).collect()
+    };
+    let frame_check = |v: &Value, topic: &str, k: usize| -> Result<()> {
+        match v.get("frame").and_then(Value::as_u64) {
+            Some(f) if f as usize == k => Ok(()),
+            Some(f) => Err(IngestError::input(
+                ProblemCode::WrongLength,
+                &base.clone().field(topic).frame(k),
+                format!("message {k} says frame {f}: a frame is missing or repeated"),
+            )),
+            None => Ok(()),
+        }
+    };
+    let required = |topic: &str| -> Result<&Vec<Msg>> {
+        topics.get(topic).map(|(_, m)| m).ok_or_else(|| {
+            IngestError::input(
+                ProblemCode::MissingArray,
+                &base.clone().field(topic),
+                "required channel is missing",
+            )
+        })
+    };
+
+    // State and the exact timestamps.
+    let state_msgs = required(STATE_TOPIC)?;
+    let frames = state_msgs.len();
+    let mut state_rows = Vec::with_capacity(frames);
+    let mut times = Vec::with_capacity(frames);
+    for (k, m) in state_msgs.iter().enumerate() {
+        let v = parse(STATE_TOPIC, k, m)?;
+        frame_check(&v, STATE_TOPIC, k)?;
+        let row = numbers(v.get("values"), STATE_TOPIC, k, "values")?;
+        if row.len() != task.state_dim {
+            return Err(IngestError::input(
+                ProblemCode::WrongDimensions,
+                &base.clone().field(STATE_TOPIC).frame(k),
+                format!(
+                    "{} state values where {} has {}",
+                    row.len(),
+                    task.id,
+                    task.state_dim
+                ),
+            ));
+        }
+        state_rows.push(row);
+        times.push(match v.get("time") {
+            Some(t) => num(t, STATE_TOPIC, k, "time")?,
+            None => m.log_time as f64 * 1e-9,
+        });
+    }
+
+    // Actions from the per-arm pose commands and hand targets.
+    let per_arm = task.setup.action_dim() / task.setup.arms();
+    let mut action = vec![0.0; frames * task.setup.action_dim()];
+    for (arm_i, arm) in task.setup.arm_names().iter().enumerate() {
+        for (topic, is_pose) in [(pose_topic(arm), true), (hand_topic(arm), false)] {
+            let msgs = required(&topic)?;
+            if msgs.len() != frames {
+                return Err(IngestError::input(
+                    ProblemCode::WrongLength,
+                    &base.clone().field(topic.as_str()),
+                    format!("{} messages where {STATE_TOPIC} has {frames}", msgs.len()),
+                ));
+            }
+            for (k, m) in msgs.iter().enumerate() {
+                let v = parse(&topic, k, m)?;
+                let out =
+                    &mut action[k * per_arm * task.setup.arms() + arm_i * per_arm..][..per_arm];
+                if is_pose {
+                    let pose = v.get("pose").unwrap_or(&Value::Null);
+                    let p = pose.get("position").unwrap_or(&Value::Null);
+                    let q = pose.get("orientation").unwrap_or(&Value::Null);
+                    let field = |o: &Value, key: &str| -> Result<f64> {
+                        num(
+                            o.get(key).unwrap_or(&Value::Null),
+                            &topic,
+                            k,
+                            &format!("pose.{key}"),
+                        )
+                    };
+                    out[0] = field(p, "x")?;
+                    out[1] = field(p, "y")?;
+                    out[2] = field(p, "z")?;
+                    out[3] = field(q, "w")?;
+                    out[4] = field(q, "x")?;
+                    out[5] = field(q, "y")?;
+                    out[6] = field(q, "z")?;
+                } else {
+                    frame_check(&v, &topic, k)?;
+                    let hand = numbers(v.get("position"), &topic, k, "position")?;
+                    if hand.len() != HAND_DOF {
+                        return Err(IngestError::input(
+                            ProblemCode::WrongDimensions,
+                            &base.clone().field(topic.as_str()).frame(k),
+                            format!(
+                                "{} hand targets where the Allegro hand has {HAND_DOF}",
+                                hand.len()
+                            ),
+                        ));
+                    }
+                    out[7..].copy_from_slice(&hand);
+                }
+            }
+        }
+    }
+
+    let mut arrays = BTreeMap::new();
+    arrays.insert(
+        Episode::ACTION.to_owned(),
+        FrameArray::new(task.setup.action_dim(), action)?,
+    );
+    arrays.insert(
+        Episode::STATE.to_owned(),
+        FrameArray::from_rows(&state_rows)?,
+    );
+    arrays.insert(Episode::TIMESTAMP.to_owned(), FrameArray::new(1, times)?);
+    if let Some((_, msgs)) = topics.get(ACTION_ROTVEC_TOPIC) {
+        let mut rows = Vec::with_capacity(msgs.len());
+        for (k, m) in msgs.iter().enumerate() {
+            let v = parse(ACTION_ROTVEC_TOPIC, k, m)?;
+            frame_check(&v, ACTION_ROTVEC_TOPIC, k)?;
+            rows.push(numbers(v.get("values"), ACTION_ROTVEC_TOPIC, k, "values")?);
+        }
+        if rows.len() != frames {
+            return Err(IngestError::input(
+                ProblemCode::WrongLength,
+                &base.clone().field(ACTION_ROTVEC_TOPIC),
+                format!("{} messages where {STATE_TOPIC} has {frames}", rows.len()),
+            ));
+        }
+        if rows
+            .iter()
+            .any(|r| r.len() != task.setup.action_rotvec_dim())
+        {
+            return Err(IngestError::input(
+                ProblemCode::WrongDimensions,
+                &base.clone().field(ACTION_ROTVEC_TOPIC),
+                format!(
+                    "rows are not {} values wide",
+                    task.setup.action_rotvec_dim()
+                ),
+            ));
+        }
+        if frames > 0 {
+            arrays.insert(
+                Episode::ACTION_ROTVEC.to_owned(),
+                FrameArray::from_rows(&rows)?,
+            );
+        }
+    }
+
+    // Streams the raw layout has no place for are named, never dropped silently.
+    let mut other: Vec<(&String, &TopicMessages)> = topics
+        .iter()
+        .filter(|(t, _)| {
+            *t != STATE_TOPIC
+                && *t != ACTION_ROTVEC_TOPIC
+                && !task
+                    .setup
+                    .arm_names()
+                    .iter()
+                    .any(|a| **t == pose_topic(a) || **t == hand_topic(a))
+        })
+        .collect();
+    other.sort_by_key(|(t, _)| t.as_str());
+    for (topic, (schema, msgs)) in other {
+        notes.push(format!(
+            "{} messages on '{topic}' ({}) are not part of the raw layout: kept only in the source file",
+            msgs.len(),
+            schema.as_deref().unwrap_or("no schema")
+        ));
+    }
+
+    let mut episode = Episode {
+        id: get("episode_id").unwrap_or_default().to_owned(),
+        task: task.id.to_owned(),
+        prompt: get("prompt").unwrap_or(task.prompt).to_owned(),
+        fps,
+        arrays,
+        cameras: Vec::new(),
+    };
+    if episode.array(Episode::ACTION_ROTVEC).is_none() && frames > 0 {
+        episode.compute_action_rotvec(task.setup)?;
+        notes.push("action_rotvec was absent: computed from the pose commands".into());
+    }
+    let known = [
+        "schema_version",
+        "task",
+        "prompt",
+        "fps",
+        "setup",
+        "episode_id",
+        "operator",
+        "date",
+        "source",
+    ];
+    let meta = EpisodeMeta {
+        operator: get("operator").map(str::to_owned),
+        date: get("date").map(str::to_owned),
+        source: get("source").map(str::to_owned),
+        extra: md
+            .iter()
+            .filter(|(k, _)| !known.contains(&k.as_str()))
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect(),
+    };
+    Ok(TeleopEpisode {
+        episode,
+        meta,
+        notes,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth;
+
+    #[test]
+    fn mcap_round_trip_is_bit_exact_for_awkward_values() {
+        let task = task_info("bimanual_unlock_ipad").unwrap();
+        let mut ep = synth::episode(task, 12, 3);
+        // Values whose decimal forms are long or special: all must come back bit-identical.
+        let awkward = [
+            -0.0,
+            f64::MIN_POSITIVE,
+            5e-324,
+            0.1 + 0.2,
+            1.0 / 3.0,
+            f64::MAX,
+            -1e-300,
+            123_456_789.123_456_79,
+        ];
+        let state = ep.arrays.get_mut(Episode::STATE).unwrap();
+        for (i, v) in awkward.iter().enumerate() {
+            state.row_mut(i)[20] = *v;
+        }
+        let action = ep.arrays.get_mut(Episode::ACTION).unwrap();
+        action.row_mut(4)[0] = 0.1 + 0.7;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ep.mcap");
+        let meta = EpisodeMeta {
+            operator: Some("op".into()),
+            ..EpisodeMeta::default()
+        };
+        write_episode_mcap(&path, &ep, task, &meta).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let back = read_episode_mcap(&path, &bytes).unwrap();
+        assert_eq!(back.meta.operator.as_deref(), Some("op"));
+        assert_eq!(back.episode.id, ep.id);
+        for (name, a) in &ep.arrays {
+            let b = back.episode.array(name).unwrap();
+            assert_eq!(a.width(), b.width(), "{name}");
+            for (x, y) in a.as_slice().iter().zip(b.as_slice()) {
+                assert_eq!(x.to_bits(), y.to_bits(), "{name}: {x} vs {y}");
+            }
+        }
+    }
+
+    #[test]
+    fn truncated_and_foreign_files_are_named() {
+        let task = task_info("click_mouse").unwrap();
+        let ep = synth::episode(task, 30, 1);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ep.mcap");
+        write_episode_mcap(&path, &ep, task, &EpisodeMeta::default()).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        for cut in [bytes.len() - 1, bytes.len() / 2, 9] {
+            match read_episode_mcap(&path, &bytes[..cut]) {
+                Err(IngestError::Input(p)) => {
+                    assert_eq!(p.code, ProblemCode::Truncated, "cut at {cut}: {p}")
+                }
+                other => panic!("cut at {cut}: {other:?}"),
+            }
+        }
+        match read_episode_mcap(&path, b"PK\x03\x04 a zip") {
+            Err(IngestError::Input(p)) => assert_eq!(p.code, ProblemCode::Corrupt),
+            other => panic!("{other:?}"),
+        }
+    }
+}
