@@ -38,7 +38,7 @@ pub fn load_scene(path: Option<&std::path::Path>) -> anyhow::Result<dexjoco_sim:
 pub fn pending(name: &str) -> anyhow::Result<ExitStatus> {
     Err(CliError {
         message: format!("`dexjoco-data {name}` is not available in this version yet"),
-        hint: Some("`dexjoco-data render` and `dexjoco-data doctor` work today; see the README's status section".into()),
+        hint: Some("`doctor`, `render`, `ingest`, `export`, `stats` and `bench` work today; see the README's status section".into()),
         status: ExitStatus::NotAvailable,
     }
     .into())
