@@ -225,12 +225,15 @@ Examples:
   dexjoco-data stats --success-table outputs/           # one subfolder per policy
   dexjoco-data stats --success-table                    # the shipped EXAMPLE runs (not results)
   dexjoco-data stats --language-eval --success-table --out report/ --json
+  dexjoco-data stats --dataset                          # the ingest store <work-dir>/ingest
+  dexjoco-data stats --dataset raw_demos/               # any folder of DexJoCo raw episodes
 
 Language evaluation input: a folder <config>/<task>_seed<s>/episode_XX_{success|failure}_{<digits>|no_password_input}/
 as the DexJoCo evaluator writes it (instructions.csv at its root names each config's instruction
 and expected answer), or a tidy .csv/.json with instruction, expected, seed, episode, output.
 Writes <out>/language-eval/ (summary.md, language_eval.json, CSVs, heatmap.png/.svg) and
-<out>/success-table/ (success_table.md/.tex/.csv/.json); the summary goes to stdout.")]
+<out>/success-table/ (success_table.md/.tex/.csv/.json) and <out>/dataset/ (dataset_stats.json,
+summary.md, norm_stats.json, plots); the summary goes to stdout.")]
 pub struct StatsArgs {
     /// Language-generalization analysis (DexJoCo paper, appendix A) of an evaluation
     /// folder or a tidy .csv/.json file. Without a value: the example input shipped in
@@ -242,6 +245,11 @@ pub struct StatsArgs {
     /// datasets/examples/success-table (made up, not results).
     #[arg(long, value_name = "DIR", num_args = 0..=1)]
     pub success_table: Option<Option<PathBuf>>,
+    /// Dataset statistics (episodes, frames, per-task counts, lengths, per-dimension
+    /// action/state distributions with plots, openpi norm stats) of an episode store or a
+    /// folder of DexJoCo raw episodes. Without a value: the ingest store <work-dir>/ingest.
+    #[arg(long, value_name = "STORE", num_args = 0..=1)]
+    pub dataset: Option<Option<PathBuf>>,
     /// Output folder (default: <work-dir>/stats).
     #[arg(short, long)]
     pub out: Option<PathBuf>,

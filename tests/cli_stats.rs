@@ -103,3 +103,54 @@ fn errors_have_exit_codes_and_hints() {
         "clap refuses bases other than 2 and e"
     );
 }
+
+#[test]
+fn dataset_statistics_of_raw_episode_folders_leave_out_unreadable_ones() {
+    let work = tempfile::tempdir().unwrap();
+    let data = work.path().join("raw");
+    // Two click_mouse episodes (40 and 60 frames) and one bimanual_hanoi episode (50),
+    // written as the DexJoCo recorder writes them.
+    for (task, frames, k) in [
+        ("click_mouse", 40, 0),
+        ("click_mouse", 60, 1),
+        ("bimanual_hanoi", 50, 0),
+    ] {
+        let info = dexjoco_core::task_info(task).unwrap();
+        let ep = dexjoco_ingest::synth::episode(info, frames, 7 + k as u64);
+        let dir = data.join(task).join(format!("episode_{k:06}"));
+        dexjoco_ingest::raw::write_replay_zarr(&dir, &ep).unwrap();
+    }
+    let out = stats(
+        work.path(),
+        &["--dataset", data.to_str().unwrap(), "--json"],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let d = &json["dataset"];
+    assert_eq!(d["episodes"], 3, "{d}");
+    assert_eq!(d["frames"], 150);
+    let stats_dir = work.path().join("stats/dataset");
+    for f in ["dataset_stats.json", "summary.md", "norm_stats.json"] {
+        assert!(stats_dir.join(f).is_file(), "{f} missing");
+    }
+
+    // A broken episode (an empty replay.zarr) is named and left out; exit code 3.
+    std::fs::create_dir_all(data.join("click_mouse/episode_000009/replay.zarr")).unwrap();
+    let out = stats(
+        work.path(),
+        &["--dataset", data.to_str().unwrap(), "--json"],
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("episode_000009"));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["dataset"]["episodes"], 3);
+}

@@ -48,11 +48,11 @@ fn usage(message: String, hint: &str) -> anyhow::Error {
 
 /// Runs `stats`.
 pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> {
-    if args.language_eval.is_none() && args.success_table.is_none() {
+    if args.language_eval.is_none() && args.success_table.is_none() && args.dataset.is_none() {
         return Err(usage(
             "nothing to do: say which statistics to make".into(),
             "`dexjoco-data stats --language-eval` or `--success-table` (each on the shipped example input \
-             without a path); dataset statistics of stored episodes come with the ingest stage",
+             without a path), or `--dataset` (the ingest store)",
         ));
     }
     if !(args.alpha > 0.0 && args.alpha < 1.0) {
@@ -151,6 +151,28 @@ pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> 
         summaries.push(md);
     }
 
+    let mut status = ExitStatus::Success;
+    if let Some(input) = &args.dataset {
+        let path = input
+            .clone()
+            .unwrap_or_else(|| global.work_dir.join("ingest"));
+        let (stats, unreadable) = dataset_stats(&path, global.quiet)?;
+        if unreadable > 0 {
+            status = ExitStatus::Partial;
+        }
+        let dir = out.join("dataset");
+        let files = stats
+            .write(&dir)
+            .with_context(|| format!("writing the dataset statistics to {}", dir.display()))?;
+        tracing::info!("wrote {} files to {}", files.len(), dir.display());
+        json.insert("dataset".into(), serde_json::to_value(&stats)?);
+        summaries.push(format!(
+            "## Dataset `{}`\n\n{}",
+            path.display(),
+            stats.to_markdown()
+        ));
+    }
+
     if args.json {
         println!(
             "{}",
@@ -159,5 +181,72 @@ pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> 
     } else {
         println!("{}", summaries.join("\n"));
     }
-    Ok(ExitStatus::Success)
+    Ok(status)
+}
+
+/// Reads every episode of a store (its landed episodes, from `manifest.json`) or of a
+/// folder tree of DexJoCo raw episodes, and computes their statistics. An episode that
+/// cannot be read is reported and left out (the count is returned); it never stops the
+/// others.
+fn dataset_stats(path: &Path, quiet: bool) -> anyhow::Result<(dexjoco_stats::DatasetStats, usize)> {
+    use rayon::prelude::*;
+    let dirs = if path.join(dexjoco_ingest::MANIFEST).is_file() {
+        dexjoco_ingest::stored_episode_dirs(path)?
+    } else {
+        let mut found = Vec::new();
+        find_raw_episodes(path, &mut found)?;
+        found.sort();
+        found
+    };
+    if dirs.is_empty() {
+        return Err(CliError {
+            message: format!("no episodes in '{}'", path.display()),
+            hint: Some(
+                "point --dataset at an ingest store (with manifest.json) or a folder of DexJoCo raw \
+                 episodes (folders holding replay.zarr); `dexjoco-data ingest` makes a store"
+                    .into(),
+            ),
+            status: ExitStatus::Failure,
+        }
+        .into());
+    }
+    let pb = crate::progress::bar(dirs.len() as u64, "read", quiet);
+    let read: Vec<_> = dirs
+        .par_iter()
+        .map(|d| {
+            let r = dexjoco_ingest::read_stored_episode(d);
+            pb.inc(1);
+            r
+        })
+        .collect();
+    pb.finish_and_clear();
+    let mut episodes = Vec::with_capacity(read.len());
+    let mut unreadable = 0;
+    for r in read {
+        match r {
+            Ok(e) => episodes.push(e),
+            Err(e) => {
+                unreadable += 1;
+                tracing::warn!("left out: {e}");
+            }
+        }
+    }
+    let stats = dexjoco_stats::DatasetStats::compute(&episodes)
+        .with_context(|| format!("dataset statistics of {}", path.display()))?;
+    Ok((stats, unreadable))
+}
+
+/// Folders holding a `replay.zarr`, below `dir`.
+fn find_raw_episodes(dir: &Path, out: &mut Vec<PathBuf>) -> anyhow::Result<()> {
+    if dir.join("replay.zarr").is_dir() {
+        out.push(dir.to_path_buf());
+        return Ok(());
+    }
+    for entry in fs_err::read_dir(dir)? {
+        let p = entry?.path();
+        if p.is_dir() {
+            find_raw_episodes(&p, out)?;
+        }
+    }
+    Ok(())
 }
