@@ -31,7 +31,7 @@ fn main() -> ExitCode {
         Command::Bench(cmd) => commands::bench::run(&cli.global, &cmd),
         Command::Ingest(_) => commands::pending("ingest"),
         Command::Augment(_) => commands::pending("augment"),
-        Command::Convert(_) => commands::pending("convert"),
+        Command::Convert(args) => commands::convert::run(&cli.global, &args),
         Command::Stats(_) => commands::pending("stats"),
     };
     match result {
