@@ -19,7 +19,7 @@ pub enum ConvertError {
     #[error("{at}: {message}")]
     Episode {
         /// Where.
-        at: Location,
+        at: Box<Location>,
         /// What is wrong.
         message: String,
     },
@@ -30,9 +30,9 @@ pub enum ConvertError {
     #[error("{at}: {source}")]
     Video {
         /// Episode and camera.
-        at: Location,
+        at: Box<Location>,
         /// Why.
-        source: VideoError,
+        source: Box<VideoError>,
     },
     /// The output folder exists and is not empty.
     #[error("output folder '{0}' is not empty")]
@@ -64,7 +64,7 @@ pub enum ConvertError {
 impl ConvertError {
     pub(crate) fn episode(id: &str, message: impl Into<String>) -> Self {
         Self::Episode {
-            at: Location::episode(id),
+            at: Location::episode(id).into(),
             message: message.into(),
         }
     }

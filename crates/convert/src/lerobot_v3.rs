@@ -368,8 +368,9 @@ impl V3Writer {
             ConvertError::Video {
                 at: dexjoco_core::Location::default()
                     .field(c.key.clone())
-                    .path(&path),
-                source,
+                    .path(&path)
+                    .into(),
+                source: source.into(),
             }
         })?;
         for t in v.temporary.drain(..) {

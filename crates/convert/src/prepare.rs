@@ -155,7 +155,7 @@ pub fn prepare(
     let sel = selection.for_task(&ep.task);
     let at = |field: &str| Location::episode(&ep.id).field(field).path(&input.dir);
     let missing = |name: &str| ConvertError::Episode {
-        at: at(name),
+        at: at(name).into(),
         message: "array missing".into(),
     };
     let action_full: FrameArray = match ep.array(sel.action.array_name()) {
@@ -166,7 +166,7 @@ pub fn prepare(
                 .array(Episode::ACTION)
                 .ok_or_else(|| missing(Episode::ACTION_ROTVEC))?;
             let setup = setup_of(a.width()).ok_or_else(|| ConvertError::Episode {
-                at: at(Episode::ACTION),
+                at: at(Episode::ACTION).into(),
                 message: format!(
                     "{} values per frame is neither one arm (23) nor two (46)",
                     a.width()
@@ -191,7 +191,7 @@ pub fn prepare(
     };
     if state_range.is_empty() {
         return Err(ConvertError::Episode {
-            at: at(Episode::STATE),
+            at: at(Episode::STATE).into(),
             message: format!(
                 "the state slice selects no column of {}",
                 state_full.width()
@@ -271,18 +271,18 @@ pub fn prepare(
             .find(|c| c.name == raw)
             .and_then(|c| c.video.as_ref())
             .ok_or_else(|| ConvertError::Episode {
-                at: cam_at().path(&input.dir),
+                at: cam_at().path(&input.dir).into(),
                 message: format!("no video of camera '{raw}' (cameras: {})", camera_list(ep)),
             })?;
         let src = input.dir.join(rel);
-        let vid_err = |source| ConvertError::Video {
-            at: cam_at(),
-            source,
+        let vid_err = |source: dexjoco_video::VideoError| ConvertError::Video {
+            at: cam_at().into(),
+            source: source.into(),
         };
         let info = dexjoco_video::probe(&src).map_err(vid_err)?;
         if info.frames as usize != n {
             return Err(ConvertError::Episode {
-                at: cam_at().path(&src),
+                at: cam_at().path(&src).into(),
                 message: format!("the video has {} frames, the episode {n}", info.frames),
             });
         }
@@ -326,9 +326,9 @@ pub fn prepare(
                 fps,
                 codec: video.codec.codec(),
             };
-            let enc_err = |source| ConvertError::Video {
-                at: cam_at(),
-                source,
+            let enc_err = |source: dexjoco_video::VideoError| ConvertError::Video {
+                at: cam_at().into(),
+                source: source.into(),
             };
             let mut writer = VideoWriter::create_with(&out, spec, Some(2)).map_err(enc_err)?;
             let mut k = 0;

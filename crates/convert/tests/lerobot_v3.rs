@@ -128,13 +128,15 @@ fn write_video(path: &Path, n: usize, colour: impl Fn(usize) -> [u8; 3]) {
 }
 
 fn selection() -> Selection {
-    let mut sel = Selection::default();
-    sel.default = TaskSelection {
-        cameras: BTreeMap::from([
-            ("front".into(), "front".into()),
-            ("wrist".into(), "handcam_rgb".into()),
-        ]),
-        ..TaskSelection::default()
+    let mut sel = Selection {
+        default: TaskSelection {
+            cameras: BTreeMap::from([
+                ("front".into(), "front".into()),
+                ("wrist".into(), "handcam_rgb".into()),
+            ]),
+            ..TaskSelection::default()
+        },
+        ..Selection::default()
     };
     sel.instructions
         .insert("click_mouse".into(), "Click the mouse.".into());
