@@ -16,19 +16,19 @@ use crate::stats::{FeatureStats, aggregate, column_stats};
 /// Episodes per chunk folder.
 pub const CHUNKS_SIZE: usize = 1000;
 /// Data file size cap (MB), lerobot's default.
-pub const DEFAULT_DATA_FILE_MB: u64 = 100;
+pub const DEFAULT_DATA_FILE_MB: f64 = 100.0;
 /// Video file size cap (MB), lerobot's default.
-pub const DEFAULT_VIDEO_FILE_MB: u64 = 200;
+pub const DEFAULT_VIDEO_FILE_MB: f64 = 200.0;
 
 /// Sizes and names of a LeRobot v3.0 dataset.
 #[derive(Debug, Clone)]
 pub struct V3Options {
     /// `robot_type` in info.json.
     pub robot_type: Option<String>,
-    /// Data file size cap in MB.
-    pub data_file_mb: u64,
-    /// Video file size cap in MB.
-    pub video_file_mb: u64,
+    /// Data file size cap in MB (info.json records it rounded, at least 1).
+    pub data_file_mb: f64,
+    /// Video file size cap in MB (info.json records it rounded, at least 1).
+    pub video_file_mb: f64,
 }
 
 impl Default for V3Options {
@@ -265,7 +265,7 @@ impl V3Writer {
         let batch = pq::batch(columns, HashMap::new());
 
         // Roll the data file over when it has reached its cap.
-        let cap = self.options.data_file_mb * 1_000_000;
+        let cap = (self.options.data_file_mb * 1e6) as u64;
         if let Some(d) = &self.data
             && d.writer.bytes_written() as u64 >= cap
         {
@@ -293,7 +293,7 @@ impl V3Writer {
         }
 
         // Videos.
-        let vcap = self.options.video_file_mb * 1_000_000;
+        let vcap = (self.options.video_file_mb * 1e6) as u64;
         let mut videos = Vec::new();
         for (i, part) in ep.videos.iter().enumerate() {
             if !self.videos[i].parts.is_empty() && self.videos[i].bytes + part.bytes >= vcap {
@@ -576,8 +576,8 @@ impl V3Writer {
             total_frames: self.frames,
             total_tasks: self.tasks.len(),
             chunks_size: CHUNKS_SIZE,
-            data_files_size_in_mb: self.options.data_file_mb,
-            video_files_size_in_mb: self.options.video_file_mb,
+            data_files_size_in_mb: (self.options.data_file_mb.round() as u64).max(1),
+            video_files_size_in_mb: (self.options.video_file_mb.round() as u64).max(1),
             data_path: "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
             video_path: (!self.cameras.is_empty())
                 .then_some("videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"),

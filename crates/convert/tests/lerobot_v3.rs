@@ -347,3 +347,31 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
     assert!(!out.join("keep.txt").exists());
     assert!(out.join("meta/info.json").exists());
 }
+
+#[test]
+fn size_caps_split_data_and_video_files_and_lerobot_follows() {
+    let fx = fixture();
+    let out_dir = tempfile::tempdir().unwrap();
+    let out = out_dir.path().join("dataset");
+    let mut opts = options(VideoOptions::default());
+    // Caps below one episode: every episode opens new files.
+    opts.v3.data_file_mb = 1e-9;
+    opts.v3.video_file_mb = 1e-9;
+    convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &Silent).unwrap();
+    for f in 0..3 {
+        assert!(
+            out.join(format!("data/chunk-000/file-{f:03}.parquet"))
+                .is_file(),
+            "data file {f}"
+        );
+        assert!(
+            out.join(format!(
+                "videos/observation.images.wrist/chunk-000/file-{f:03}.mp4"
+            ))
+            .is_file(),
+            "video file {f}"
+        );
+    }
+    let loaded = load(&out, "pyav");
+    check_items(&fx, &loaded, 3.0);
+}
