@@ -84,8 +84,8 @@ pub enum Command {
     Export(ExportArgs),
     /// Replay each episode under sampled camera/light/texture randomization; keep successes.
     Augment(PendingArgs),
-    /// Convert episodes to LeRobot v3.0 / v2.1 or Diffusion Policy Zarr.
-    Convert(PendingArgs),
+    /// Convert episodes to LeRobot v3.0 (v2.1 and Diffusion Policy Zarr to come).
+    Convert(ConvertArgs),
     /// Dataset statistics, success tables and the language-generalization analysis.
     Stats(StatsArgs),
 }
@@ -344,6 +344,77 @@ pub struct BenchIngestArgs {
     /// Frames per episode.
     #[arg(long, default_value_t = 600)]
     pub frames: usize,
+}
+
+/// Dataset formats `convert` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ConvertFormatArg {
+    /// LeRobot v3.0: what lerobot >= 0.4 reads (0.6.1 reads only this).
+    #[value(name = "lerobot-v3")]
+    LerobotV3,
+    /// LeRobot v2.1: what openpi's pinned lerobot reads (not built yet).
+    #[value(name = "lerobot-v2.1")]
+    LerobotV21,
+}
+
+/// Video codecs `convert` encodes with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum VideoCodecArg {
+    /// AV1 (libsvtav1, crf 30, preset 12, GOP 2): lerobot's default.
+    Av1,
+    /// H.264 (libx264, crf 21, GOP 2).
+    H264,
+}
+
+/// `convert` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data convert --input episodes/ --out datasets/click_mouse
+  dexjoco-data convert --input episodes/ --config ../shared/dexjoco-upstream/converter-configs/multi_task
+  dexjoco-data convert --input episodes/ --config selection.toml --reencode --video-codec h264
+  dexjoco-data convert --input episodes/ --overwrite --no-skip-static
+
+Input: a folder of episode folders, each holding `episode.json` (the episode model as
+JSON) and its `videos/`. Reading the DexJoCo raw layout (replay.zarr) arrives with the
+ingest stage; until then --input is required unless <work-dir>/augment exists.
+
+Videos are joined per camera by stream copy when the source codec fits (H.264, HEVC,
+AV1 in yuv420p at the dataset's rate): no re-encode, and static leading frames are
+skipped through the episodes' from_timestamp. Otherwise, or with --reencode, they are
+encoded (AV1 by default).")]
+pub struct ConvertArgs {
+    /// Folder of episode folders (default: <work-dir>/augment).
+    #[arg(short, long, env = "DEXJOCO_CONVERT_INPUT")]
+    pub input: Option<PathBuf>,
+    /// Output dataset folder (default: <work-dir>/convert/<format>).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = ConvertFormatArg::LerobotV3)]
+    pub format: ConvertFormatArg,
+    /// Selection config: a TOML/YAML file, or a DexJoCo reference converter config
+    /// folder (selected_data.yaml, slice_config.yaml, language_instructions.yaml).
+    #[arg(short, long, env = "DEXJOCO_CONVERT_CONFIG")]
+    pub config: Option<PathBuf>,
+    /// Replace a non-empty output folder.
+    #[arg(long)]
+    pub overwrite: bool,
+    /// Keep static leading frames (skipped by default, by the reference converter's rule).
+    #[arg(long)]
+    pub no_skip_static: bool,
+    /// Episode ids to leave out (repeatable; added to the config's list).
+    #[arg(long = "exclude", value_name = "EPISODE")]
+    pub exclude: Vec<String>,
+    /// Encode every video, even where stream copy would do.
+    #[arg(long)]
+    pub reencode: bool,
+    /// Codec for encoded videos.
+    #[arg(long, value_enum, default_value_t = VideoCodecArg::Av1)]
+    pub video_codec: VideoCodecArg,
+    /// `robot_type` recorded in info.json.
+    #[arg(long, default_value = "panda_allegro")]
+    pub robot_type: String,
 }
 
 /// Arguments of subcommands that are not built yet: accepted, so `--help` works, and

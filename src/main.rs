@@ -32,7 +32,7 @@ fn main() -> ExitCode {
         Command::Ingest(args) => commands::ingest::run(&cli.global, &args),
         Command::Export(args) => commands::export::run(&cli.global, &args),
         Command::Augment(_) => commands::pending("augment"),
-        Command::Convert(_) => commands::pending("convert"),
+        Command::Convert(args) => commands::convert::run(&cli.global, &args),
         Command::Stats(args) => commands::stats::run(&cli.global, &args),
     };
     match result {

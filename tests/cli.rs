@@ -64,15 +64,13 @@ fn usage_errors_exit_2() {
 #[test]
 fn stages_not_built_yet_say_so_with_exit_4() {
     let dir = tempfile::tempdir().unwrap();
-    for stage in ["augment", "convert"] {
-        let out = run(&[stage], dir.path());
-        assert_eq!(out.status.code(), Some(4), "{stage}");
-        assert!(
-            text(&out.stderr).contains("not available"),
-            "{}",
-            text(&out.stderr)
-        );
-    }
+    let out = run(&["augment"], dir.path());
+    assert_eq!(out.status.code(), Some(4));
+    assert!(
+        text(&out.stderr).contains("not available"),
+        "{}",
+        text(&out.stderr)
+    );
 }
 
 #[test]
@@ -322,4 +320,120 @@ fn render_video_streams_an_h264_clip_per_camera() {
             "{cam}: {info:?}"
         );
     }
+}
+
+/// A folder of episode folders (episode.json + videos/) for `convert`.
+fn convert_input(dir: &Path) -> PathBuf {
+    use dexjoco_core::{ArmSetup, CameraStream, Episode, FrameArray};
+    let input = dir.join("episodes");
+    for e in 0..2usize {
+        let n = 6 + e;
+        let action: Vec<Vec<f64>> = (0..n)
+            .map(|k| {
+                let mut r = vec![0.0; 23];
+                r[0] = k as f64 * 0.01;
+                r[3] = 1.0;
+                r
+            })
+            .collect();
+        let mut arrays = std::collections::BTreeMap::new();
+        arrays.insert(
+            Episode::ACTION.into(),
+            FrameArray::from_rows(&action).unwrap(),
+        );
+        arrays.insert(Episode::STATE.into(), FrameArray::zeros(n, 31));
+        let mut ep = Episode {
+            id: format!("ep{e}"),
+            task: "click_mouse".into(),
+            prompt: String::new(),
+            fps: 30.0,
+            arrays,
+            cameras: vec![CameraStream {
+                name: "front".into(),
+                video: Some("videos/front.mp4".into()),
+                depth: None,
+            }],
+        };
+        ep.compute_action_rotvec(ArmSetup::SingleArm).unwrap();
+        let d = input.join(&ep.id);
+        std::fs::create_dir_all(d.join("videos")).unwrap();
+        std::fs::write(d.join("episode.json"), serde_json::to_string(&ep).unwrap()).unwrap();
+        let spec = dexjoco_video::VideoSpec {
+            width: 64,
+            height: 64,
+            fps: 30,
+            codec: dexjoco_video::Codec::DEXJOCO,
+        };
+        let mut w = dexjoco_video::VideoWriter::create(d.join("videos/front.mp4"), spec).unwrap();
+        for k in 0..n {
+            w.write_frame(&vec![(k * 20) as u8; 64 * 64 * 3]).unwrap();
+        }
+        w.finish().unwrap();
+    }
+    input
+}
+
+#[test]
+fn convert_without_input_says_what_to_pass_with_exit_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run(&["convert"], dir.path());
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("no input") && err.contains("augment") && err.contains("--input"),
+        "{err}"
+    );
+    let help = run(&["convert", "--help"], dir.path());
+    let help = text(&help.stdout);
+    assert!(
+        help.contains("Examples:") && help.contains("--overwrite") && help.contains("lerobot-v3"),
+        "{help}"
+    );
+}
+
+#[test]
+fn convert_writes_lerobot_v3_and_refuses_to_overwrite() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = convert_input(dir.path());
+    let args = [
+        "convert",
+        "--input",
+        input.to_str().unwrap(),
+        "--out",
+        "ds",
+        "-q",
+    ];
+    let out = run(&args, dir.path());
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stdout).contains("2 episodes, 13 frames"),
+        "{}",
+        text(&out.stdout)
+    );
+    let info: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("ds/meta/info.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(info["total_frames"], 13);
+    assert_eq!(info["robot_type"], "panda_allegro");
+    assert!(
+        dir.path()
+            .join("ds/videos/observation.images.front/chunk-000/file-000.mp4")
+            .is_file()
+    );
+
+    let again = run(&args, dir.path());
+    assert_eq!(again.status.code(), Some(1));
+    assert!(
+        text(&again.stderr).contains("--overwrite"),
+        "{}",
+        text(&again.stderr)
+    );
+    let mut over = args.to_vec();
+    over.extend(["--overwrite", "--exclude", "ep1"]);
+    let out = run(&over, dir.path());
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stdout).contains("1 episodes") && text(&out.stdout).contains("left out: ep1")
+    );
 }

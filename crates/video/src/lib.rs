@@ -4,7 +4,9 @@
 //! whole episode of images is never held in memory, and publishes the file atomically
 //! (temporary name, renamed by [`VideoWriter::finish`]). Output is bit-exact for the same
 //! frames and settings (ffmpeg's bitexact flags; x264 is deterministic across threads).
-//! [`probe`] and [`decode_rgb`] read videos back, for checks and tests.
+//! [`probe`] and [`decode_rgb`] read videos back, for checks and tests; [`VideoReader`]
+//! streams decoded frames one at a time; [`concat_copy`] joins videos of the same codec
+//! and size into one file by stream copy (no re-encode), with continuous timestamps.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -127,6 +129,16 @@ pub struct VideoWriter {
 impl VideoWriter {
     /// Starts an encoder writing to a temporary file beside `path`.
     pub fn create(path: impl Into<PathBuf>, spec: VideoSpec) -> Result<Self, VideoError> {
+        Self::create_with(path, spec, None)
+    }
+
+    /// As [`VideoWriter::create`], with a keyframe every `gop` frames when given (lerobot
+    /// encodes with a GOP of 2 so that random access decodes few frames).
+    pub fn create_with(
+        path: impl Into<PathBuf>,
+        spec: VideoSpec,
+        gop: Option<u32>,
+    ) -> Result<Self, VideoError> {
         let path = path.into();
         let name = path
             .file_name()
@@ -158,6 +170,9 @@ impl VideoWriter {
                     &preset.to_string(),
                 ]);
             }
+        }
+        if let Some(g) = gop {
+            cmd.args(["-g", &g.max(1).to_string()]);
         }
         cmd.args(["-pix_fmt", "yuv420p", "-r", &spec.fps.to_string()])
             .args([
@@ -383,4 +398,208 @@ pub fn decode_rgb(path: &Path) -> Result<Vec<Vec<u8>>, VideoError> {
         });
     }
     Ok(raw.chunks_exact(size).map(<[u8]>::to_vec).collect())
+}
+
+/// Streams decoded RGB8 frames of a video from an ffmpeg process, one at a time, so a
+/// whole video is never held in memory.
+#[derive(Debug)]
+pub struct VideoReader {
+    child: Child,
+    stdout: std::process::ChildStdout,
+    path: PathBuf,
+    width: u32,
+    height: u32,
+    frame: usize,
+}
+
+impl VideoReader {
+    /// Starts decoding `path`, scaled to `size` (width, height) when given.
+    pub fn open(path: &Path, size: Option<(u32, u32)>) -> Result<Self, VideoError> {
+        let (width, height) = match size {
+            Some(s) => s,
+            None => {
+                let info = probe(path)?;
+                (info.width, info.height)
+            }
+        };
+        let mut cmd = Command::new(ffmpeg_program());
+        cmd.args(["-v", "error", "-nostdin", "-i"]).arg(path);
+        if size.is_some() {
+            cmd.args(["-vf", &format!("scale={width}:{height}:flags=area")]);
+        }
+        cmd.args(["-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        let mut child = cmd.spawn().map_err(|source| VideoError::Spawn {
+            program: ffmpeg_program().display().to_string(),
+            path: path.into(),
+            source,
+        })?;
+        let stdout = child.stdout.take().expect("piped stdout");
+        Ok(Self {
+            child,
+            stdout,
+            path: path.into(),
+            width,
+            height,
+            frame: 0,
+        })
+    }
+
+    /// Frame width and height.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Reads the next frame into `buf` (resized to width x height x 3); false at the end.
+    pub fn next_frame(&mut self, buf: &mut Vec<u8>) -> Result<bool, VideoError> {
+        use std::io::Read;
+        let size = self.width as usize * self.height as usize * 3;
+        buf.resize(size, 0);
+        let mut filled = 0;
+        while filled < size {
+            match self.stdout.read(&mut buf[filled..]) {
+                Ok(0) => break,
+                Ok(n) => filled += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(source) => {
+                    return Err(VideoError::Io {
+                        path: self.path.clone(),
+                        source,
+                    });
+                }
+            }
+        }
+        if filled == size {
+            self.frame += 1;
+            return Ok(true);
+        }
+        let status = self.child.wait().map_err(|source| VideoError::Io {
+            path: self.path.clone(),
+            source,
+        })?;
+        if !status.success() || filled != 0 {
+            let mut message = String::new();
+            if let Some(mut e) = self.child.stderr.take() {
+                use std::io::Read;
+                let _ = e.read_to_string(&mut message);
+            }
+            return Err(VideoError::Failed {
+                program: "ffmpeg".into(),
+                path: self.path.clone(),
+                message: format!(
+                    "decoding stopped after {} frames ({status}): {}",
+                    self.frame,
+                    message.trim()
+                ),
+            });
+        }
+        Ok(false)
+    }
+}
+
+impl Drop for VideoReader {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Joins videos of one codec, size and frame rate `fps` into `out` by stream copy
+/// (ffmpeg's concat demuxer): no re-encode, and the timestamps run on continuously, so
+/// frame k of input i is at exactly (frames before input i + k) / fps. (The demuxer
+/// offsets each input by its container duration, rounded to milliseconds; the `setts`
+/// filter snaps every timestamp back onto the frame grid.) Written to a temporary file
+/// beside `out` and renamed when complete.
+pub fn concat_copy(inputs: &[PathBuf], out: &Path, fps: u32) -> Result<(), VideoError> {
+    let name = out
+        .file_name()
+        .map_or_else(|| "video".into(), |n| n.to_string_lossy().into_owned());
+    let list = out.with_file_name(format!(".{name}.concat.txt"));
+    let tmp = out.with_file_name(format!(".{name}.partial.mp4"));
+    let mut text = String::from("ffconcat version 1.0\n");
+    for p in inputs {
+        let abs = std::path::absolute(p).map_err(|source| VideoError::Io {
+            path: p.clone(),
+            source,
+        })?;
+        // The concat list quotes paths with single quotes; a quote is written as '\''.
+        let quoted = abs.to_string_lossy().replace('\'', "'\\''");
+        text.push_str(&format!("file '{quoted}'\n"));
+    }
+    std::fs::write(&list, text).map_err(|source| VideoError::Io {
+        path: list.clone(),
+        source,
+    })?;
+    let list_s = list.to_string_lossy().into_owned();
+    let tmp_s = tmp.to_string_lossy().into_owned();
+    let snap =
+        format!("setts=pts=round(PTS*TB*{fps})/(TB*{fps}):dts=round(DTS*TB*{fps})/(TB*{fps})");
+    let result = run(
+        ffmpeg_program(),
+        &[
+            "-hide_banner",
+            "-loglevel",
+            "error",
+            "-nostdin",
+            "-y",
+            "-f",
+            "concat",
+            "-safe",
+            "0",
+            "-i",
+            &list_s,
+            "-map",
+            "0:v:0",
+            "-c",
+            "copy",
+            "-bsf:v",
+            &snap,
+            "-fflags",
+            "+bitexact",
+            "-map_metadata",
+            "-1",
+            "-f",
+            "mp4",
+            &tmp_s,
+        ],
+        out,
+    );
+    let _ = std::fs::remove_file(&list);
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
+    }
+    std::fs::rename(&tmp, out).map_err(|source| VideoError::Io {
+        path: out.into(),
+        source,
+    })
+}
+
+/// Presentation timestamps (seconds) of every frame of the first video stream, in
+/// presentation order.
+pub fn frame_times(path: &Path) -> Result<Vec<f64>, VideoError> {
+    let p = path.to_string_lossy();
+    let out = run(
+        ffprobe_program(),
+        &[
+            "-v",
+            "error",
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "packet=pts_time",
+            "-of",
+            "csv=p=0",
+            &p,
+        ],
+        path,
+    )?;
+    let mut t: Vec<f64> = String::from_utf8_lossy(&out)
+        .lines()
+        .filter_map(|l| l.trim().trim_end_matches(',').parse().ok())
+        .collect();
+    t.sort_by(f64::total_cmp);
+    Ok(t)
 }

@@ -1,0 +1,337 @@
+//! What to take from each episode: the selection config, modelled on the DexJoCo
+//! reference converter's `selected_data.yaml` / `slice_config.yaml` /
+//! `language_instructions.yaml` (which [`Selection::from_reference_dir`] reads as they are).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::ConvertError;
+
+/// Which action array becomes the dataset's `action`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionSource {
+    /// `action_rotvec` (per arm xyz, rotation vector, hand16): what the reference uses.
+    #[default]
+    ActionRotvec,
+    /// `action` (per arm xyz, quaternion wxyz, hand16).
+    Action,
+}
+
+impl ActionSource {
+    /// The episode array name.
+    pub fn array_name(self) -> &'static str {
+        match self {
+            Self::ActionRotvec => dexjoco_core::Episode::ACTION_ROTVEC,
+            Self::Action => dexjoco_core::Episode::ACTION,
+        }
+    }
+}
+
+/// A Python-style slice `[start, stop]` of columns; `null` (None) means open. Negative
+/// values count from the end, as in Python.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct ColumnSlice(pub Option<i64>, pub Option<i64>);
+
+impl ColumnSlice {
+    /// The column range this slice selects out of `width` columns (Python semantics).
+    pub fn range(self, width: usize) -> std::ops::Range<usize> {
+        let w = width as i64;
+        let fix = |v: i64| if v < 0 { (w + v).max(0) } else { v.min(w) } as usize;
+        let start = self.0.map_or(0, fix);
+        let stop = self.1.map_or(width, fix);
+        start..stop.max(start)
+    }
+}
+
+/// What to take from the episodes of one task.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TaskSelection {
+    /// The action array (default `action_rotvec`).
+    #[serde(default)]
+    pub action: ActionSource,
+    /// Columns of `state` to keep (default: the proprioceptive part, `[null, 23]` for one
+    /// arm and `[null, 46]` for two, inferred from the action width).
+    #[serde(default)]
+    pub state: Option<ColumnSlice>,
+    /// Output camera name -> raw camera name (default: every camera, same name).
+    #[serde(default)]
+    pub cameras: BTreeMap<String, String>,
+}
+
+/// The whole selection: per-task choices, instructions, excluded episodes.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Selection {
+    /// Used for tasks not listed in `tasks`.
+    #[serde(default)]
+    pub default: TaskSelection,
+    /// Per task id.
+    #[serde(default)]
+    pub tasks: BTreeMap<String, TaskSelection>,
+    /// Task id -> language instruction (overrides the built-in DexJoCo instructions and
+    /// the episode's own prompt).
+    #[serde(default)]
+    pub instructions: BTreeMap<String, String>,
+    /// Episode ids to leave out.
+    #[serde(default)]
+    pub bad_episodes: BTreeSet<String>,
+    /// Skip static leading frames by the reference converter's rule (default true).
+    #[serde(default = "yes")]
+    pub skip_static_frames: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Default for Selection {
+    fn default() -> Self {
+        Self {
+            default: TaskSelection::default(),
+            tasks: BTreeMap::new(),
+            instructions: BTreeMap::new(),
+            bad_episodes: BTreeSet::new(),
+            skip_static_frames: true,
+        }
+    }
+}
+
+/// The DexJoCo tasks' language instructions, as the reference converter's
+/// `language_instructions.yaml` gives them.
+pub const DEXJOCO_INSTRUCTIONS: [(&str, &str); 11] = [
+    (
+        "bimanual_assembly",
+        "Grasp the tray with the left hand and the peg with the right hand, then insert the peg into the hole.",
+    ),
+    (
+        "bimanual_hanoi",
+        "Execute the final two moves of the three-level Tower of Hanoi: move the medium disk from the middle peg to the right peg with the right hand, then move the small disk from the left peg to the right peg with the left hand.",
+    ),
+    (
+        "bimanual_microwave_cook",
+        "Open the microwave door, place the food inside the microwave, close the door, and press the start button.",
+    ),
+    (
+        "bimanual_photograph",
+        "Grasp the camera with the left hand, align it with the logo, and press the shutter button with the right hand.",
+    ),
+    (
+        "bimanual_unlock_ipad",
+        "Grasp the iPad and enter the password 123 to unlock the device.",
+    ),
+    (
+        "click_mouse",
+        "Move the mouse to the purple mouse pad and click the left mouse button.",
+    ),
+    (
+        "fold_glasses",
+        "Fold the glasses and place them into the case.",
+    ),
+    (
+        "hammer_nail",
+        "Use the hammer to drive the nail into the wooden board.",
+    ),
+    (
+        "pick_bucket",
+        "Place the boxed food into the bucket and then lift the bucket.",
+    ),
+    (
+        "pinch_tongs",
+        "Grasp the tongs and perform three consecutive open-close motions.",
+    ),
+    (
+        "water_plant",
+        "Grasp the watering can and apply water to the plant.",
+    ),
+];
+
+impl Selection {
+    /// The selection for a task.
+    pub fn for_task(&self, task: &str) -> &TaskSelection {
+        self.tasks.get(task).unwrap_or(&self.default)
+    }
+
+    /// The instruction of a task: the config's, else the built-in DexJoCo one, else the
+    /// episode's prompt, else the task id.
+    pub fn instruction(&self, task: &str, prompt: &str) -> String {
+        if let Some(s) = self.instructions.get(task) {
+            return s.clone();
+        }
+        if let Some((_, s)) = DEXJOCO_INSTRUCTIONS.iter().find(|(t, _)| *t == task) {
+            return (*s).to_owned();
+        }
+        if prompt.trim().is_empty() {
+            task.to_owned()
+        } else {
+            prompt.to_owned()
+        }
+    }
+
+    /// Reads a selection config: TOML (`.toml`) or YAML (anything else), with the fields
+    /// of [`Selection`].
+    pub fn load(path: &Path) -> Result<Self, ConvertError> {
+        let text = fs_err::read_to_string(path)?;
+        let bad = |message: String| ConvertError::Config {
+            path: path.to_path_buf(),
+            message,
+        };
+        if path.extension().is_some_and(|e| e == "toml") {
+            toml::from_str(&text).map_err(|e| bad(e.to_string()))
+        } else {
+            serde_norway::from_str(&text).map_err(|e| bad(e.to_string()))
+        }
+    }
+
+    /// Reads the DexJoCo reference converter's config folder as it is:
+    /// `selected_data.yaml` (per task: cameras, action, state), `slice_config.yaml` (per
+    /// task: `state: [null, 23]`) and `language_instructions.yaml` (task -> text), each
+    /// optional.
+    pub fn from_reference_dir(dir: &Path) -> Result<Self, ConvertError> {
+        #[derive(Deserialize)]
+        struct Selected {
+            #[serde(default)]
+            cameras: BTreeMap<String, String>,
+            #[serde(default)]
+            action: Option<ActionSource>,
+            #[serde(default, rename = "state")]
+            _state: Option<String>,
+        }
+        #[derive(Deserialize)]
+        struct Sliced {
+            #[serde(default)]
+            state: Option<ColumnSlice>,
+        }
+        fn read<T: serde::de::DeserializeOwned>(path: PathBuf) -> Result<Option<T>, ConvertError> {
+            if !path.is_file() {
+                return Ok(None);
+            }
+            let text = fs_err::read_to_string(&path)?;
+            serde_norway::from_str(&text)
+                .map(Some)
+                .map_err(|e| ConvertError::Config {
+                    path,
+                    message: e.to_string(),
+                })
+        }
+        let mut sel = Self::default();
+        let selected: Option<BTreeMap<String, Selected>> = read(dir.join("selected_data.yaml"))?;
+        for (task, s) in selected.unwrap_or_default() {
+            let t = sel.tasks.entry(task).or_default();
+            t.cameras = s.cameras;
+            t.action = s.action.unwrap_or_default();
+        }
+        let sliced: Option<BTreeMap<String, Sliced>> = read(dir.join("slice_config.yaml"))?;
+        for (task, s) in sliced.unwrap_or_default() {
+            sel.tasks.entry(task).or_default().state = s.state;
+        }
+        let instructions: Option<BTreeMap<String, String>> =
+            read(dir.join("language_instructions.yaml"))?;
+        sel.instructions = instructions.unwrap_or_default();
+        Ok(sel)
+    }
+}
+
+/// The first frame the reference converter keeps: the first `i` with
+/// `action[i] != action[i + 1]`, plus one when `action[i]` is all zeros. An episode whose
+/// action never changes keeps all its frames (start 0).
+pub fn first_moving_frame(action: &dexjoco_core::FrameArray) -> usize {
+    let n = action.len();
+    let Some(i) = (0..n.saturating_sub(1)).find(|&i| action.row(i) != action.row(i + 1)) else {
+        return 0;
+    };
+    if action.row(i).iter().all(|v| *v == 0.0) {
+        (i + 1).min(n.saturating_sub(1))
+    } else {
+        i
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dexjoco_core::FrameArray;
+
+    #[test]
+    fn python_slices() {
+        assert_eq!(ColumnSlice(None, Some(23)).range(31), 0..23);
+        assert_eq!(ColumnSlice(Some(-8), None).range(31), 23..31);
+        assert_eq!(ColumnSlice(None, Some(40)).range(31), 0..31);
+        assert_eq!(ColumnSlice(Some(5), Some(2)).range(31), 5..5);
+    }
+
+    #[test]
+    fn static_leading_frames_follow_the_reference_rule() {
+        let rows = |v: &[f64]| {
+            FrameArray::from_rows(&v.iter().map(|x| vec![*x, 1.0]).collect::<Vec<_>>()).unwrap()
+        };
+        // repeats, then moves: start at the last repeat
+        assert_eq!(first_moving_frame(&rows(&[3.0, 3.0, 3.0, 4.0, 5.0])), 2);
+        // moving from the start
+        assert_eq!(first_moving_frame(&rows(&[1.0, 2.0])), 0);
+        // never moves: keep everything
+        assert_eq!(first_moving_frame(&rows(&[1.0, 1.0])), 0);
+        // all-zero rows before the first change: one further
+        let z = FrameArray::from_rows(&[
+            vec![0.0, 0.0],
+            vec![0.0, 0.0],
+            vec![0.5, 0.0],
+            vec![0.6, 0.0],
+        ])
+        .unwrap();
+        assert_eq!(first_moving_frame(&z), 2);
+    }
+
+    #[test]
+    fn reads_the_reference_converter_configs() {
+        let dir = dexjoco_testkit::workspace_root()
+            .join("../shared/dexjoco-upstream/converter-configs/multi_task");
+        assert!(
+            dir.is_dir(),
+            "the reference converter configs are absent: {}",
+            dir.display()
+        );
+        let sel = Selection::from_reference_dir(&dir).unwrap();
+        let t = sel.for_task("bimanual_hanoi");
+        assert_eq!(t.action, ActionSource::ActionRotvec);
+        assert_eq!(t.cameras.get("base").map(String::as_str), Some("ego"));
+        assert_eq!(
+            sel.for_task("click_mouse").state,
+            Some(ColumnSlice(None, Some(23)))
+        );
+        assert!(
+            sel.instruction("water_plant", "")
+                .starts_with("Grasp the watering can")
+        );
+    }
+
+    #[test]
+    fn toml_and_yaml_configs() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("sel.toml");
+        fs_err::write(
+            &p,
+            "bad_episodes = [\"ep3\"]\n[default]\naction = \"action\"\nstate = [0, 7]\n[default.cameras]\nfront = \"front\"\n[instructions]\nclick_mouse = \"click it\"\n",
+        )
+        .unwrap();
+        let s = Selection::load(&p).unwrap();
+        assert!(s.skip_static_frames && s.bad_episodes.contains("ep3"));
+        assert_eq!(s.default.action, ActionSource::Action);
+        assert_eq!(s.instruction("click_mouse", "x"), "click it");
+        let y = dir.path().join("sel.yaml");
+        fs_err::write(
+            &y,
+            "skip_static_frames: false\ndefault:\n  state: [null, 23]\n",
+        )
+        .unwrap();
+        let s = Selection::load(&y).unwrap();
+        assert!(!s.skip_static_frames);
+        assert_eq!(s.default.state, Some(ColumnSlice(None, Some(23))));
+        fs_err::write(&y, "defaults: {}\n").unwrap();
+        let e = Selection::load(&y).unwrap_err().to_string();
+        assert!(e.contains("sel.yaml") && e.contains("defaults"), "{e}");
+    }
+}

@@ -1,0 +1,71 @@
+use std::path::PathBuf;
+
+use dexjoco_core::{CoreError, Location};
+use dexjoco_video::VideoError;
+
+/// Errors of conversion; each names the file, episode and field it concerns when known.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConvertError {
+    /// The selection config could not be read or is invalid.
+    #[error("selection config '{path}': {message}")]
+    Config {
+        /// The config file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// An episode lacks something the selection asks for, or has an unexpected shape.
+    #[error("{at}: {message}")]
+    Episode {
+        /// Where.
+        at: Box<Location>,
+        /// What is wrong.
+        message: String,
+    },
+    /// The episode data is inconsistent.
+    #[error(transparent)]
+    Core(#[from] CoreError),
+    /// A video could not be probed, decoded, encoded or joined.
+    #[error("{at}: {source}")]
+    Video {
+        /// Episode and camera.
+        at: Box<Location>,
+        /// Why.
+        source: Box<VideoError>,
+    },
+    /// The output folder exists and is not empty.
+    #[error("output folder '{0}' is not empty")]
+    OutputNotEmpty(PathBuf),
+    /// Nothing to convert.
+    #[error("no episodes to convert (all were excluded or the input is empty)")]
+    NoEpisodes,
+    /// Writing a Parquet file failed.
+    #[error("file '{path}': {message}")]
+    Parquet {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
+    /// An input episode could not be read.
+    #[error("input '{path}': {message}")]
+    Input {
+        /// The file or folder.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
+    /// A file system operation failed (the message names the path).
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+}
+
+impl ConvertError {
+    pub(crate) fn episode(id: &str, message: impl Into<String>) -> Self {
+        Self::Episode {
+            at: Location::episode(id).into(),
+            message: message.into(),
+        }
+    }
+}

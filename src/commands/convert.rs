@@ -1,0 +1,166 @@
+//! `dexjoco-data convert`: episodes -> LeRobot v3.0.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use dexjoco_convert::{
+    ConvertError, ConvertOptions, InputEpisode, Reporter, Selection, V3Options, VideoCodec,
+    VideoOptions,
+};
+use dexjoco_core::Episode;
+
+use crate::cli::{ConvertArgs, ConvertFormatArg, GlobalArgs, VideoCodecArg};
+use crate::exit::{CliError, ExitStatus};
+
+/// The file holding an episode's model in an episode folder of the interim input layout.
+const EPISODE_FILE: &str = "episode.json";
+
+struct Bar(indicatif::ProgressBar);
+
+impl Reporter for Bar {
+    fn episode(&self, id: &str, excluded: bool) {
+        if excluded {
+            self.0.println(format!("left out {id} (bad-episodes list)"));
+        }
+        self.0.inc(1);
+    }
+}
+
+/// Runs `convert`.
+pub fn run(global: &GlobalArgs, args: &ConvertArgs) -> anyhow::Result<ExitStatus> {
+    if args.format == ConvertFormatArg::LerobotV21 {
+        return Err(CliError {
+            message: "--format lerobot-v2.1 is not available in this version yet".into(),
+            hint: Some("--format lerobot-v3 works today (lerobot >= 0.4 reads it)".into()),
+            status: ExitStatus::NotAvailable,
+        }
+        .into());
+    }
+    let input = match &args.input {
+        Some(p) => p.clone(),
+        None => {
+            let default = global.work_dir.join("augment");
+            if !default.is_dir() {
+                return Err(CliError {
+                    message: format!(
+                        "no input: the augment stage's output {} does not exist",
+                        default.display()
+                    ),
+                    hint: Some(
+                        "pass --input DIR (a folder of episode folders, each with episode.json and videos/); \
+                         reading DexJoCo raw folders directly arrives with the ingest stage"
+                            .into(),
+                    ),
+                    status: ExitStatus::Failure,
+                }
+                .into());
+            }
+            default
+        }
+    };
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| global.work_dir.join("convert").join("lerobot-v3"));
+    if dexjoco_convert::is_non_empty_dir(&out) && !args.overwrite {
+        return Err(CliError {
+            message: format!("output folder {} is not empty", out.display()),
+            hint: Some("pass --overwrite to replace it, or choose another --out".into()),
+            status: ExitStatus::Failure,
+        }
+        .into());
+    }
+    let mut selection = match &args.config {
+        None => Selection::default(),
+        Some(p) if p.is_dir() => Selection::from_reference_dir(p)?,
+        Some(p) => Selection::load(p)?,
+    };
+    if args.no_skip_static {
+        selection.skip_static_frames = false;
+    }
+    selection.bad_episodes.extend(args.exclude.iter().cloned());
+    let options = ConvertOptions {
+        selection,
+        video: VideoOptions {
+            codec: match args.video_codec {
+                VideoCodecArg::Av1 => VideoCodec::Av1,
+                VideoCodecArg::H264 => VideoCodec::H264,
+            },
+            reencode: args.reencode,
+        },
+        v3: V3Options {
+            robot_type: Some(args.robot_type.clone()),
+            ..V3Options::default()
+        },
+        overwrite: args.overwrite,
+        ..ConvertOptions::default()
+    };
+    let folders = episode_folders(&input)?;
+    if folders.is_empty() {
+        return Err(CliError {
+            message: format!(
+                "no episode folders (with {EPISODE_FILE}) in {}",
+                input.display()
+            ),
+            hint: None,
+            status: ExitStatus::Failure,
+        }
+        .into());
+    }
+    tracing::info!(
+        "converting {} episode(s) from {} to {}",
+        folders.len(),
+        input.display(),
+        out.display()
+    );
+    let bar = Bar(crate::progress::bar(
+        folders.len() as u64,
+        "convert",
+        global.quiet,
+    ));
+    let inputs = folders.into_iter().map(|dir| read_episode(&dir));
+    let summary = dexjoco_convert::convert(inputs, &out, &options, &bar)
+        .with_context(|| format!("converting {} into {}", input.display(), out.display()))?;
+    bar.0.finish_and_clear();
+    println!(
+        "wrote {}: {} episodes, {} frames ({} static leading frames skipped); videos: {} stream-copied, {} encoded{}",
+        summary.out.display(),
+        summary.episodes,
+        summary.frames,
+        summary.skipped_frames,
+        summary.videos_copied,
+        summary.videos_encoded,
+        if summary.excluded.is_empty() {
+            String::new()
+        } else {
+            format!("; left out: {}", summary.excluded.join(", "))
+        }
+    );
+    Ok(ExitStatus::Success)
+}
+
+/// Episode folders (those with `episode.json`) under `input`, sorted by name.
+fn episode_folders(input: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut v = Vec::new();
+    for entry in fs_err::read_dir(input)? {
+        let p = entry?.path();
+        if p.join(EPISODE_FILE).is_file() {
+            v.push(p);
+        }
+    }
+    v.sort();
+    Ok(v)
+}
+
+fn read_episode(dir: &Path) -> Result<InputEpisode, ConvertError> {
+    let path = dir.join(EPISODE_FILE);
+    let text = fs_err::read_to_string(&path)?;
+    let episode: Episode = serde_json::from_str(&text).map_err(|e| ConvertError::Input {
+        path: path.clone(),
+        message: format!("not an episode: {e}"),
+    })?;
+    Ok(InputEpisode {
+        episode,
+        dir: dir.to_path_buf(),
+    })
+}
