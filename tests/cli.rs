@@ -322,7 +322,7 @@ fn render_video_streams_an_h264_clip_per_camera() {
     }
 }
 
-/// A folder of episode folders (episode.json + videos/) for `convert`.
+/// A folder of DexJoCo raw episode folders (replay.zarr + videos/) for `convert`.
 fn convert_input(dir: &Path) -> PathBuf {
     use dexjoco_core::{ArmSetup, CameraStream, Episode, FrameArray};
     let input = dir.join("episodes");
@@ -342,6 +342,10 @@ fn convert_input(dir: &Path) -> PathBuf {
             FrameArray::from_rows(&action).unwrap(),
         );
         arrays.insert(Episode::STATE.into(), FrameArray::zeros(n, 31));
+        arrays.insert(
+            Episode::TIMESTAMP.into(),
+            Episode::regular_timestamps(n, 30.0),
+        );
         let mut ep = Episode {
             id: format!("ep{e}"),
             task: "click_mouse".into(),
@@ -355,9 +359,9 @@ fn convert_input(dir: &Path) -> PathBuf {
             }],
         };
         ep.compute_action_rotvec(ArmSetup::SingleArm).unwrap();
-        let d = input.join(&ep.id);
+        let d = input.join("click_mouse").join(format!("episode_{e:06}"));
         std::fs::create_dir_all(d.join("videos")).unwrap();
-        std::fs::write(d.join("episode.json"), serde_json::to_string(&ep).unwrap()).unwrap();
+        dexjoco_ingest::raw::write_replay_zarr(&d, &ep).unwrap();
         let spec = dexjoco_video::VideoSpec {
             width: 64,
             height: 64,
@@ -430,10 +434,11 @@ fn convert_writes_lerobot_v3_and_refuses_to_overwrite() {
         text(&again.stderr)
     );
     let mut over = args.to_vec();
-    over.extend(["--overwrite", "--exclude", "ep1"]);
+    over.extend(["--overwrite", "--exclude", "episode_000001"]);
     let out = run(&over, dir.path());
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
     assert!(
-        text(&out.stdout).contains("1 episodes") && text(&out.stdout).contains("left out: ep1")
+        text(&out.stdout).contains("1 episodes")
+            && text(&out.stdout).contains("left out: episode_000001")
     );
 }

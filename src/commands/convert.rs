@@ -1,19 +1,15 @@
 //! `dexjoco-data convert`: episodes -> LeRobot v3.0.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::Context;
 use dexjoco_convert::{
     ConvertError, ConvertOptions, InputEpisode, Reporter, Selection, V3Options, VideoCodec,
     VideoOptions,
 };
-use dexjoco_core::Episode;
 
 use crate::cli::{ConvertArgs, ConvertFormatArg, GlobalArgs, VideoCodecArg};
 use crate::exit::{CliError, ExitStatus};
-
-/// The file holding an episode's model in an episode folder of the interim input layout.
-const EPISODE_FILE: &str = "episode.json";
 
 struct Bar(indicatif::ProgressBar);
 
@@ -47,8 +43,8 @@ pub fn run(global: &GlobalArgs, args: &ConvertArgs) -> anyhow::Result<ExitStatus
                         default.display()
                     ),
                     hint: Some(
-                        "pass --input DIR (a folder of episode folders, each with episode.json and videos/); \
-                         reading DexJoCo raw folders directly arrives with the ingest stage"
+                        "pass --input DIR: an episode store (`dexjoco-data ingest` makes one) or a folder of \
+                         DexJoCo raw episode folders (replay.zarr + videos/)"
                             .into(),
                     ),
                     status: ExitStatus::Failure,
@@ -95,14 +91,14 @@ pub fn run(global: &GlobalArgs, args: &ConvertArgs) -> anyhow::Result<ExitStatus
         overwrite: args.overwrite,
         ..ConvertOptions::default()
     };
-    let folders = episode_folders(&input)?;
+    let folders = dexjoco_ingest::episode_dirs(&input)?;
     if folders.is_empty() {
         return Err(CliError {
             message: format!(
-                "no episode folders (with {EPISODE_FILE}) in {}",
+                "no episodes in {} (no manifest.json, and no folder with replay.zarr below it)",
                 input.display()
             ),
-            hint: None,
+            hint: Some("`dexjoco-data ingest` makes an episode store from recordings".into()),
             status: ExitStatus::Failure,
         }
         .into());
@@ -139,25 +135,12 @@ pub fn run(global: &GlobalArgs, args: &ConvertArgs) -> anyhow::Result<ExitStatus
     Ok(ExitStatus::Success)
 }
 
-/// Episode folders (those with `episode.json`) under `input`, sorted by name.
-fn episode_folders(input: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let mut v = Vec::new();
-    for entry in fs_err::read_dir(input)? {
-        let p = entry?.path();
-        if p.join(EPISODE_FILE).is_file() {
-            v.push(p);
-        }
-    }
-    v.sort();
-    Ok(v)
-}
-
+/// Reads one DexJoCo raw episode folder (arrays from `replay.zarr`, cameras from
+/// `videos/`).
 fn read_episode(dir: &Path) -> Result<InputEpisode, ConvertError> {
-    let path = dir.join(EPISODE_FILE);
-    let text = fs_err::read_to_string(&path)?;
-    let episode: Episode = serde_json::from_str(&text).map_err(|e| ConvertError::Input {
-        path: path.clone(),
-        message: format!("not an episode: {e}"),
+    let episode = dexjoco_ingest::read_stored_episode(dir).map_err(|e| ConvertError::Input {
+        path: dir.to_path_buf(),
+        message: e.to_string(),
     })?;
     Ok(InputEpisode {
         episode,

@@ -190,14 +190,7 @@ pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> 
 /// others.
 fn dataset_stats(path: &Path, quiet: bool) -> anyhow::Result<(dexjoco_stats::DatasetStats, usize)> {
     use rayon::prelude::*;
-    let dirs = if path.join(dexjoco_ingest::MANIFEST).is_file() {
-        dexjoco_ingest::stored_episode_dirs(path)?
-    } else {
-        let mut found = Vec::new();
-        find_raw_episodes(path, &mut found)?;
-        found.sort();
-        found
-    };
+    let dirs = dexjoco_ingest::episode_dirs(path)?;
     if dirs.is_empty() {
         return Err(CliError {
             message: format!("no episodes in '{}'", path.display()),
@@ -234,19 +227,4 @@ fn dataset_stats(path: &Path, quiet: bool) -> anyhow::Result<(dexjoco_stats::Dat
     let stats = dexjoco_stats::DatasetStats::compute(&episodes)
         .with_context(|| format!("dataset statistics of {}", path.display()))?;
     Ok((stats, unreadable))
-}
-
-/// Folders holding a `replay.zarr`, below `dir`.
-fn find_raw_episodes(dir: &Path, out: &mut Vec<PathBuf>) -> anyhow::Result<()> {
-    if dir.join("replay.zarr").is_dir() {
-        out.push(dir.to_path_buf());
-        return Ok(());
-    }
-    for entry in fs_err::read_dir(dir)? {
-        let p = entry?.path();
-        if p.is_dir() {
-            find_raw_episodes(&p, out)?;
-        }
-    }
-    Ok(())
 }

@@ -19,7 +19,7 @@ pub use error::{IngestError, Problem, ProblemCode, Result};
 pub use store::{
     ENTRY_FILE, IngestOptions, IngestSummary, LOCK_FILE, MANIFEST, Manifest, ManifestEntry,
     NoReporter, Outcome, QUARANTINE, REASON_FILE, Reporter, STAGING, Source, SourceKind,
-    SourceReport, Status, Store, discover, landed_by_task, read_stored_episode,
+    SourceReport, Status, Store, discover, episode_dirs, landed_by_task, read_stored_episode,
     stored_episode_dirs, write_atomic,
 };
 pub use validate::{ValidationOptions, validate};

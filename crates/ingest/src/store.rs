@@ -1014,6 +1014,32 @@ pub fn stored_episode_dirs(store: &Path) -> Result<Vec<PathBuf>> {
         .collect())
 }
 
+/// The episode folders a stage reads from `path`: the landed episodes of an episode store
+/// (a folder with `manifest.json`), else every DexJoCo raw episode folder (one holding
+/// `replay.zarr`) below `path`, sorted.
+pub fn episode_dirs(path: &Path) -> Result<Vec<PathBuf>> {
+    if path.join(MANIFEST).is_file() {
+        return stored_episode_dirs(path);
+    }
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
+        if dir.join(raw::REPLAY_ZARR).is_dir() {
+            out.push(dir.to_path_buf());
+            return Ok(());
+        }
+        for entry in fs_err::read_dir(dir).map_err(io_err("list", dir))? {
+            let p = entry.map_err(io_err("list", dir))?.path();
+            if p.is_dir() {
+                walk(&p, out)?;
+            }
+        }
+        Ok(())
+    }
+    let mut found = Vec::new();
+    walk(path, &mut found)?;
+    found.sort();
+    Ok(found)
+}
+
 /// Per-task counts of a manifest's landed episodes.
 pub fn landed_by_task(manifest: &Manifest) -> BTreeMap<String, usize> {
     let mut m = BTreeMap::new();
