@@ -370,21 +370,21 @@ pub enum VideoCodecArg {
 #[derive(Debug, Args)]
 #[command(after_help = "\
 Examples:
-  dexjoco-data convert --input episodes/ --out datasets/click_mouse
-  dexjoco-data convert --input episodes/ --config ../shared/dexjoco-upstream/converter-configs/multi_task
-  dexjoco-data convert --input episodes/ --config selection.toml --reencode --video-codec h264
-  dexjoco-data convert --input episodes/ --overwrite --no-skip-static
+  dexjoco-data convert --input dexjoco-work/ingest --out datasets/click_mouse
+  dexjoco-data convert --input raw/ --config ../shared/dexjoco-upstream/converter-configs/multi_task
+  dexjoco-data convert --input raw/ --config selection.toml --reencode --video-codec h264
+  dexjoco-data convert --input raw/ --overwrite --no-skip-static
 
-Input: a folder of episode folders, each holding `episode.json` (the episode model as
-JSON) and its `videos/`. Reading the DexJoCo raw layout (replay.zarr) arrives with the
-ingest stage; until then --input is required unless <work-dir>/augment exists.
+Input: an episode store (a folder with manifest.json, as `ingest` writes it: its landed
+episodes) or any folder of DexJoCo raw episode folders (replay.zarr + videos/<camera>.mp4),
+searched recursively. Without --input: <work-dir>/augment.
 
 Videos are joined per camera by stream copy when the source codec fits (H.264, HEVC,
 AV1 in yuv420p at the dataset's rate): no re-encode, and static leading frames are
 skipped through the episodes' from_timestamp. Otherwise, or with --reencode, they are
 encoded (AV1 by default).")]
 pub struct ConvertArgs {
-    /// Folder of episode folders (default: <work-dir>/augment).
+    /// Episode store or folder of DexJoCo raw episodes (default: <work-dir>/augment).
     #[arg(short, long, env = "DEXJOCO_CONVERT_INPUT")]
     pub input: Option<PathBuf>,
     /// Output dataset folder (default: <work-dir>/convert/<format>).
