@@ -17,7 +17,11 @@ BIN="$ROOT/target/release/dexjoco-data"
 # with depth and a contact sheet; then a 2 s H.264 clip of the fall from the front camera.
 "$BIN" render --depth --steps 600
 "$BIN" render --video --steps 1000 --camera front --quality fast
+# The embedded sample demonstrations (datasets/demos, scripted on the reference scenes):
+# validated into the episode store, then their dataset statistics and norm stats.
+"$BIN" ingest datasets/demos
+"$BIN" stats --dataset
 # The language-generalization analysis and success tables on the shipped EXAMPLE
 # evaluation outputs (made up by a script, not results).
 "$BIN" stats --language-eval --success-table
-echo "done: see dexjoco-work/stats/ and dexjoco-work/render/ (tabletop_contact_sheet.png, tabletop_front.mp4)" >&2
+echo "done: see dexjoco-work/ingest/, dexjoco-work/stats/ and dexjoco-work/render/ (tabletop_contact_sheet.png, tabletop_front.mp4)" >&2
