@@ -925,6 +925,11 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let mut tmp =
         tempfile::NamedTempFile::new_in(dir).map_err(io_err("create a temporary file in", dir))?;
     tmp.write_all(bytes).map_err(io_err("write", tmp.path()))?;
+    persist_synced(tmp, path)
+}
+
+/// Syncs a fully written temporary file and renames it to `path`.
+pub(crate) fn persist_synced(tmp: tempfile::NamedTempFile, path: &Path) -> Result<()> {
     tmp.as_file()
         .sync_all()
         .map_err(io_err("sync", tmp.path()))?;

@@ -123,15 +123,7 @@ pub fn write_episode_mcap(
         let mut inner = w.into_inner();
         inner.flush().map_err(io_err("write", tmp.path()))?;
     }
-    tmp.as_file()
-        .sync_all()
-        .map_err(io_err("sync", tmp.path()))?;
-    tmp.persist(path).map_err(|e| IngestError::Io {
-        op: "rename into",
-        path: path.to_owned(),
-        source: e.error,
-    })?;
-    Ok(())
+    crate::store::persist_synced(tmp, path)
 }
 
 fn write_into<W: std::io::Write + std::io::Seek>(

@@ -107,6 +107,15 @@ pub fn ffmpeg_program() -> PathBuf {
     std::env::var_os("DEXJOCO_FFMPEG").map_or_else(|| "ffmpeg".into(), PathBuf::from)
 }
 
+/// Starts an ffmpeg command; a failure to start names the video file.
+fn spawn_ffmpeg(cmd: &mut Command, path: &Path) -> Result<Child, VideoError> {
+    cmd.spawn().map_err(|source| VideoError::Spawn {
+        program: ffmpeg_program().display().to_string(),
+        path: path.into(),
+        source,
+    })
+}
+
 fn ffprobe_program() -> PathBuf {
     let ff = ffmpeg_program();
     match ff.parent() {
@@ -188,11 +197,7 @@ impl VideoWriter {
             .stdin(Stdio::piped())
             .stdout(Stdio::null())
             .stderr(Stdio::piped());
-        let mut child = cmd.spawn().map_err(|source| VideoError::Spawn {
-            program: ffmpeg_program().display().to_string(),
-            path: path.clone(),
-            source,
-        })?;
+        let mut child = spawn_ffmpeg(&mut cmd, &path)?;
         let stdin = child.stdin.take();
         Ok(Self {
             child: Some(child),
@@ -431,11 +436,7 @@ impl VideoReader {
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
-        let mut child = cmd.spawn().map_err(|source| VideoError::Spawn {
-            program: ffmpeg_program().display().to_string(),
-            path: path.into(),
-            source,
-        })?;
+        let mut child = spawn_ffmpeg(&mut cmd, path)?;
         let stdout = child.stdout.take().expect("piped stdout");
         Ok(Self {
             child,
