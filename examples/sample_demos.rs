@@ -19,7 +19,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let scenes = root.join("../shared/dexjoco-upstream/xmls");
     for task in ["click_mouse", "bimanual_unlock_ipad"] {
         let spec = TaskSpec::from_file(&root.join(format!("schemas/tasks/{task}.toml")))?;
-        let scene = load_task_scene(&scenes, &spec)?;
+        let scene = load_task_scene(&dexjoco_sim::SceneSource::Dir(scenes.clone()), &spec)?;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2026);
         let mut written = 0;
         let mut attempt = 0;

@@ -15,7 +15,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .next()
         .map_or_else(|| root.join("../shared/dexjoco-upstream/xmls"), Into::into);
     let spec = TaskSpec::from_file(&root.join(format!("schemas/tasks/{task}.toml")))?;
-    let scene = load_task_scene(&dir, &spec)?;
+    let scene = load_task_scene(&dexjoco_sim::SceneSource::Dir(dir), &spec)?;
     let mut ok = 0;
     for seed in 0..seeds {
         // xorshift64* draws in [0, 1), warmed up.

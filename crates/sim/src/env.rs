@@ -1,7 +1,7 @@
 //! A task environment: a scene, its robot, the success checker, and the DexJoCo state
 //! vector; built from a recorded initial state (`state[0]`) as the reference replay does.
 
-use std::path::Path;
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use dexjoco_core::{
@@ -68,10 +68,34 @@ impl Rollout {
     }
 }
 
-/// Loads a task's reference scene from a scene pack folder (`--scene-dir`, e.g. the
+/// Where a task's scene comes from.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum SceneSource {
+    /// The scenes authored by this project and embedded in the binary (the default).
+    #[default]
+    BuiltIn,
+    /// A scene pack folder (`--scene-dir`), e.g. the DexJoCo reference `xmls/`: the
+    /// task spec's `scene` file in it.
+    Dir(PathBuf),
+}
+
+impl SceneSource {
+    /// `--scene-dir` if given, else the built-in scenes.
+    pub fn from_option(dir: Option<PathBuf>) -> Self {
+        dir.map_or(Self::BuiltIn, Self::Dir)
+    }
+}
+
+/// Loads a task's scene: built-in, or from a scene pack folder (`--scene-dir`, e.g. the
 /// DexJoCo `xmls/`). A missing asset is reported with its file name.
-pub fn load_task_scene(scene_dir: &Path, spec: &TaskSpec) -> Result<Scene, SimError> {
-    Scene::load(scene_dir.join(&spec.scene))
+pub fn load_task_scene(source: &SceneSource, spec: &TaskSpec) -> Result<Scene, SimError> {
+    match source {
+        SceneSource::Dir(dir) => Scene::load(dir.join(&spec.scene)),
+        SceneSource::BuiltIn => Err(SimError::Spec(format!(
+            "task '{}' has no built-in scene yet; pass --scene-dir with the DexJoCo reference scenes",
+            spec.id
+        ))),
+    }
 }
 
 /// Reads the reset-time pose of a state object.

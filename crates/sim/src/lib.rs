@@ -26,7 +26,7 @@ pub use control::{
     ARM_DOF, ARM_HOME, Arm, HOLD_EPS, OscGains, Robot, SUBSTEPS, mat_to_quat, orientation_error,
 };
 pub use egl::{EglDevice, EglProbe, probe_egl};
-pub use env::{EnvOptions, Rollout, TaskEnv, load_task_scene};
+pub use env::{EnvOptions, Rollout, SceneSource, TaskEnv, load_task_scene};
 pub use error::SimError;
 pub use render::{CameraView, Frame, RenderQuality, RenderSettings, Renderer};
 pub use scene::{Scene, mujoco_library_path, mujoco_version};

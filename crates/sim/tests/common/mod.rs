@@ -30,7 +30,8 @@ pub fn scene(id: &str) -> Scene {
     if let Some((_, s)) = cache.lock().unwrap().iter().find(|(k, _)| k == id) {
         return s.clone();
     }
-    let s = load_task_scene(&scene_dir(), &spec(id)).expect("reference scene loads");
+    let s = load_task_scene(&dexjoco_sim::SceneSource::Dir(scene_dir()), &spec(id))
+        .expect("reference scene loads");
     cache.lock().unwrap().push((id.to_owned(), s.clone()));
     s
 }
