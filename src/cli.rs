@@ -84,7 +84,7 @@ pub enum Command {
     Export(ExportArgs),
     /// Replay each episode under sampled camera/light/texture randomization; keep successes.
     Augment(PendingArgs),
-    /// Convert episodes to LeRobot v3.0 (v2.1 and Diffusion Policy Zarr to come).
+    /// Convert episodes to LeRobot v3.0 / v2.1 or a Diffusion Policy Zarr replay buffer.
     Convert(ConvertArgs),
     /// Dataset statistics, success tables and the language-generalization analysis.
     Stats(StatsArgs),
@@ -177,6 +177,39 @@ pub enum BenchCommand {
     Render(BenchRenderArgs),
     /// Episodes/s and MB/s of `ingest` on generated raw folders and MCAP files.
     Ingest(BenchIngestArgs),
+    /// `convert` against lerobot's own dataset writer on the same episodes, and our
+    /// peak memory for few vs many short episodes.
+    Convert(BenchConvertArgs),
+}
+
+/// `bench convert` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data bench convert
+  dexjoco-data bench convert --episodes 50 --frames 120 --memory-episodes 100,1000
+
+Needs the test venv (`scripts/setup.sh --python`, or DEXJOCO_PYTHON) for lerobot's writer
+and /usr/bin/time for peak memory (maximum resident set size of each child process).")]
+pub struct BenchConvertArgs {
+    /// Generated click_mouse episodes converted by both tools.
+    #[arg(long, default_value_t = 50)]
+    pub episodes: usize,
+    /// Frames per episode.
+    #[arg(long, default_value_t = 60)]
+    pub frames: usize,
+    /// Camera frame size (square; at least 64 for lerobot's AV1 encoder).
+    #[arg(long, default_value_t = 96)]
+    pub size: u32,
+    /// Episode counts for our peak-memory runs (short episodes).
+    #[arg(long, value_delimiter = ',', default_values_t = [100, 1000])]
+    pub memory_episodes: Vec<usize>,
+    /// Frames per episode in the peak-memory runs.
+    #[arg(long, default_value_t = 10)]
+    pub memory_frames: usize,
+    /// Skip lerobot's writer (our side only).
+    #[arg(long)]
+    pub no_lerobot: bool,
 }
 
 /// `bench render` options.
@@ -352,9 +385,12 @@ pub enum ConvertFormatArg {
     /// LeRobot v3.0: what lerobot >= 0.4 reads (0.6.1 reads only this).
     #[value(name = "lerobot-v3")]
     LerobotV3,
-    /// LeRobot v2.1: what openpi's pinned lerobot reads (not built yet).
+    /// LeRobot v2.1: what openpi's pinned lerobot reads (per-episode files, jsonl metadata).
     #[value(name = "lerobot-v2.1")]
     LerobotV21,
+    /// Diffusion Policy: replay_buffer.zarr (Zarr v2) with images as uint8 (T, H, W, C).
+    #[value(name = "diffusion-policy")]
+    DiffusionPolicy,
 }
 
 /// Video codecs `convert` encodes with.
@@ -374,6 +410,7 @@ Examples:
   dexjoco-data convert --input raw/ --config ../shared/dexjoco-upstream/converter-configs/multi_task
   dexjoco-data convert --input raw/ --config selection.toml --reencode --video-codec h264
   dexjoco-data convert --input raw/ --overwrite --no-skip-static
+  dexjoco-data convert --input raw/ --format diffusion-policy --videos --norm-stats
 
 Input: an episode store (a folder with manifest.json, as `ingest` writes it: its landed
 episodes) or any folder of DexJoCo raw episode folders (replay.zarr + videos/<camera>.mp4),
@@ -382,7 +419,12 @@ searched recursively. Without --input: <work-dir>/augment.
 Videos are joined per camera by stream copy when the source codec fits (H.264, HEVC,
 AV1 in yuv420p at the dataset's rate): no re-encode, and static leading frames are
 skipped through the episodes' from_timestamp. Otherwise, or with --reencode, they are
-encoded (AV1 by default).")]
+encoded (AV1 by default).
+
+--format diffusion-policy writes <out>/replay_buffer.zarr (data/action, data/state,
+data/timestamp as float64, data/<camera> as uint8 frames, meta/episode_ends); --videos
+also keeps <out>/videos/<episode>/<camera>.mp4 with videos/name_map.json.
+--norm-stats writes openpi's <out>/norm_stats.json (state, actions: mean, std, q01, q99).")]
 pub struct ConvertArgs {
     /// Episode store or folder of DexJoCo raw episodes (default: <work-dir>/augment).
     #[arg(short, long, env = "DEXJOCO_CONVERT_INPUT")]
@@ -415,6 +457,15 @@ pub struct ConvertArgs {
     /// `robot_type` recorded in info.json.
     #[arg(long, default_value = "panda_allegro")]
     pub robot_type: String,
+    /// Diffusion Policy: keep each episode's videos beside the replay buffer.
+    #[arg(long)]
+    pub videos: bool,
+    /// Also write openpi's norm_stats.json into the dataset folder.
+    #[arg(long)]
+    pub norm_stats: bool,
+    /// Action chunk length for --norm-stats (openpi's action_horizon).
+    #[arg(long, default_value_t = 50, value_name = "FRAMES")]
+    pub norm_stats_horizon: usize,
 }
 
 /// Arguments of subcommands that are not built yet: accepted, so `--help` works, and

@@ -442,3 +442,72 @@ fn convert_writes_lerobot_v3_and_refuses_to_overwrite() {
             && text(&out.stdout).contains("left out: episode_000001")
     );
 }
+
+#[test]
+fn convert_writes_diffusion_policy_v21_and_norm_stats() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = convert_input(dir.path());
+    let input = input.to_str().unwrap();
+    let out = run(
+        &[
+            "convert",
+            "--input",
+            input,
+            "--out",
+            "dp",
+            "--format",
+            "diffusion-policy",
+            "--videos",
+            "--norm-stats",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let dp = dir.path().join("dp");
+    assert!(
+        dp.join("replay_buffer.zarr/meta/episode_ends/.zarray")
+            .is_file()
+    );
+    assert!(dp.join("videos/1/0.mp4").is_file());
+    let norm: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dp.join("norm_stats.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        norm["norm_stats"]["actions"]["q99"]
+            .as_array()
+            .unwrap()
+            .len(),
+        22
+    );
+    assert_eq!(
+        norm["norm_stats"]["state"]["mean"]
+            .as_array()
+            .unwrap()
+            .len(),
+        23
+    );
+
+    let out = run(
+        &[
+            "convert",
+            "--input",
+            input,
+            "--out",
+            "v21",
+            "--format",
+            "lerobot-v2.1",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(dir.path().join("v21/meta/episodes_stats.jsonl").is_file());
+
+    // --videos belongs to the Diffusion Policy format: a usage error.
+    let out = run(
+        &["convert", "--input", input, "--out", "x", "--videos"],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+}

@@ -15,6 +15,7 @@ pub fn run(global: &GlobalArgs, cmd: &BenchCommand) -> anyhow::Result<ExitStatus
     match cmd {
         BenchCommand::Render(args) => render(global, args),
         BenchCommand::Ingest(args) => ingest(global, args),
+        BenchCommand::Convert(args) => super::bench_convert::run(global, args),
     }
 }
 

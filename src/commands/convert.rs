@@ -1,11 +1,11 @@
-//! `dexjoco-data convert`: episodes -> LeRobot v3.0.
+//! `dexjoco-data convert`: episodes -> LeRobot v3.0 or a Diffusion Policy replay buffer.
 
 use std::path::Path;
 
 use anyhow::Context;
 use dexjoco_convert::{
-    ConvertError, ConvertOptions, InputEpisode, Reporter, Selection, V3Options, VideoCodec,
-    VideoOptions,
+    ConvertError, ConvertOptions, InputEpisode, OutputFormat, Reporter, Selection, V3Options,
+    VideoCodec, VideoOptions,
 };
 
 use crate::cli::{ConvertArgs, ConvertFormatArg, GlobalArgs, VideoCodecArg};
@@ -24,14 +24,6 @@ impl Reporter for Bar {
 
 /// Runs `convert`.
 pub fn run(global: &GlobalArgs, args: &ConvertArgs) -> anyhow::Result<ExitStatus> {
-    if args.format == ConvertFormatArg::LerobotV21 {
-        return Err(CliError {
-            message: "--format lerobot-v2.1 is not available in this version yet".into(),
-            hint: Some("--format lerobot-v3 works today (lerobot >= 0.4 reads it)".into()),
-            status: ExitStatus::NotAvailable,
-        }
-        .into());
-    }
     let input = match &args.input {
         Some(p) => p.clone(),
         None => {
@@ -54,10 +46,23 @@ pub fn run(global: &GlobalArgs, args: &ConvertArgs) -> anyhow::Result<ExitStatus
             default
         }
     };
+    let (format, format_dir) = match args.format {
+        ConvertFormatArg::DiffusionPolicy => (OutputFormat::DiffusionPolicy, "diffusion-policy"),
+        ConvertFormatArg::LerobotV21 => (OutputFormat::LeRobotV21, "lerobot-v2.1"),
+        ConvertFormatArg::LerobotV3 => (OutputFormat::LeRobotV3, "lerobot-v3"),
+    };
+    if args.videos && format != OutputFormat::DiffusionPolicy {
+        return Err(CliError {
+            message: "--videos applies to --format diffusion-policy only".into(),
+            hint: Some("LeRobot formats always carry their videos".into()),
+            status: ExitStatus::Usage,
+        }
+        .into());
+    }
     let out = args
         .out
         .clone()
-        .unwrap_or_else(|| global.work_dir.join("convert").join("lerobot-v3"));
+        .unwrap_or_else(|| global.work_dir.join("convert").join(format_dir));
     if dexjoco_convert::is_non_empty_dir(&out) && !args.overwrite {
         return Err(CliError {
             message: format!("output folder {} is not empty", out.display()),
@@ -76,6 +81,9 @@ pub fn run(global: &GlobalArgs, args: &ConvertArgs) -> anyhow::Result<ExitStatus
     }
     selection.bad_episodes.extend(args.exclude.iter().cloned());
     let options = ConvertOptions {
+        format,
+        videos: args.videos,
+        norm_stats: args.norm_stats.then_some(args.norm_stats_horizon),
         selection,
         video: VideoOptions {
             codec: match args.video_codec {

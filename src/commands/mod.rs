@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod bench;
+pub mod bench_convert;
 pub mod convert;
 pub mod doctor;
 pub mod export;

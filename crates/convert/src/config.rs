@@ -82,6 +82,10 @@ pub struct Selection {
     /// Skip static leading frames by the reference converter's rule (default true).
     #[serde(default = "yes")]
     pub skip_static_frames: bool,
+    /// Multi-task merge of one-arm and two-arm tasks: one-arm episodes are laid into the
+    /// right-arm slots of the two-arm layout (see [`crate::merge`]).
+    #[serde(default)]
+    pub merge_bimanual: bool,
 }
 
 fn yes() -> bool {
@@ -96,6 +100,7 @@ impl Default for Selection {
             instructions: BTreeMap::new(),
             bad_episodes: BTreeSet::new(),
             skip_static_frames: true,
+            merge_bimanual: false,
         }
     }
 }

@@ -6,9 +6,12 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::config::Selection;
+use crate::diffusion_policy::ZarrWriter;
 use crate::error::ConvertError;
 use crate::lerobot_v3::{V3Options, V3Writer};
-use crate::prepare::{InputEpisode, PreparedEpisode, VideoOptions, prepare};
+use crate::lerobot_v21::V21Writer;
+use crate::openpi::NormStats;
+use crate::prepare::{InputEpisode, PreparedEpisode, VideoLayout, VideoOptions, prepare};
 
 /// Output dataset formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -16,6 +19,53 @@ pub enum OutputFormat {
     /// LeRobot v3.0 (lerobot >= 0.4).
     #[default]
     LeRobotV3,
+    /// LeRobot v2.1 (openpi's pinned lerobot).
+    LeRobotV21,
+    /// Diffusion Policy's Zarr v2 replay buffer (`replay_buffer.zarr`).
+    DiffusionPolicy,
+}
+
+impl OutputFormat {
+    fn layout(self, videos: bool) -> VideoLayout {
+        match self {
+            Self::LeRobotV3 => VideoLayout::Joined,
+            Self::LeRobotV21 => VideoLayout::PerEpisode,
+            Self::DiffusionPolicy if videos => VideoLayout::PerEpisode,
+            Self::DiffusionPolicy => VideoLayout::Frames,
+        }
+    }
+}
+
+enum Writer {
+    V3(V3Writer),
+    V21(V21Writer),
+    Zarr(ZarrWriter),
+}
+
+impl Writer {
+    fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), ConvertError> {
+        match self {
+            Self::V3(w) => w.write_episode(ep),
+            Self::V21(w) => w.write_episode(ep),
+            Self::Zarr(w) => w.write_episode(ep),
+        }
+    }
+
+    fn counts(&self) -> (usize, usize) {
+        match self {
+            Self::V3(w) => (w.episodes(), w.frames()),
+            Self::V21(w) => (w.episodes(), w.frames()),
+            Self::Zarr(w) => (w.episodes(), w.frames()),
+        }
+    }
+
+    fn finish(self) -> Result<(), ConvertError> {
+        match self {
+            Self::V3(w) => w.finish(),
+            Self::V21(w) => w.finish(),
+            Self::Zarr(w) => w.finish(),
+        }
+    }
 }
 
 /// Everything a conversion needs besides its input and output.
@@ -31,6 +81,11 @@ pub struct ConvertOptions {
     pub v3: V3Options,
     /// Replace a non-empty output folder.
     pub overwrite: bool,
+    /// Diffusion Policy: keep each episode's videos beside the replay buffer.
+    pub videos: bool,
+    /// Write openpi's `norm_stats.json` into the dataset folder, with actions over
+    /// chunks of this many frames (openpi's `action_horizon`).
+    pub norm_stats: Option<usize>,
     /// Episodes prepared in parallel at a time (0: twice the worker threads). Memory is
     /// bounded by this many episodes.
     pub batch: usize,
@@ -136,7 +191,9 @@ where
         options.batch
     };
     let mut summary = Summary::default();
-    let mut writer: Option<V3Writer> = None;
+    let mut writer: Option<Writer> = None;
+    let layout = options.format.layout(options.videos);
+    let mut norm = options.norm_stats.map(NormStats::new);
     let mut inputs = inputs.into_iter();
     let mut ordinal = 0usize;
     loop {
@@ -159,7 +216,7 @@ where
         }
         let prepared: Vec<Result<PreparedEpisode, ConvertError>> = pending
             .par_iter()
-            .map(|(i, input)| prepare(input, &options.selection, options.video, &work, *i))
+            .map(|(i, input)| prepare(input, &options.selection, options.video, layout, &work, *i))
             .collect();
         for p in prepared {
             let p = p?;
@@ -167,18 +224,38 @@ where
             summary.skipped_frames += p.skipped;
             summary.videos_copied += p.videos.iter().filter(|v| v.copied).count();
             summary.videos_encoded += p.videos.iter().filter(|v| !v.copied).count();
+            if let Some(norm) = norm.as_mut() {
+                norm.add_episode(
+                    &crate::prepare::as_f32(&p.state),
+                    p.state.width(),
+                    &crate::prepare::as_f32(&p.action),
+                    p.action.width(),
+                );
+            }
             let w = match writer.as_mut() {
                 Some(w) => w,
-                None => writer.insert(V3Writer::try_new(root, &p, options.v3.clone())?),
+                None => writer.insert(match options.format {
+                    OutputFormat::LeRobotV3 => {
+                        Writer::V3(V3Writer::try_new(root, &p, options.v3.clone())?)
+                    }
+                    OutputFormat::LeRobotV21 => {
+                        Writer::V21(V21Writer::try_new(root, &p, options.v3.robot_type.clone())?)
+                    }
+                    OutputFormat::DiffusionPolicy => {
+                        Writer::Zarr(ZarrWriter::try_new(root, &p, options.videos)?)
+                    }
+                }),
             };
             w.write_episode(p)?;
             reporter.episode(&id, false);
         }
     }
     let w = writer.ok_or(ConvertError::NoEpisodes)?;
-    summary.episodes = w.episodes();
-    summary.frames = w.frames();
+    (summary.episodes, summary.frames) = w.counts();
     w.finish()?;
+    if let Some(norm) = norm {
+        norm.write(root)?;
+    }
     fs_err::remove_dir_all(&work)?;
     Ok(summary)
 }

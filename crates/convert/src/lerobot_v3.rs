@@ -41,15 +41,99 @@ impl Default for V3Options {
     }
 }
 
+/// A camera feature of the dataset, from its first episode's video part.
 #[derive(Debug, Clone)]
-struct CameraSpec {
-    name: String,
-    key: String,
-    width: u32,
-    height: u32,
-    codec: String,
-    pix_fmt: String,
-    copied: bool,
+pub(crate) struct CameraSpec {
+    pub(crate) name: String,
+    pub(crate) key: String,
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    pub(crate) codec: String,
+    pub(crate) pix_fmt: String,
+    pub(crate) copied: bool,
+}
+
+impl CameraSpec {
+    pub(crate) fn of(first: &PreparedEpisode) -> Vec<Self> {
+        first
+            .videos
+            .iter()
+            .map(|v| Self {
+                name: v.name.clone(),
+                key: format!("observation.images.{}", v.name),
+                width: v.info.width,
+                height: v.info.height,
+                codec: v.info.codec.clone(),
+                pix_fmt: v.info.pix_fmt.clone(),
+                copied: v.copied,
+            })
+            .collect()
+    }
+}
+
+/// Statistics of the default features (timestamp, frame/episode/global/task index) of
+/// an episode of `n` frames, added to `stats`.
+pub(crate) fn index_stats(
+    stats: &mut BTreeMap<String, FeatureStats>,
+    n: usize,
+    fps: u32,
+    episode_index: usize,
+    from: usize,
+    task_index: usize,
+) -> Vec<f32> {
+    let timestamps: Vec<f32> = (0..n).map(|k| (k as f64 / f64::from(fps)) as f32).collect();
+    let ts: Vec<f64> = timestamps.iter().map(|t| f64::from(*t)).collect();
+    stats.insert("timestamp".into(), column_stats(&ts, 1));
+    let ints = |f: &dyn Fn(usize) -> usize| -> Vec<f64> { (0..n).map(|k| f(k) as f64).collect() };
+    stats.insert("frame_index".into(), column_stats(&ints(&|k| k), 1));
+    stats.insert(
+        "episode_index".into(),
+        column_stats(&ints(&|_| episode_index), 1),
+    );
+    stats.insert("index".into(), column_stats(&ints(&|k| from + k), 1));
+    stats.insert("task_index".into(), column_stats(&ints(&|_| task_index), 1));
+    timestamps
+}
+
+/// The data columns of one episode (features with a column, in info.json order).
+pub(crate) fn data_columns(
+    ep: &PreparedEpisode,
+    timestamps: &[f32],
+    episode_index: usize,
+    from: usize,
+    task_index: usize,
+) -> Vec<(String, arrow_array::ArrayRef)> {
+    let n = ep.len();
+    vec![
+        (
+            "action".to_owned(),
+            pq::f32_vectors(ep.action.as_slice(), ep.action.width()),
+        ),
+        (
+            "observation.state".to_owned(),
+            pq::f32_vectors(ep.state.as_slice(), ep.state.width()),
+        ),
+        (
+            "timestamp".to_owned(),
+            pq::f32_column(timestamps.iter().copied()),
+        ),
+        (
+            "frame_index".to_owned(),
+            pq::i64_column((0..n).map(|k| k as i64)),
+        ),
+        (
+            "episode_index".to_owned(),
+            pq::i64_column(std::iter::repeat_n(episode_index as i64, n)),
+        ),
+        (
+            "index".to_owned(),
+            pq::i64_column((from..from + n).map(|k| k as i64)),
+        ),
+        (
+            "task_index".to_owned(),
+            pq::i64_column(std::iter::repeat_n(task_index as i64, n)),
+        ),
+    ]
 }
 
 #[derive(Debug, Default)]
@@ -126,19 +210,7 @@ impl V3Writer {
     ) -> Result<Self, ConvertError> {
         let root = root.into();
         fs_err::create_dir_all(root.join("meta"))?;
-        let cameras: Vec<CameraSpec> = first
-            .videos
-            .iter()
-            .map(|v| CameraSpec {
-                name: v.name.clone(),
-                key: format!("observation.images.{}", v.name),
-                width: v.info.width,
-                height: v.info.height,
-                codec: v.info.codec.clone(),
-                pix_fmt: v.info.pix_fmt.clone(),
-                copied: v.copied,
-            })
-            .collect();
+        let cameras = CameraSpec::of(first);
         Ok(Self {
             videos: cameras.iter().map(|_| VideoFile::default()).collect(),
             root,
@@ -231,37 +303,9 @@ impl V3Writer {
         };
         let from = self.frames;
         let fps = f64::from(self.fps);
-        let timestamps: Vec<f32> = (0..n).map(|k| (k as f64 / fps) as f32).collect();
-        let columns = vec![
-            (
-                "action".to_owned(),
-                pq::f32_vectors(ep.action.as_slice(), ep.action.width()),
-            ),
-            (
-                "observation.state".to_owned(),
-                pq::f32_vectors(ep.state.as_slice(), ep.state.width()),
-            ),
-            (
-                "timestamp".to_owned(),
-                pq::f32_column(timestamps.iter().copied()),
-            ),
-            (
-                "frame_index".to_owned(),
-                pq::i64_column((0..n).map(|k| k as i64)),
-            ),
-            (
-                "episode_index".to_owned(),
-                pq::i64_column(std::iter::repeat_n(episode_index as i64, n)),
-            ),
-            (
-                "index".to_owned(),
-                pq::i64_column((from..from + n).map(|k| k as i64)),
-            ),
-            (
-                "task_index".to_owned(),
-                pq::i64_column(std::iter::repeat_n(task_index as i64, n)),
-            ),
-        ];
+        let mut index_st = BTreeMap::new();
+        let timestamps = index_stats(&mut index_st, n, self.fps, episode_index, from, task_index);
+        let columns = data_columns(&ep, &timestamps, episode_index, from, task_index);
         let batch = pq::batch(columns, HashMap::new());
 
         // Roll the data file over when it has reached its cap.
@@ -318,17 +362,7 @@ impl V3Writer {
         }
 
         let mut stats = ep.stats;
-        let ts: Vec<f64> = timestamps.iter().map(|t| f64::from(*t)).collect();
-        stats.insert("timestamp".into(), column_stats(&ts, 1));
-        let ints =
-            |f: &dyn Fn(usize) -> usize| -> Vec<f64> { (0..n).map(|k| f(k) as f64).collect() };
-        stats.insert("frame_index".into(), column_stats(&ints(&|k| k), 1));
-        stats.insert(
-            "episode_index".into(),
-            column_stats(&ints(&|_| episode_index), 1),
-        );
-        stats.insert("index".into(), column_stats(&ints(&|k| from + k), 1));
-        stats.insert("task_index".into(), column_stats(&ints(&|_| task_index), 1));
+        stats.extend(index_st);
         self.episodes.push(EpisodeRow {
             tasks: vec![ep.instruction],
             length: n,

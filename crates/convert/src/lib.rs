@@ -12,12 +12,22 @@
 //!   writing, atomic finish); input is a stream of [`InputEpisode`]s.
 //! - [`stats`]: normalization statistics as lerobot computes them.
 //!
-//! Not built yet: LeRobot v2.1, Diffusion Policy Zarr, openpi `norm_stats.json`.
+//! - LeRobot v2.1 (openpi's pinned lerobot): per-episode parquet (with `huggingface`
+//!   schema metadata) and mp4s, jsonl metadata with per-episode statistics.
+//! - Diffusion Policy: `replay_buffer.zarr` (Zarr v2) that its `ReplayBuffer` reads,
+//!   images decoded into uint8 (T, H, W, 3), optionally the videos beside it.
+//! - [`merge`]: several tasks in one dataset (task table from the instructions);
+//!   one-arm episodes laid into the right-arm slots of the two-arm layout.
+//! - [`NormStats`]: openpi's `norm_stats.json` (`--norm-stats`).
 
 mod config;
 mod convert;
+mod diffusion_policy;
 mod error;
+mod lerobot_v21;
 mod lerobot_v3;
+pub mod merge;
+mod openpi;
 mod parquet_io;
 mod prepare;
 pub mod stats;
@@ -28,8 +38,13 @@ pub use config::{
 pub use convert::{
     ConvertOptions, OutputFormat, Reporter, Silent, Summary, convert, is_non_empty_dir,
 };
+pub use diffusion_policy::{REPLAY_BUFFER, ZarrWriter};
 pub use error::ConvertError;
 pub use lerobot_v3::{
     CHUNKS_SIZE, DEFAULT_DATA_FILE_MB, DEFAULT_VIDEO_FILE_MB, V3Options, V3Writer,
 };
-pub use prepare::{InputEpisode, PreparedEpisode, VideoCodec, VideoOptions, VideoPart, prepare};
+pub use lerobot_v21::V21Writer;
+pub use openpi::{NormStats, RunningStats};
+pub use prepare::{
+    InputEpisode, PreparedEpisode, VideoCodec, VideoLayout, VideoOptions, VideoPart, prepare,
+};

@@ -61,6 +61,20 @@ pub struct VideoOptions {
     pub reencode: bool,
 }
 
+/// How a format lays its videos out; decides when a source video is encoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum VideoLayout {
+    /// Episodes joined into shared files by stream copy (LeRobot v3.0): the source is
+    /// used as it is (trimmed by timestamps) when its codec fits.
+    #[default]
+    Joined,
+    /// One file per episode starting at its first kept frame (LeRobot v2.1, Diffusion
+    /// Policy `--videos`): the source is copied only when nothing is trimmed.
+    PerEpisode,
+    /// No video output, only decoded frames (Diffusion Policy images): never encoded.
+    Frames,
+}
+
 /// Codecs lerobot's decoders accept in an mp4 and that concatenate by stream copy.
 const COPYABLE: [&str; 3] = ["h264", "hevc", "av1"];
 
@@ -83,6 +97,8 @@ pub struct VideoPart {
     pub info: VideoInfo,
     /// Whether the part is the source, stream-copied.
     pub copied: bool,
+    /// The source video (all frames, before trimming).
+    pub source: PathBuf,
 }
 
 /// An episode ready to be written.
@@ -141,12 +157,13 @@ fn slice_columns(a: &FrameArray, range: std::ops::Range<usize>, from: usize) -> 
     FrameArray::new(w.max(1), data).expect("whole rows")
 }
 
-/// Selects, trims and measures one episode; encodes its videos into `work_dir` when they
-/// cannot be stream-copied. `ordinal` names temporary files.
+/// Selects, trims and measures one episode; encodes its videos into `work_dir` when
+/// `layout` cannot use the source as it is. `ordinal` names temporary files.
 pub fn prepare(
     input: &InputEpisode,
     selection: &Selection,
     video: VideoOptions,
+    layout: VideoLayout,
     work_dir: &Path,
     ordinal: usize,
 ) -> Result<PreparedEpisode, ConvertError> {
@@ -209,6 +226,40 @@ pub fn prepare(
     };
     let action = slice_columns(&action_full, 0..action_full.width(), skipped);
     let state = slice_columns(state_full, state_range.clone(), skipped);
+    let (action, state, setup, state_range) = if selection.merge_bimanual
+        && setup == Some(ArmSetup::SingleArm)
+    {
+        let proprio = 0..ArmSetup::SingleArm.proprio_dim();
+        let (Some(a), Some(s)) = (
+            crate::merge::action_to_bimanual(&action),
+            crate::merge::state_to_bimanual(&state),
+        ) else {
+            return Err(ConvertError::Episode {
+                at: at(Episode::STATE).into(),
+                message: format!(
+                    "merging into the two-arm layout needs the proprioceptive state {proprio:?} \
+                         (the state slice selects {state_range:?})"
+                ),
+            });
+        };
+        if state_range != proprio {
+            return Err(ConvertError::Episode {
+                at: at(Episode::STATE).into(),
+                message: format!(
+                    "merging into the two-arm layout needs the proprioceptive state {proprio:?} \
+                         (the state slice selects {state_range:?})"
+                ),
+            });
+        }
+        (
+            a,
+            s,
+            Some(ArmSetup::Bimanual),
+            0..ArmSetup::Bimanual.proprio_dim(),
+        )
+    } else {
+        (action, state, setup, state_range)
+    };
     let fps = ep.fps.round();
     if !(fps >= 1.0 && (ep.fps - fps).abs() < 1e-9) {
         return Err(ConvertError::episode(
@@ -218,12 +269,7 @@ pub fn prepare(
     }
     let fps = fps as u32;
 
-    let action_names = column_names(
-        &action_full,
-        setup,
-        sel.action.array_name(),
-        0..action_full.width(),
-    );
+    let action_names = column_names(&action, setup, sel.action.array_name(), 0..action.width());
     let state_names = match setup {
         Some(s) if state_range.end <= s.proprio_dim() => {
             let l = s.proprio_layout();
@@ -296,7 +342,15 @@ pub fn prepare(
         let mut reader = VideoReader::open(&src, None).map_err(vid_err)?;
         let (w, h) = reader.size();
         let mut frame = Vec::new();
-        let part = if fits && !video.reencode {
+        let use_source = match layout {
+            VideoLayout::Joined => fits && !video.reencode,
+            // Every episode's file must end up in the same codec.
+            VideoLayout::PerEpisode => {
+                fits && !video.reencode && skipped == 0 && info.codec == video.codec.name()
+            }
+            VideoLayout::Frames => true,
+        };
+        let part = if use_source {
             let mut k = 0;
             while reader.next_frame(&mut frame).map_err(vid_err)? {
                 if k >= skipped && want.peek().is_some_and(|&&s| s == k - skipped) {
@@ -316,7 +370,8 @@ pub fn prepare(
                 frames: n,
                 bytes,
                 info,
-                copied: true,
+                copied: layout != VideoLayout::Frames,
+                source: src.clone(),
             }
         } else {
             let out = work_dir.join(format!("{ordinal:06}-{name}.mp4"));
@@ -355,6 +410,7 @@ pub fn prepare(
                 bytes: fs_err::metadata(&out)?.len(),
                 info,
                 copied: false,
+                source: src.clone(),
             }
         };
         if let Some(s) = sampler.finish() {
