@@ -29,7 +29,7 @@ impl OutputFormat {
     fn layout(self, videos: bool) -> VideoLayout {
         match self {
             Self::LeRobotV3 => VideoLayout::Joined,
-            Self::LeRobotV21 => VideoLayout::PerEpisode,
+            Self::LeRobotV21 => VideoLayout::Encoded,
             Self::DiffusionPolicy if videos => VideoLayout::PerEpisode,
             Self::DiffusionPolicy => VideoLayout::Frames,
         }

@@ -68,9 +68,14 @@ pub enum VideoLayout {
     /// used as it is (trimmed by timestamps) when its codec fits.
     #[default]
     Joined,
-    /// One file per episode starting at its first kept frame (LeRobot v2.1, Diffusion
-    /// Policy `--videos`): the source is copied only when nothing is trimmed.
+    /// One file per episode starting at its first kept frame (Diffusion Policy
+    /// `--videos`): the source is copied when nothing is trimmed and its codec is the
+    /// chosen one.
     PerEpisode,
+    /// One file per episode, every one encoded with the same settings (LeRobot v2.1:
+    /// lerobot's v2.1 -> v3.0 script joins them by stream copy, which needs files from
+    /// one encoder configuration).
+    Encoded,
     /// No video output, only decoded frames (Diffusion Policy images): never encoded.
     Frames,
 }
@@ -348,6 +353,7 @@ pub fn prepare(
             VideoLayout::PerEpisode => {
                 fits && !video.reencode && skipped == 0 && info.codec == video.codec.name()
             }
+            VideoLayout::Encoded => false,
             VideoLayout::Frames => true,
         };
         let part = if use_source {
