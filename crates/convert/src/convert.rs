@@ -37,9 +37,9 @@ impl OutputFormat {
 }
 
 enum Writer {
-    V3(V3Writer),
-    V21(V21Writer),
-    Zarr(ZarrWriter),
+    V3(Box<V3Writer>),
+    V21(Box<V21Writer>),
+    Zarr(Box<ZarrWriter>),
 }
 
 impl Writer {
@@ -236,13 +236,15 @@ where
                 Some(w) => w,
                 None => writer.insert(match options.format {
                     OutputFormat::LeRobotV3 => {
-                        Writer::V3(V3Writer::try_new(root, &p, options.v3.clone())?)
+                        Writer::V3(Box::new(V3Writer::try_new(root, &p, options.v3.clone())?))
                     }
-                    OutputFormat::LeRobotV21 => {
-                        Writer::V21(V21Writer::try_new(root, &p, options.v3.robot_type.clone())?)
-                    }
+                    OutputFormat::LeRobotV21 => Writer::V21(Box::new(V21Writer::try_new(
+                        root,
+                        &p,
+                        options.v3.robot_type.clone(),
+                    )?)),
                     OutputFormat::DiffusionPolicy => {
-                        Writer::Zarr(ZarrWriter::try_new(root, &p, options.videos)?)
+                        Writer::Zarr(Box::new(ZarrWriter::try_new(root, &p, options.videos)?))
                     }
                 }),
             };
