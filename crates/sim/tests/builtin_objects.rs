@@ -18,7 +18,7 @@ use dexjoco_sim::{
 };
 
 /// Control steps of the "hold" run (0.02 s each).
-const HOLD_STEPS: usize = 150;
+const HOLD_STEPS: usize = 100;
 
 fn fragment(task: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
