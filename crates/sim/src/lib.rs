@@ -11,6 +11,7 @@
 //! `MjModel` is shared across threads; each worker owns its `MjData` and its
 //! [`Renderer`], which holds a GL context bound to the thread that created it.
 
+pub mod builtin;
 mod checker;
 mod control;
 mod egl;
