@@ -17,7 +17,7 @@ BIN="$ROOT/target/release/dexjoco-data"
 # with depth and a contact sheet; then a 2 s H.264 clip of the fall from the front camera.
 "$BIN" render --depth --steps 600
 "$BIN" render --video --steps 1000 --camera front --quality fast
-# The embedded sample demonstrations (datasets/demos, scripted on the built-in scenes):
+# The embedded sample demonstrations (datasets/demos, scripted on the reference scenes):
 # validated into the episode store, then their dataset statistics and norm stats.
 "$BIN" ingest datasets/demos
 "$BIN" stats --dataset

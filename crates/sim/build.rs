@@ -21,8 +21,12 @@ fn main() {
     for f in &files {
         println!("cargo:rerun-if-changed={}", f.display());
         let id = f.file_stem().and_then(|s| s.to_str()).expect("utf-8 name");
-        writeln!(out, "    ({id:?}, include_str!({:?})),", f.display().to_string())
-            .expect("string write");
+        writeln!(
+            out,
+            "    ({id:?}, include_str!({:?})),",
+            f.display().to_string()
+        )
+        .expect("string write");
     }
     out.push_str("];\n");
     let dst = Path::new(&std::env::var("OUT_DIR").expect("OUT_DIR")).join("builtin_objects.rs");

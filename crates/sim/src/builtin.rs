@@ -39,8 +39,14 @@ fn inner<'a>(xml: &'a str, label: &str) -> Result<&'a str, SimError> {
         path: label.into(),
         message: format!("built-in scene part: {what}"),
     };
-    let open = xml.find("<mujoco").ok_or_else(|| bad("no <mujoco> element"))?;
-    let body = open + xml[open..].find('>').ok_or_else(|| bad("unclosed <mujoco"))? + 1;
+    let open = xml
+        .find("<mujoco")
+        .ok_or_else(|| bad("no <mujoco> element"))?;
+    let body = open
+        + xml[open..]
+            .find('>')
+            .ok_or_else(|| bad("unclosed <mujoco"))?
+        + 1;
     let end = xml.rfind("</mujoco>").ok_or_else(|| bad("no </mujoco>"))?;
     if end < body {
         return Err(bad("empty <mujoco/> element"));

@@ -17,6 +17,7 @@ mod control;
 mod egl;
 mod env;
 mod error;
+mod feedback;
 pub mod primitives;
 mod render;
 mod scene;
@@ -29,6 +30,7 @@ pub use control::{
 pub use egl::{EglDevice, EglProbe, probe_egl};
 pub use env::{EnvOptions, Rollout, SceneSource, TaskEnv, load_task_scene};
 pub use error::SimError;
+pub use feedback::Feedback;
 pub use render::{CameraView, Frame, RenderQuality, RenderSettings, Renderer};
 pub use scene::{Scene, mujoco_library_path, mujoco_version};
 

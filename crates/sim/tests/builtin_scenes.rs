@@ -8,8 +8,8 @@ mod common;
 use dexjoco_core::{FrameArray, HAND_DOF, TaskSpec};
 use dexjoco_sim::mujoco_rs::prelude::MjData;
 use dexjoco_sim::{
-    CameraView, EnvOptions, RenderQuality, RenderSettings, Renderer, SceneSource, TaskEnv,
-    builtin, load_task_scene, orientation_error, scripted, unresolved_names,
+    CameraView, EnvOptions, Feedback, RenderQuality, RenderSettings, Renderer, SceneSource,
+    TaskEnv, builtin, load_task_scene, orientation_error, scripted, unresolved_names,
 };
 
 /// A deterministic U(0, 1) sequence (xorshift64*).
@@ -84,7 +84,10 @@ fn check_task(spec: &TaskSpec, renderer: &mut Option<Renderer>) -> Result<(), St
         .filter(|&(x, y)| f.pixel(x, y) != first)
         .count();
     if varied < (f.width * f.height / 10) as usize {
-        return Err(format!("camera '{}' renders a blank image", spec.cameras[0].camera));
+        return Err(format!(
+            "camera '{}' renders a blank image",
+            spec.cameras[0].camera
+        ));
     }
 
     // Holds still over the step cap with the arm at home.
@@ -136,7 +139,10 @@ fn every_task_loads_renders_and_holds_still_as_a_built_in_scene() {
             failures.push(format!("{}: {e}", spec.id));
         }
     }
-    assert!(failures.is_empty(), "built-in scenes failing: {failures:#?}");
+    assert!(
+        failures.is_empty(),
+        "built-in scenes failing: {failures:#?}"
+    );
     assert!(
         without_fragment.is_empty(),
         "tasks without a built-in scene (no crates/sim/assets/builtin/objects/<id>.xml): {}",
@@ -148,8 +154,13 @@ fn every_task_loads_renders_and_holds_still_as_a_built_in_scene() {
 fn a_missing_fragment_is_a_clear_error() {
     let mut spec = common::spec("click_mouse");
     spec.id = "no_such_task".into();
-    let e = load_task_scene(&SceneSource::BuiltIn, &spec).unwrap_err().to_string();
-    assert!(e.contains("no_such_task") && e.contains("--scene-dir"), "{e}");
+    let e = load_task_scene(&SceneSource::BuiltIn, &spec)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("no_such_task") && e.contains("--scene-dir"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -182,13 +193,47 @@ fn the_osc_tracks_a_pose_target_on_the_built_in_scene() {
     assert!(e_deg < 2.0, "orientation error {e_deg} deg");
 }
 
-fn replays(scene: &dexjoco_sim::Scene, spec: &TaskSpec, ep: &dexjoco_core::Episode) -> bool {
+/// Replays a demo; returns whether it succeeded on its last step, the number of active
+/// feedback rules before and after, and how many RGB values the feedback changes in a
+/// rendering of `camera` at the end.
+fn replays(
+    scene: &dexjoco_sim::Scene,
+    spec: &TaskSpec,
+    ep: &dexjoco_core::Episode,
+    camera: &str,
+) -> (bool, usize, usize, usize) {
     let states: &FrameArray = ep.array(dexjoco_core::Episode::STATE).unwrap();
     let actions = ep.array(dexjoco_core::Episode::ACTION).unwrap();
     let mut env =
         TaskEnv::from_initial_state(scene, spec, states.row(0), EnvOptions::default()).unwrap();
+    let feedback = Feedback::new(spec, &scene.model).unwrap();
+    let before = feedback.active(env.checker()).len();
     let r = env.rollout(actions).unwrap();
-    r.first_failure().is_none() && r.first_success() == Some(ep.len() - 1)
+    let after = feedback.active(env.checker()).len();
+    let settings = RenderSettings {
+        width: 128,
+        height: 96,
+        quality: RenderQuality::FAST,
+        depth: false,
+    };
+    let mut renderer = Renderer::new(&scene.model, settings).unwrap();
+    let view = CameraView::Fixed(scene.camera_id(camera).unwrap());
+    let plain = renderer.render(env.data_mut(), view).unwrap();
+    renderer.update_scene(env.data_mut(), view);
+    feedback.apply(env.checker(), renderer.scene_mut());
+    let lit = renderer.draw().unwrap();
+    let changed = plain
+        .rgb
+        .iter()
+        .zip(&lit.rgb)
+        .filter(|(a, b)| a != b)
+        .count();
+    (
+        r.first_failure().is_none() && r.first_success() == Some(ep.len() - 1),
+        before,
+        after,
+        changed,
+    )
 }
 
 #[test]
@@ -198,8 +243,22 @@ fn scripted_click_mouse_succeeds_on_the_built_in_scene() {
     for seed in [3, 11] {
         let s0 = TaskEnv::sample_initial_state(&scene, &spec, &mut uniform(seed)).unwrap();
         let ep = scripted::click_mouse_demo(&scene, &spec, &s0, "builtin_click").unwrap();
-        assert!(ep.len() < spec.step_cap, "seed {seed}: no success in {} steps", ep.len());
-        assert!(replays(&scene, &spec, &ep), "seed {seed}: replay does not succeed");
+        assert!(
+            ep.len() < spec.step_cap,
+            "seed {seed}: no success in {} steps",
+            ep.len()
+        );
+        let (ok, before, after, changed) = replays(&scene, &spec, &ep, "left");
+        assert!(ok, "seed {seed}: replay does not succeed");
+        assert_eq!(
+            (before, after),
+            (0, 1),
+            "the monitor turns blue on the click"
+        );
+        assert!(
+            changed > 30,
+            "the blue screen shows ({changed} values changed)"
+        );
     }
 }
 
@@ -210,7 +269,31 @@ fn scripted_unlock_ipad_succeeds_on_the_built_in_scene() {
     for seed in [5, 13] {
         let s0 = TaskEnv::sample_initial_state(&scene, &spec, &mut uniform(seed)).unwrap();
         let ep = scripted::unlock_ipad_demo(&scene, &spec, &s0, "builtin_ipad").unwrap();
-        assert!(ep.len() < spec.step_cap, "seed {seed}: no success in {} steps", ep.len());
-        assert!(replays(&scene, &spec, &ep), "seed {seed}: replay does not succeed");
+        assert!(
+            ep.len() < spec.step_cap,
+            "seed {seed}: no success in {} steps",
+            ep.len()
+        );
+        let (ok, before, after, changed) = replays(&scene, &spec, &ep, "back");
+        assert!(ok, "seed {seed}: replay does not succeed");
+        assert_eq!(
+            (before, after),
+            (0, 4),
+            "three digits lit and the screen unlocked"
+        );
+        assert!(
+            changed > 30,
+            "the lit keypad shows ({changed} values changed)"
+        );
     }
+}
+
+#[test]
+fn feedback_rules_resolve_and_bad_rules_are_clear_errors() {
+    let spec = common::spec("click_mouse");
+    let scene = builtin_scene(&spec);
+    assert_eq!(Feedback::new(&spec, &scene.model).unwrap().len(), 1);
+    // The click_mouse rule names a node the iPad task lacks: the error names the rule.
+    let e = Feedback::new(&common::spec("bimanual_unlock_ipad"), &scene.model).unwrap_err();
+    assert!(e.to_string().contains("feedback_display_blue"), "{e}");
 }
