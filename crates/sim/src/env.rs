@@ -91,10 +91,7 @@ impl SceneSource {
 pub fn load_task_scene(source: &SceneSource, spec: &TaskSpec) -> Result<Scene, SimError> {
     match source {
         SceneSource::Dir(dir) => Scene::load(dir.join(&spec.scene)),
-        SceneSource::BuiltIn => Err(SimError::Spec(format!(
-            "task '{}' has no built-in scene yet; pass --scene-dir with the DexJoCo reference scenes",
-            spec.id
-        ))),
+        SceneSource::BuiltIn => crate::builtin::load_builtin(spec),
     }
 }
 

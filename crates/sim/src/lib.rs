@@ -11,11 +11,13 @@
 //! `MjModel` is shared across threads; each worker owns its `MjData` and its
 //! [`Renderer`], which holds a GL context bound to the thread that created it.
 
+pub mod builtin;
 mod checker;
 mod control;
 mod egl;
 mod env;
 mod error;
+mod feedback;
 pub mod primitives;
 mod render;
 mod scene;
@@ -28,6 +30,7 @@ pub use control::{
 pub use egl::{EglDevice, EglProbe, probe_egl};
 pub use env::{EnvOptions, Rollout, SceneSource, TaskEnv, load_task_scene};
 pub use error::SimError;
+pub use feedback::Feedback;
 pub use render::{CameraView, Frame, RenderQuality, RenderSettings, Renderer};
 pub use scene::{Scene, mujoco_library_path, mujoco_version};
 
