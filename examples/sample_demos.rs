@@ -1,9 +1,10 @@
 //! Makes the sample demonstrations shipped in `datasets/demos/`: scripted `click_mouse`
-//! and `bimanual_unlock_ipad` episodes planned on the DexJoCo reference scenes, checked by
-//! replaying them, and written in the DexJoCo raw layout (arrays only, no videos).
+//! and `bimanual_unlock_ipad` episodes planned on the project's built-in scenes (so the
+//! sample data needs nothing outside the repository), checked by replaying them, and
+//! written in the DexJoCo raw layout (arrays only, no videos).
 //!
 //! `cargo run --release --example sample_demos -- [OUT] [PER_TASK]`
-//! (defaults: `datasets/demos`, 2 per task; needs `../shared/dexjoco-upstream`).
+//! (defaults: `datasets/demos`, 2 per task).
 
 use dexjoco_core::{Episode, TaskSpec};
 use dexjoco_sim::{EnvOptions, TaskEnv, load_task_scene, scripted};
@@ -16,10 +17,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .next()
         .map_or_else(|| root.join("datasets/demos"), Into::into);
     let per_task: usize = args.next().map_or(Ok(2), |s| s.parse())?;
-    let scenes = root.join("../shared/dexjoco-upstream/xmls");
     for task in ["click_mouse", "bimanual_unlock_ipad"] {
         let spec = TaskSpec::from_file(&root.join(format!("schemas/tasks/{task}.toml")))?;
-        let scene = load_task_scene(&dexjoco_sim::SceneSource::Dir(scenes.clone()), &spec)?;
+        let scene = load_task_scene(&dexjoco_sim::SceneSource::BuiltIn, &spec)?;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2026);
         let mut written = 0;
         let mut attempt = 0;
