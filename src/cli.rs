@@ -131,7 +131,10 @@ Examples:
   dexjoco-data render ../shared/dexjoco-upstream/xmls/arena_arm_hand_plant.xml --quality paper
   dexjoco-data render scene.xml --camera front --camera left --depth --size 224
   dexjoco-data render scene.xml --steps 500 --out frames/
-  dexjoco-data render --video --steps 1000 --camera front    # 2 s clip, 30 fps, H.264")]
+  dexjoco-data render --video --steps 1000 --camera front    # 2 s clip, 30 fps, H.264
+  dexjoco-data render --task click_mouse                       # built-in scene, the task's cameras
+  dexjoco-data render --task click_mouse --scene-dir ../shared/dexjoco-upstream/xmls
+  dexjoco-data render --task all --size 320    # sheet: every built-in scene next to the reference")]
 pub struct RenderArgs {
     /// MJCF scene file (default: the built-in tabletop scene).
     pub scene: Option<PathBuf>,
@@ -168,6 +171,19 @@ pub struct RenderArgs {
     /// Output folder (default: <work-dir>/render).
     #[arg(short, long)]
     pub out: Option<PathBuf>,
+    /// Render a task's scene at its reset (robot at home) from the task's cameras; `all`:
+    /// every task, its built-in scene next to the reference scene (when found) from the
+    /// same camera, on one contact sheet.
+    #[arg(long, conflicts_with = "scene")]
+    pub task: Option<String>,
+    /// With --task: a scene pack folder (e.g. the DexJoCo reference `xmls/`) instead of
+    /// the built-in scenes; with --task all: the reference scenes to compare with
+    /// (default: ../shared/dexjoco-upstream/xmls when present).
+    #[arg(long, requires = "task")]
+    pub scene_dir: Option<PathBuf>,
+    /// With --task: the folder of task specs (default: schemas/tasks).
+    #[arg(long, requires = "task")]
+    pub tasks_dir: Option<PathBuf>,
 }
 
 /// `bench` subcommands.

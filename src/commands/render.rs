@@ -3,8 +3,12 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use dexjoco_core::TaskSpec;
 use dexjoco_sim::mujoco_rs::prelude::MjData;
-use dexjoco_sim::{CameraView, Frame, RenderQuality, RenderSettings, Renderer};
+use dexjoco_sim::{
+    CameraView, EnvOptions, Frame, RenderQuality, RenderSettings, Renderer, SceneSource, TaskEnv,
+    load_task_scene,
+};
 use dexjoco_video::{Codec, VideoSpec, VideoWriter};
 
 use crate::cli::{GlobalArgs, RenderArgs};
@@ -12,6 +16,9 @@ use crate::exit::ExitStatus;
 
 /// Runs `render`.
 pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus> {
+    if let Some(task) = &args.task {
+        return run_task(global, args, task);
+    }
     let scene = super::load_scene(args.scene.as_deref())?;
     let stem = args.scene.as_deref().and_then(Path::file_stem).map_or_else(
         || "tabletop".to_owned(),
@@ -185,4 +192,140 @@ pub fn contact_sheet(frames: &[Frame], path: &PathBuf) -> anyhow::Result<()> {
         .save(path)
         .with_context(|| format!("cannot write '{}'", path.display()))?;
     Ok(())
+}
+
+/// The task specs folder: `--tasks-dir`, else `schemas/tasks` here or in the checkout.
+fn tasks_dir(args: &RenderArgs) -> PathBuf {
+    if let Some(d) = &args.tasks_dir {
+        return d.clone();
+    }
+    let here = PathBuf::from("schemas/tasks");
+    if here.is_dir() {
+        here
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/tasks")
+    }
+}
+
+fn render_settings(args: &RenderArgs) -> RenderSettings {
+    RenderSettings {
+        width: args.width.unwrap_or(args.size),
+        height: args.height.unwrap_or(args.size),
+        quality: RenderQuality::from_name(args.quality.name())
+            .expect("every QualityArg is a preset"),
+        depth: args.depth,
+    }
+}
+
+/// Renders a task's scene at its reset state from the named cameras.
+fn render_task_scene(
+    source: &SceneSource,
+    spec: &TaskSpec,
+    cameras: &[String],
+    settings: RenderSettings,
+) -> anyhow::Result<Vec<Frame>> {
+    let scene = load_task_scene(source, spec)?;
+    let mut env = TaskEnv::new(&scene, spec, EnvOptions::default())?;
+    let mut renderer = Renderer::new(&scene.model, settings)?;
+    let mut frames = Vec::new();
+    for c in cameras {
+        let view = CameraView::Fixed(scene.camera_id(c)?);
+        let feedback = dexjoco_sim::Feedback::new(spec, &scene.model)?;
+        renderer.update_scene(env.data_mut(), view);
+        feedback.apply(env.checker(), renderer.scene_mut());
+        frames.push(renderer.draw()?);
+    }
+    Ok(frames)
+}
+
+/// `render --task T|all`.
+fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Result<ExitStatus> {
+    let dir = tasks_dir(args);
+    let specs = TaskSpec::load_dir(&dir)
+        .with_context(|| format!("cannot read the task specs in '{}'", dir.display()))?;
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| global.work_dir.join("render"));
+    fs_err::create_dir_all(&out)?;
+    let settings = render_settings(args);
+    if task != "all" {
+        let spec = specs.iter().find(|s| s.id == task).with_context(|| {
+            let ids: Vec<_> = specs.iter().map(|s| s.id.as_str()).collect();
+            format!("unknown task '{task}' (tasks: {})", ids.join(", "))
+        })?;
+        let source = SceneSource::from_option(args.scene_dir.clone());
+        let cameras: Vec<String> = if args.cameras.is_empty() {
+            spec.cameras.iter().map(|c| c.camera.clone()).collect()
+        } else {
+            args.cameras.clone()
+        };
+        let frames = render_task_scene(&source, spec, &cameras, settings)?;
+        let kind = if args.scene_dir.is_some() {
+            "scene_dir"
+        } else {
+            "builtin"
+        };
+        for (c, f) in cameras.iter().zip(&frames) {
+            let png = out.join(format!("{task}_{kind}_{c}.png"));
+            f.save_png(&png)?;
+            println!("{}", png.display());
+        }
+        if frames.len() > 1 {
+            let sheet = out.join(format!("{task}_{kind}_contact_sheet.png"));
+            contact_sheet(&frames, &sheet)?;
+            println!("{}", sheet.display());
+        }
+        return Ok(ExitStatus::Success);
+    }
+
+    // Every task: built-in next to reference, same camera.
+    let reference = args.scene_dir.clone().or_else(super::reference_scene_dir);
+    if reference.is_none() {
+        tracing::warn!("no reference scenes found: the sheet shows the built-in scenes only");
+    }
+    let blank = || Frame {
+        width: settings.width,
+        height: settings.height,
+        rgb: vec![64; (settings.width * settings.height * 3) as usize],
+        depth: None,
+    };
+    let mut tiles = Vec::new();
+    let pb = crate::progress::bar(specs.len() as u64, "render", global.quiet);
+    for spec in &specs {
+        let camera = args
+            .cameras
+            .first()
+            .cloned()
+            .unwrap_or_else(|| spec.cameras[0].camera.clone());
+        let cams = [camera.clone()];
+        let mut pair = Vec::new();
+        let sources = std::iter::once(("builtin", Some(SceneSource::BuiltIn))).chain(
+            reference
+                .clone()
+                .map(|d| ("reference", Some(SceneSource::Dir(d)))),
+        );
+        for (kind, source) in sources {
+            let source = source.expect("some");
+            match render_task_scene(&source, spec, &cams, settings) {
+                Ok(mut f) => {
+                    let frame = f.remove(0);
+                    let png = out.join(format!("{}_{kind}_{camera}.png", spec.id));
+                    frame.save_png(&png)?;
+                    pair.push(frame);
+                }
+                Err(e) => {
+                    tracing::warn!("{} ({kind}): {e:#}", spec.id);
+                    pair.push(blank());
+                }
+            }
+        }
+        tiles.extend(pair);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let sheet = out.join("tasks_contact_sheet.png");
+    contact_sheet(&tiles, &sheet)?;
+    println!("{}", sheet.display());
+    Ok(ExitStatus::Success)
 }
