@@ -417,15 +417,6 @@ pub struct ConvertArgs {
     pub robot_type: String,
 }
 
-/// Arguments of subcommands that are not built yet: accepted, so `--help` works, and
-/// answered with exit code 4.
-#[derive(Debug, Args)]
-pub struct PendingArgs {
-    /// Arguments for the future subcommand.
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
-    pub rest: Vec<String>,
-}
-
 /// `augment` options.
 #[derive(Debug, Args)]
 #[command(after_help = "\
