@@ -83,7 +83,7 @@ pub enum Command {
     /// Write stored episodes in another container (MCAP teleop logs).
     Export(ExportArgs),
     /// Replay each episode under sampled camera/light/texture randomization; keep successes.
-    Augment(PendingArgs),
+    Augment(AugmentArgs),
     /// Convert episodes to LeRobot v3.0 / v2.1 or a Diffusion Policy Zarr replay buffer.
     Convert(ConvertArgs),
     /// Dataset statistics, success tables and the language-generalization analysis.
@@ -484,11 +484,51 @@ pub struct ConvertArgs {
     pub norm_stats_horizon: usize,
 }
 
-/// Arguments of subcommands that are not built yet: accepted, so `--help` works, and
-/// answered with exit code 4.
+/// `augment` options.
 #[derive(Debug, Args)]
-pub struct PendingArgs {
-    /// Arguments for the future subcommand.
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
-    pub rest: Vec<String>,
+#[command(after_help = "\
+Examples:
+  dexjoco-data augment --replays 10                      # the sample demos, built-in scenes
+  dexjoco-data augment --replays 10 --scene-dir ../shared/dexjoco-upstream/xmls
+  dexjoco-data augment recordings/ --replays 5 --size 224 --quality fast
+  dexjoco-data augment --replays 2 --camera handcam_rgb --keep-failed --out aug/
+
+Output: one DexJoCo raw folder per replay, <out>/<task>/<episode>__rNN/ (replay.zarr with
+the recorded actions, recomputed state and action_rotvec; videos/third_person.mp4 plus one
+video per --camera), augment_report.json / .md and contact_sheet.png. A killed run resumes
+where it stopped when run again; the same --seed gives the same output whatever --jobs is.
+Exit code 3: some episodes did not replay to success.")]
+pub struct AugmentArgs {
+    /// Raw episode folders, episode stores or MCAP files (default: the sample data in
+    /// datasets/demos).
+    pub inputs: Vec<PathBuf>,
+    /// Randomized replays per episode.
+    #[arg(long, default_value_t = 10)]
+    pub replays: usize,
+    /// Scene pack folder (e.g. the DexJoCo reference xmls/); default: built-in scenes.
+    #[arg(long)]
+    pub scene_dir: Option<PathBuf>,
+    /// Camera pose pool, JSON {"rows": [[azimuth, elevation, distance, ...]]} (default:
+    /// the reference pool beside --scene-dir, else the built-in pool).
+    #[arg(long)]
+    pub camera_pool: Option<PathBuf>,
+    /// Fixed scene camera to render too, with the same light/table randomization
+    /// (repeatable), e.g. handcam_rgb.
+    #[arg(short, long = "camera")]
+    pub cameras: Vec<String>,
+    /// Image width and height in pixels (224 is the small preset).
+    #[arg(long, default_value_t = 640)]
+    pub size: u32,
+    /// Quality preset (paper = the reference's 8x multisampling).
+    #[arg(long, value_enum, default_value_t = QualityArg::Paper)]
+    pub quality: QualityArg,
+    /// Keep replays whose task failed (flagged in the report).
+    #[arg(long)]
+    pub keep_failed: bool,
+    /// Only the first N frames of each episode (a quick look; success needs the whole).
+    #[arg(long)]
+    pub max_frames: Option<usize>,
+    /// Output folder (default: <work-dir>/augment).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
 }

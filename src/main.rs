@@ -31,7 +31,7 @@ fn main() -> ExitCode {
         Command::Bench(cmd) => commands::bench::run(&cli.global, &cmd),
         Command::Ingest(args) => commands::ingest::run(&cli.global, &args),
         Command::Export(args) => commands::export::run(&cli.global, &args),
-        Command::Augment(_) => commands::pending("augment"),
+        Command::Augment(args) => commands::augment::run(&cli.global, &args),
         Command::Convert(args) => commands::convert::run(&cli.global, &args),
         Command::Stats(args) => commands::stats::run(&cli.global, &args),
     };

@@ -62,18 +62,6 @@ fn usage_errors_exit_2() {
 }
 
 #[test]
-fn stages_not_built_yet_say_so_with_exit_4() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = run(&["augment"], dir.path());
-    assert_eq!(out.status.code(), Some(4));
-    assert!(
-        text(&out.stderr).contains("not available"),
-        "{}",
-        text(&out.stderr)
-    );
-}
-
-#[test]
 fn doctor_reports_mujoco_egl_and_ffmpeg() {
     let dir = tempfile::tempdir().unwrap();
     let out = run(&["doctor", "--json"], dir.path());

@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+pub mod augment;
 pub mod bench;
 pub mod bench_convert;
 pub mod convert;
@@ -8,8 +9,6 @@ pub mod export;
 pub mod ingest;
 pub mod render;
 pub mod stats;
-
-use crate::exit::{CliError, ExitStatus};
 
 /// The built-in tabletop scene (also the default of `render` and `bench render`).
 pub const TABLETOP_XML: &str = include_str!("../../crates/sim/assets/tabletop.xml");
@@ -34,14 +33,4 @@ pub fn load_scene(path: Option<&std::path::Path>) -> anyhow::Result<dexjoco_sim:
         Some(p) => dexjoco_sim::Scene::load(p)?,
         None => dexjoco_sim::Scene::from_xml_str(TABLETOP_XML, "<built-in tabletop>")?,
     })
-}
-
-/// Answer of a subcommand that later work fills in.
-pub fn pending(name: &str) -> anyhow::Result<ExitStatus> {
-    Err(CliError {
-        message: format!("`dexjoco-data {name}` is not available in this version yet"),
-        hint: Some("`doctor`, `render`, `ingest`, `export`, `stats` and `bench` work today; see the README's status section".into()),
-        status: ExitStatus::NotAvailable,
-    }
-    .into())
 }

@@ -1,4 +1,22 @@
 //! Randomized, validated replays of demonstrations in MuJoCo.
 //!
-//! Not built yet: the `augment` stage is tracked as its own issue, and the CLI says so
-//! rather than pretending.
+//! Each episode is restored from its recorded `state[0]` and every recorded action is
+//! stepped with the DexJoCo controller. Visual randomization (third-person camera from a
+//! pose pool, lights and headlight, table material) does not change physics, so the
+//! episode is simulated once and every replay's views are rendered from that one
+//! trajectory, each replay streaming its frames to its own encoder. Each replay gets its
+//! own seed derived from (global seed, episode id, replay index).
+
+mod error;
+mod randomize;
+mod run;
+
+pub use error::AugmentError;
+pub use randomize::{
+    CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,
+    replay_seed,
+};
+pub use run::{
+    AugmentConfig, AugmentReport, EpisodeOutcome, REPORT_JSON, REPORT_MD, ReplayRecord,
+    THIRD_PERSON, augment, builtin_spec, replay_name,
+};

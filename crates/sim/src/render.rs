@@ -305,6 +305,14 @@ impl Renderer {
         &mut self.scene
     }
 
+    /// The geoms of the abstract scene built by [`Self::update_scene`], for per-render
+    /// material/colour edits (`matid`, `rgba`) before [`Self::draw`].
+    pub fn scene_geoms_mut(&mut self) -> &mut [mujoco_rs::wrappers::mj_visualization::MjvGeom] {
+        // SAFETY: the slice covers the `ngeom` initialized geoms of the scene buffer, which
+        // this renderer owns; plain-data fields are edited between update and draw.
+        unsafe { self.scene.geoms_mut() }
+    }
+
     /// Draws the current abstract scene and reads back the image.
     pub fn draw(&mut self) -> Result<Frame, SimError> {
         let (w, h) = (self.settings.width as usize, self.settings.height as usize);

@@ -1,0 +1,61 @@
+//! Errors of the augment stage.
+
+use std::path::PathBuf;
+
+/// What can go wrong while augmenting.
+#[derive(Debug, thiserror::Error)]
+pub enum AugmentError {
+    /// Reading an input episode failed.
+    #[error(transparent)]
+    Ingest(#[from] dexjoco_ingest::IngestError),
+    /// Simulation or rendering failed.
+    #[error("episode '{episode}': {source}")]
+    Sim {
+        /// Episode id.
+        episode: String,
+        /// The cause.
+        source: dexjoco_sim::SimError,
+    },
+    /// Encoding a video failed.
+    #[error("episode '{episode}': {source}")]
+    Video {
+        /// Episode id.
+        episode: String,
+        /// The cause.
+        source: dexjoco_video::VideoError,
+    },
+    /// A file could not be read or written.
+    #[error("cannot {action} '{}': {source}", path.display())]
+    Io {
+        /// What was being done.
+        action: &'static str,
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// A bad input (episode, field, frame named in the message).
+    #[error("{0}")]
+    Input(String),
+    /// A camera pool file is malformed.
+    #[error("camera pool '{}': {message}", path.display())]
+    Pool {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// Maps an I/O error with the file it concerns.
+pub(crate) fn io_err(
+    action: &'static str,
+    path: &std::path::Path,
+) -> impl FnOnce(std::io::Error) -> AugmentError + use<> {
+    let path = path.to_path_buf();
+    move |source| AugmentError::Io {
+        action,
+        path,
+        source,
+    }
+}

@@ -1,0 +1,102 @@
+//! The `augment` command end to end: a run killed midway and run again completes with no
+//! duplicate and no partial replay, byte-identical to an uninterrupted run.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn cli() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
+    c.env_remove("DEXJOCO_WORK_DIR")
+        .env_remove("DEXJOCO_SEED")
+        .env("DEXJOCO_LOG", "warn");
+    c
+}
+
+fn augment(out: &Path) -> Command {
+    let mut c = cli();
+    c.current_dir(dexjoco_testkit::workspace_root())
+        .args(["-q", "-j", "1", "augment"])
+        .arg("datasets/demos/click_mouse/episode_000000")
+        .args(["--replays", "6", "--size", "64", "--quality", "fast"])
+        .arg("--out")
+        .arg(out);
+    c
+}
+
+/// Finished replay folders (those holding their record).
+fn finished(out: &Path) -> Vec<PathBuf> {
+    let dir = out.join("click_mouse");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .map(|rd| rd.flatten().map(|e| e.path()).collect())
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+fn tree(dir: &Path, out: &mut BTreeMap<String, Vec<u8>>, root: &Path) {
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            tree(&p, out, root);
+        } else {
+            out.insert(
+                p.strip_prefix(root).unwrap().display().to_string(),
+                std::fs::read(&p).unwrap(),
+            );
+        }
+    }
+}
+
+#[test]
+fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
+    let tmp = tempfile::tempdir().unwrap();
+    let killed = tmp.path().join("killed");
+    let mut child = augment(&killed)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while finished(&killed).is_empty() {
+        assert!(child.try_wait().unwrap().is_none(), "ended before the kill");
+        assert!(
+            start.elapsed() < Duration::from_secs(300),
+            "no replay written"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let before = finished(&killed);
+    assert!(before.len() < 6, "killed after the end");
+    // Only whole replays were renamed into place.
+    for d in &before {
+        assert!(d.join("replay.json").is_file(), "{}", d.display());
+        assert!(d.join("videos/third_person.mp4").is_file());
+    }
+
+    let status = augment(&killed).status().unwrap();
+    assert!(status.success(), "{status:?}");
+    let after = finished(&killed);
+    assert_eq!(after.len(), 6);
+    assert!(!killed.join(".staging").exists());
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(killed.join("augment_report.json")).unwrap())
+            .unwrap();
+    assert_eq!(report["replays"].as_array().unwrap().len(), 6);
+    assert_eq!(
+        report["rendered_now"].as_u64().unwrap(),
+        (6 - before.len()) as u64
+    );
+
+    // Same bytes as a run that was never interrupted.
+    let clean = tmp.path().join("clean");
+    assert!(augment(&clean).status().unwrap().success());
+    let (mut a, mut b) = (BTreeMap::new(), BTreeMap::new());
+    tree(&killed.join("click_mouse"), &mut a, &killed);
+    tree(&clean.join("click_mouse"), &mut b, &clean);
+    assert_eq!(a.len(), b.len());
+    assert_eq!(a, b);
+}
