@@ -1,9 +1,8 @@
 #!/usr/bin/env bash
-# Sets up everything and runs the main job on the embedded sample data.
-# Today that is the most complete pipeline that exists: check the machine (doctor), then
-# simulate and render the built-in scene's cameras (RGB + depth + contact sheet, and an
-# H.264 clip through ffmpeg) with real MuJoCo physics and EGL rendering.
-# Outputs land in ./dexjoco-work/.
+# Sets up everything and runs the main job on the embedded sample data: the whole
+# pipeline ingest -> augment -> convert -> stats on the scripted demonstrations in
+# datasets/demos, on the built-in scenes (nothing outside the repository is needed),
+# with real MuJoCo physics, EGL rendering and ffmpeg. Outputs land in ./dexjoco-work/.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -17,11 +16,21 @@ BIN="$ROOT/target/release/dexjoco-data"
 # with depth and a contact sheet; then a 2 s H.264 clip of the fall from the front camera.
 "$BIN" render --depth --steps 600
 "$BIN" render --video --steps 1000 --camera front --quality fast
-# The embedded sample demonstrations (datasets/demos, scripted on the reference scenes):
-# validated into the episode store, then their dataset statistics and norm stats.
+# The embedded sample demonstrations (datasets/demos: scripted click_mouse and
+# bimanual_unlock_ipad episodes, recorded on the built-in scenes): validated into the
+# episode store; replayed 10 times each under camera/light/table randomization (224 px,
+# fast preset, so it takes minutes on a 2-core CPU; drop the flags for the reference's
+# 640 px multisampled look); converted to LeRobot v3.0 and a Diffusion Policy replay
+# buffer with openpi norm stats; dataset statistics of the augmented set.
 "$BIN" ingest datasets/demos
-"$BIN" stats --dataset
+"$BIN" augment dexjoco-work/ingest --replays 10 --size 224 --quality fast
+"$BIN" convert --overwrite
+"$BIN" convert --format diffusion-policy --norm-stats --overwrite
+"$BIN" stats --dataset dexjoco-work/augment
+# A picture of every task: the built-in scenes (next to the reference ones when
+# ../shared/dexjoco-upstream is present).
+"$BIN" render --task all --size 240 --quality fast
 # The language-generalization analysis and success tables on the shipped EXAMPLE
 # evaluation outputs (made up by a script, not results).
 "$BIN" stats --language-eval --success-table
-echo "done: see dexjoco-work/ingest/, dexjoco-work/stats/ and dexjoco-work/render/ (tabletop_contact_sheet.png, tabletop_front.mp4)" >&2
+echo "done: see dexjoco-work/augment/ (augment_report.md, contact_sheet.png), dexjoco-work/convert/, dexjoco-work/stats/ and dexjoco-work/render/" >&2

@@ -105,5 +105,29 @@ if ((want_python)); then
     touch "$VENV/.complete"
   fi
   echo "$VENV/bin/python" > "$ROOT/.deps/python-path"
+
+  # Diffusion Policy has no package: its tests use the real ReplayBuffer class, one file
+  # of real-stanford/diffusion_policy at a pinned commit, fetched into the cache (never
+  # into the repo) and checked by its sha256.
+  DP_COMMIT=5ba07ac6661db573af695b419a7947ecb704690f
+  DP_SHA256=c8d59f208525ed5c2164b67f85faf8642251d408533eec1639282076a79d80b4
+  DP_DIR="${XDG_CACHE_HOME:-$HOME/.cache}/dexjoco-data/diffusion_policy-$DP_COMMIT"
+  DP_FILE="$DP_DIR/diffusion_policy/common/replay_buffer.py"
+  if [ ! -f "$DP_FILE" ]; then
+    log "fetching Diffusion Policy's replay_buffer.py at $DP_COMMIT"
+    mkdir -p "$(dirname "$DP_FILE")"
+    "$VENV/bin/python" - "$DP_COMMIT" "$DP_SHA256" "$DP_FILE" <<'PY' || echo "warning: could not fetch replay_buffer.py; the Diffusion Policy test will say how to get it" >&2
+import hashlib, os, sys, urllib.request
+commit, sha, dest = sys.argv[1:4]
+url = f"https://raw.githubusercontent.com/real-stanford/diffusion_policy/{commit}/diffusion_policy/common/replay_buffer.py"
+data = urllib.request.urlopen(url, timeout=60).read()
+if hashlib.sha256(data).hexdigest() != sha:
+    sys.exit(f"{url}: unexpected sha256")
+tmp = dest + ".tmp"
+open(tmp, "wb").write(data)
+os.replace(tmp, dest)
+PY
+  fi
+  echo "$DP_DIR" > "$ROOT/.deps/diffusion-policy-path"
 fi
 log "ready: MuJoCo $MUJOCO_VERSION in .deps/mujoco/lib"

@@ -148,8 +148,18 @@ fn replays_read_back_as_raw_episodes_with_the_recorded_actions() {
     assert_eq!((info.width, info.height), (64, 64));
     assert!(out.path().join("contact_sheet.png").is_file());
     assert!(out.path().join("augment_report.md").is_file());
-    // The reference scene's texture library: its table_* materials.
+    // The built-in scene's texture library: table_ceramic and 19 procedural textures,
+    // all of them materials of the model (no colour-only fallback).
     let lib = &report.table_library["click_mouse"];
-    assert!(lib.len() >= 18, "{lib:?}");
-    assert!(report.camera_pools["click_mouse"].ends_with("replay_cameras.json"));
+    assert_eq!(lib.len(), 20, "{lib:?}");
+    assert!(lib.iter().any(|n| n == "table_ceramic"), "{lib:?}");
+    assert_eq!(
+        lib.iter().filter(|n| n.starts_with("table_tex_")).count(),
+        19
+    );
+    assert!(
+        report.camera_pools["click_mouse"].contains("built-in single-arm"),
+        "{:?}",
+        report.camera_pools
+    );
 }
