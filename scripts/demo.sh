@@ -24,8 +24,8 @@ BIN="$ROOT/target/release/dexjoco-data"
 # buffer with openpi norm stats; dataset statistics of the augmented set.
 "$BIN" ingest datasets/demos
 "$BIN" augment dexjoco-work/ingest --replays 10 --size 224 --quality fast
-"$BIN" convert --overwrite
-"$BIN" convert --format diffusion-policy --norm-stats --overwrite
+"$BIN" convert --overwrite --merge-bimanual
+"$BIN" convert --format diffusion-policy --norm-stats --overwrite --merge-bimanual
 "$BIN" stats --dataset dexjoco-work/augment
 # A picture of every task: the built-in scenes (next to the reference ones when
 # ../shared/dexjoco-upstream is present).

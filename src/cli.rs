@@ -461,6 +461,11 @@ pub struct ConvertArgs {
     /// Keep static leading frames (skipped by default, by the reference converter's rule).
     #[arg(long)]
     pub no_skip_static: bool,
+    /// Multi-task merge: one-arm episodes go into the right-arm slots of the two-arm
+    /// layout, so single-arm and bimanual tasks share one dataset (same as
+    /// `merge_bimanual = true` in --config).
+    #[arg(long)]
+    pub merge_bimanual: bool,
     /// Episode ids to leave out (repeatable; added to the config's list).
     #[arg(long = "exclude", value_name = "EPISODE")]
     pub exclude: Vec<String>,

@@ -79,6 +79,9 @@ pub fn run(global: &GlobalArgs, args: &ConvertArgs) -> anyhow::Result<ExitStatus
     if args.no_skip_static {
         selection.skip_static_frames = false;
     }
+    if args.merge_bimanual {
+        selection.merge_bimanual = true;
+    }
     selection.bad_episodes.extend(args.exclude.iter().cloned());
     let options = ConvertOptions {
         format,

@@ -227,7 +227,7 @@ fn read_episode_ends(store: &Arc<FilesystemStore>, zarr: &Path, at: &Location) -
 }
 
 /// The task of a raw folder from its path: `<task>/episode_NNNNNN/` or
-/// `<task>_demo_<k>_<date>/` (replays: `_replay_`).
+/// `<task>_demo_<k>_<date>/` (replays: `_replay_`), or any folder under a `<task>/` folder.
 pub fn task_from_path(dir: &Path) -> Option<String> {
     let name = dir.file_name()?.to_str()?;
     for marker in ["_demo_", "_replay_"] {
@@ -235,8 +235,11 @@ pub fn task_from_path(dir: &Path) -> Option<String> {
             return Some(name[..i].to_owned());
         }
     }
-    if name.starts_with("episode_") {
-        return dir.parent()?.file_name()?.to_str().map(str::to_owned);
+    // `<root>/<task_id>/episode_000000` (released datasets) or any folder under a folder
+    // named after a task (e.g. augment's `<task_id>/<episode>__r03`).
+    let parent = dir.parent()?.file_name()?.to_str()?;
+    if name.starts_with("episode_") || dexjoco_core::task_info(parent).is_some() {
+        return Some(parent.to_owned());
     }
     None
 }
