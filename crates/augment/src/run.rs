@@ -547,7 +547,7 @@ fn render_unit(
         let parent = final_dir.parent().expect("has parent");
         fs_err::create_dir_all(parent).map_err(io_err("create", parent))?;
         fs_err::rename(&p.staging, &final_dir).map_err(io_err("rename", &p.staging))?;
-        tracing::info!(replay = %final_dir.display(), "replay written");
+        tracing::debug!(replay = %final_dir.display(), "replay written");
         records.push(record);
     }
     Ok(records)
