@@ -270,29 +270,8 @@ impl ZarrWriter {
 
     /// Appends one episode: arrays, decoded camera frames, and its videos.
     pub fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), ConvertError> {
-        let bad = |m: String| Err(ConvertError::episode(&ep.id, m));
-        if ep.fps != self.fps {
-            return bad(format!(
-                "fps {} differs from the dataset's {}",
-                ep.fps, self.fps
-            ));
-        }
-        if ep.action.width() != self.action.width || ep.state.width() != self.state.width {
-            return bad(format!(
-                "action/state widths {}/{} differ from the dataset's {}/{} (select the same arrays for every task)",
-                ep.action.width(),
-                ep.state.width(),
-                self.action.width,
-                self.state.width
-            ));
-        }
-        let names: Vec<&str> = ep.videos.iter().map(|v| v.name.as_str()).collect();
         let want: Vec<&str> = self.images.iter().map(|c| c.name.as_str()).collect();
-        if names != want {
-            return bad(format!(
-                "cameras {names:?} differ from the dataset's {want:?} (map cameras to shared names)"
-            ));
-        }
+        ep.check_layout(self.fps, self.action.width, self.state.width, &want)?;
         let n = ep.len();
         let start = self.frames() as u64;
         let err = zarr_err(&self.zarr);

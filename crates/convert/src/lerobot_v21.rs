@@ -114,30 +114,13 @@ impl V21Writer {
     /// Writes one episode's parquet and videos and its metadata lines.
     pub fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), ConvertError> {
         let bad = |m: String| Err(ConvertError::episode(&ep.id, m));
-        if ep.fps != self.fps {
-            return bad(format!(
-                "fps {} differs from the dataset's {}",
-                ep.fps, self.fps
-            ));
-        }
-        if ep.action.width() != self.action_names.len()
-            || ep.state.width() != self.state_names.len()
-        {
-            return bad(format!(
-                "action/state widths {}/{} differ from the dataset's {}/{} (select the same arrays for every task)",
-                ep.action.width(),
-                ep.state.width(),
-                self.action_names.len(),
-                self.state_names.len()
-            ));
-        }
-        let names: Vec<&str> = ep.videos.iter().map(|v| v.name.as_str()).collect();
         let want: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
-        if names != want {
-            return bad(format!(
-                "cameras {names:?} differ from the dataset's {want:?} (map cameras to shared names)"
-            ));
-        }
+        ep.check_layout(
+            self.fps,
+            self.action_names.len(),
+            self.state_names.len(),
+            &want,
+        )?;
         for (v, c) in ep.videos.iter().zip(&self.cameras) {
             if (v.info.width, v.info.height) != (c.width, c.height) || v.info.codec != c.codec {
                 return bad(format!(

@@ -134,6 +134,35 @@ pub struct PreparedEpisode {
 }
 
 impl PreparedEpisode {
+    /// Checks that this episode fits a dataset of `fps`, action/state widths and camera
+    /// names (in order): every writer appends episodes of one layout.
+    pub(crate) fn check_layout(
+        &self,
+        fps: u32,
+        action_width: usize,
+        state_width: usize,
+        cameras: &[&str],
+    ) -> Result<(), ConvertError> {
+        let bad = |m: String| Err(ConvertError::episode(&self.id, m));
+        if self.fps != fps {
+            return bad(format!("fps {} differs from the dataset's {fps}", self.fps));
+        }
+        if self.action.width() != action_width || self.state.width() != state_width {
+            return bad(format!(
+                "action/state widths {}/{} differ from the dataset's {action_width}/{state_width} (select the same arrays for every task)",
+                self.action.width(),
+                self.state.width(),
+            ));
+        }
+        let names: Vec<&str> = self.videos.iter().map(|v| v.name.as_str()).collect();
+        if names != cameras {
+            return bad(format!(
+                "cameras {names:?} differ from the dataset's {cameras:?} (map cameras to shared names)"
+            ));
+        }
+        Ok(())
+    }
+
     /// Frames kept.
     pub fn len(&self) -> usize {
         self.action.len()
