@@ -77,8 +77,13 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
         assert!(d.join("videos/third_person.mp4").is_file());
     }
 
-    let status = augment(&killed).status().unwrap();
-    assert!(status.success(), "{status:?}");
+    let out = augment(&killed).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{:?}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
     let after = finished(&killed);
     assert_eq!(after.len(), 6);
     assert!(!killed.join(".staging").exists());
@@ -93,7 +98,13 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
 
     // Same bytes as a run that was never interrupted.
     let clean = tmp.path().join("clean");
-    assert!(augment(&clean).status().unwrap().success());
+    let out = augment(&clean).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{:?}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
     let (mut a, mut b) = (BTreeMap::new(), BTreeMap::new());
     tree(&killed.join("click_mouse"), &mut a, &killed);
     tree(&clean.join("click_mouse"), &mut b, &clean);
