@@ -196,6 +196,45 @@ pub enum BenchCommand {
     /// `convert` against lerobot's own dataset writer on the same episodes, and our
     /// peak memory for few vs many short episodes.
     Convert(BenchConvertArgs),
+    /// `augment` (physics once per episode, parallel) against the reference approach
+    /// (re-simulate and render every replay in one process), per resolution and preset.
+    Augment(BenchAugmentArgs),
+}
+
+/// `bench augment` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data bench augment
+  dexjoco-data bench augment --replays 10 --max-frames 300 --size 640 --preset paper
+  dexjoco-data bench augment --jobs 16 datasets/demos
+
+Each configuration runs three ways on the same episodes and seed:
+  reference  re-simulate and render every replay, one after another, one thread
+             (what the DexJoCo replay script does)
+  ours x1    simulate each episode once, render every replay from it, one thread
+  ours xN    the same with N worker threads (--jobs, default: all cores)
+Outputs are written to a temporary folder and removed; the table goes to stdout and
+<work-dir>/bench/augment.json.")]
+pub struct BenchAugmentArgs {
+    /// Episodes to replay (default: the sample demos in datasets/demos).
+    pub inputs: Vec<PathBuf>,
+    /// Replays per episode.
+    #[arg(long, default_value_t = 4)]
+    pub replays: usize,
+    /// Only the first N frames of each episode (keeps the benchmark short).
+    #[arg(long, default_value_t = 120)]
+    pub max_frames: usize,
+    /// Image sizes (square), comma-separated.
+    #[arg(long = "size", value_delimiter = ',', default_values_t = [224, 640])]
+    pub sizes: Vec<u32>,
+    /// Quality presets, comma-separated.
+    #[arg(long = "preset", value_enum, value_delimiter = ',',
+          default_values_t = [QualityArg::Fast, QualityArg::Paper])]
+    pub presets: Vec<QualityArg>,
+    /// Skip the one-thread run of our approach.
+    #[arg(long)]
+    pub no_single_thread: bool,
 }
 
 /// `bench convert` options.
@@ -276,13 +315,15 @@ Examples:
   dexjoco-data stats --language-eval --success-table --out report/ --json
   dexjoco-data stats --dataset                          # the ingest store <work-dir>/ingest
   dexjoco-data stats --dataset raw_demos/               # any folder of DexJoCo raw episodes
+  dexjoco-data stats --dataset dexjoco-work/augment     # augment output: + replay success rates
 
 Language evaluation input: a folder <config>/<task>_seed<s>/episode_XX_{success|failure}_{<digits>|no_password_input}/
 as the DexJoCo evaluator writes it (instructions.csv at its root names each config's instruction
 and expected answer), or a tidy .csv/.json with instruction, expected, seed, episode, output.
 Writes <out>/language-eval/ (summary.md, language_eval.json, CSVs, heatmap.png/.svg) and
 <out>/success-table/ (success_table.md/.tex/.csv/.json) and <out>/dataset/ (dataset_stats.json,
-summary.md, norm_stats.json, plots); the summary goes to stdout.")]
+summary.md, norm_stats.json, plots; replay_success.md/.json when the folder holds an
+augment_report.json); the summary goes to stdout.")]
 pub struct StatsArgs {
     /// Language-generalization analysis (DexJoCo paper, appendix A) of an evaluation
     /// folder or a tidy .csv/.json file. Without a value: the example input shipped in
@@ -296,7 +337,9 @@ pub struct StatsArgs {
     pub success_table: Option<Option<PathBuf>>,
     /// Dataset statistics (episodes, frames, per-task counts, lengths, per-dimension
     /// action/state distributions with plots, openpi norm stats) of an episode store or a
-    /// folder of DexJoCo raw episodes. Without a value: the ingest store <work-dir>/ingest.
+    /// folder of DexJoCo raw episodes; for an augment output folder also the replay
+    /// success rates per task from its report. Without a value: the ingest store
+    /// <work-dir>/ingest.
     #[arg(long, value_name = "STORE", num_args = 0..=1)]
     pub dataset: Option<Option<PathBuf>>,
     /// Output folder (default: <work-dir>/stats).
@@ -497,10 +540,12 @@ Examples:
   dexjoco-data augment --replays 10 --scene-dir ../shared/dexjoco-upstream/xmls
   dexjoco-data augment recordings/ --replays 5 --size 224 --quality fast
   dexjoco-data augment --replays 2 --camera handcam_rgb --keep-failed --out aug/
+  dexjoco-data augment --replays 2 --camera front --depth --size 224  # + <camera>_depth.npz
 
 Output: one DexJoCo raw folder per replay, <out>/<task>/<episode>__rNN/ (replay.zarr with
 the recorded actions, recomputed state and action_rotvec; videos/third_person.mp4 plus one
-video per --camera), augment_report.json / .md and contact_sheet.png. A killed run resumes
+video per --camera; with --depth videos/<camera>_depth.npz), augment_report.json / .md and
+contact_sheet.png. A killed run resumes
 where it stopped when run again; the same --seed gives the same output whatever --jobs is.
 Exit code 3: some episodes did not replay to success.")]
 pub struct AugmentArgs {
@@ -530,6 +575,11 @@ pub struct AugmentArgs {
     /// Keep replays whose task failed (flagged in the report).
     #[arg(long)]
     pub keep_failed: bool,
+    /// Also write each camera's depth as videos/<camera>_depth.npz (key "depth", float32
+    /// (T, H, W), metres, as numpy.savez_compressed writes it). Large: 1.6 MB per
+    /// 640x640 frame before compression.
+    #[arg(long)]
+    pub depth: bool,
     /// Only the first N frames of each episode (a quick look; success needs the whole).
     #[arg(long)]
     pub max_frames: Option<usize>,

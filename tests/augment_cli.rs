@@ -110,4 +110,31 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
     tree(&clean.join("click_mouse"), &mut b, &clean);
     assert_eq!(a.len(), b.len());
     assert_eq!(a, b);
+
+    // `stats --dataset` on the augment output reads the replays and the report.
+    let stats_out = tmp.path().join("stats");
+    let out = cli()
+        .args(["-q", "stats", "--dataset"])
+        .arg(&clean)
+        .arg("--out")
+        .arg(&stats_out)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{:?}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("6 episodes"), "{stdout}");
+    assert!(
+        stdout.contains("| click_mouse | 1 | 1 (100 %) | 6 | 6 | 6 | 100 % | 0e0 |"),
+        "{stdout}"
+    );
+    let replays: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(stats_out.join("dataset/replay_success.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(replays["tasks"][0]["replays_successful"], 6);
 }

@@ -13,7 +13,7 @@ use crate::exit::{CliError, ExitStatus};
 const DEMOS: &str = "datasets/demos";
 
 /// The sample data: `datasets/demos` here, else in the checkout the binary was built from.
-fn sample_data() -> anyhow::Result<PathBuf> {
+pub(crate) fn sample_data() -> anyhow::Result<PathBuf> {
     [
         PathBuf::from(DEMOS),
         Path::new(env!("CARGO_MANIFEST_DIR")).join(DEMOS),
@@ -71,6 +71,7 @@ pub fn run(global: &GlobalArgs, args: &AugmentArgs) -> anyhow::Result<ExitStatus
         max_frames: args.max_frames,
         resimulate_per_replay: false,
         contact_sheet: true,
+        depth: args.depth,
     };
     let bar = crate::progress::bar(0, "augment", global.quiet);
     let started = std::time::Instant::now();

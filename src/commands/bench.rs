@@ -16,6 +16,7 @@ pub fn run(global: &GlobalArgs, cmd: &BenchCommand) -> anyhow::Result<ExitStatus
         BenchCommand::Render(args) => render(global, args),
         BenchCommand::Ingest(args) => ingest(global, args),
         BenchCommand::Convert(args) => super::bench_convert::run(global, args),
+        BenchCommand::Augment(args) => super::bench_augment::run(global, args),
     }
 }
 

@@ -2,6 +2,7 @@
 
 pub mod augment;
 pub mod bench;
+pub mod bench_augment;
 pub mod bench_convert;
 pub mod convert;
 pub mod doctor;

@@ -171,6 +171,21 @@ pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> 
             path.display(),
             stats.to_markdown()
         ));
+        // An augment output folder: its report's replay success rates.
+        if let Some(replays) = dexjoco_stats::ReplayStats::read(&path)? {
+            let md = replays.to_markdown();
+            dexjoco_ingest::write_atomic(&dir.join("replay_success.md"), md.as_bytes())?;
+            dexjoco_ingest::write_atomic(
+                &dir.join("replay_success.json"),
+                serde_json::to_string_pretty(&replays)?.as_bytes(),
+            )?;
+            json.insert("replays".into(), serde_json::to_value(&replays)?);
+            summaries.push(format!(
+                "## Replays (`{}`, {} per episode)\n\n{md}",
+                path.join(dexjoco_stats::AUGMENT_REPORT).display(),
+                replays.replays_per_episode
+            ));
+        }
     }
 
     if args.json {

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use dexjoco_core::{CameraStream, Episode, FrameArray, TaskSpec};
+use dexjoco_ingest::depth::DepthWriter;
 use dexjoco_ingest::raw;
 use dexjoco_sim::mujoco_rs::prelude::MjModel;
 use dexjoco_sim::{
@@ -83,6 +84,8 @@ pub struct AugmentConfig {
     pub resimulate_per_replay: bool,
     /// Write a contact sheet of the sampled views.
     pub contact_sheet: bool,
+    /// Also write each camera's depth (`videos/<camera>_depth.npz`, float32 metres).
+    pub depth: bool,
 }
 
 /// One replay in the report.
@@ -110,6 +113,9 @@ pub struct ReplayRecord {
     pub deviation_at: Option<(usize, usize)>,
     /// Videos written, relative to the replay folder.
     pub videos: Vec<String>,
+    /// Depth files written (`videos/<camera>_depth.npz`), relative to the replay folder.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub depth: Vec<String>,
 }
 
 /// The result of replaying one source episode (physics only).
@@ -367,6 +373,8 @@ struct Pending {
     staging: PathBuf,
     sample: VisualSample,
     writers: Vec<(String, VideoWriter)>,
+    /// One per camera, in the order of `writers`, with `--depth`.
+    depth: Vec<DepthWriter>,
     preview: Option<dexjoco_sim::Frame>,
 }
 
@@ -419,16 +427,26 @@ fn render_unit(
         let seed = crate::randomize::replay_seed(config.seed, ep_key, r);
         let sample = VisualSample::sample(seed, &assets.pool, &assets.table, assets.nlight);
         let mut writers = Vec::new();
+        let mut depth = Vec::new();
         for cam in std::iter::once(THIRD_PERSON).chain(fixed.iter().map(|(c, _)| c.as_str())) {
             let w = VideoWriter::create(videos.join(format!("{cam}.mp4")), spec)
                 .map_err(video_err(id))?;
             writers.push((cam.to_owned(), w));
+            if config.depth {
+                depth.push(DepthWriter::create(
+                    videos.join(format!("{cam}_depth.npz")),
+                    n,
+                    spec.width,
+                    spec.height,
+                )?);
+            }
         }
         pending.push(Pending {
             index: r,
             staging,
             sample,
             writers,
+            depth,
             preview: None,
         });
     }
@@ -439,18 +457,24 @@ fn render_unit(
     with_renderer(
         &assets.key,
         &assets.scene.model,
-        config.settings,
+        RenderSettings {
+            depth: config.depth,
+            ..config.settings
+        },
         |renderer| {
             for k in 0..n {
                 rows.push(env.state());
                 for p in &mut pending {
                     let views = std::iter::once(p.sample.camera.view())
                         .chain(fixed.iter().map(|(_, i)| CameraView::Fixed(*i)));
-                    for (view, (_, writer)) in views.zip(p.writers.iter_mut()) {
+                    for (c, (view, (_, writer))) in views.zip(p.writers.iter_mut()).enumerate() {
                         renderer.update_scene(env.data_mut(), view);
                         apply_visuals(renderer, &p.sample, &assets.table);
                         let frame = renderer.draw().map_err(sim_err(id))?;
                         writer.write_frame(&frame.rgb).map_err(video_err(id))?;
+                        if let (Some(d), Some(depth)) = (p.depth.get_mut(c), &frame.depth) {
+                            d.write_frame(depth)?;
+                        }
                         if k == 0 && p.preview.is_none() {
                             p.preview = Some(frame);
                         }
@@ -477,9 +501,15 @@ fn render_unit(
     let mut records = Vec::new();
     for p in pending {
         let mut videos = Vec::new();
+        let mut depth = Vec::new();
+        let cams: Vec<String> = p.writers.iter().map(|(c, _)| c.clone()).collect();
         for (cam, w) in p.writers {
             w.finish().map_err(video_err(id))?;
             videos.push(format!("{}/{cam}.mp4", raw::VIDEOS));
+        }
+        for (d, cam) in p.depth.into_iter().zip(&cams) {
+            d.finish()?;
+            depth.push(format!("{}/{cam}_depth.npz", raw::VIDEOS));
         }
         let name = replay_name(id, p.index);
         let mut ep = Episode {
@@ -495,9 +525,11 @@ fn render_unit(
                         .chain(fixed.iter().map(|(c, _)| c.clone())),
                 )
                 .map(|(v, c)| CameraStream {
+                    depth: config
+                        .depth
+                        .then(|| PathBuf::from(format!("{}/{c}_depth.npz", raw::VIDEOS))),
                     name: c,
                     video: Some(PathBuf::from(v)),
-                    depth: None,
                 })
                 .collect(),
         };
@@ -530,6 +562,7 @@ fn render_unit(
             max_state_deviation: physics.deviation,
             deviation_at: physics.deviation_at,
             videos,
+            depth,
         };
         if let Some(frame) = &p.preview {
             let dir = out.join(PREVIEWS);

@@ -8,6 +8,7 @@
 //!   lands good episodes atomically and quarantines bad inputs with their reasons.
 //! - [`synth`]: valid synthetic episodes for tests and benchmarks.
 
+pub mod depth;
 mod error;
 pub mod raw;
 mod store;

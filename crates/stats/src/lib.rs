@@ -10,6 +10,7 @@
 //!   regime x policy, as Markdown, LaTeX (the paper's Table 2 layout) and CSV.
 //! - [`DatasetStats`] summarizes episodes: counts, lengths, per-dimension distributions
 //!   and openpi-style normalization statistics.
+//! - [`ReplayStats`] reads an augment report: replay success rates per task.
 //!
 //! The measures in [`measures`] follow SciPy and scikit-learn; the tests compare them.
 //! Standard deviations over seeds are sample standard deviations (divisor n - 1), as
@@ -22,6 +23,7 @@ mod language;
 pub mod measures;
 mod output;
 pub mod plot;
+mod replays;
 mod success;
 
 pub use dataset::{
@@ -33,6 +35,7 @@ pub use language::{
     MANIFEST_FILE, NONE_OUTPUT, Precision, Trial, format_p, infer_expected,
 };
 pub use measures::{ChiSquare, LogBase, MeanStd};
+pub use replays::{AUGMENT_REPORT, ReplayStats, TaskReplays};
 pub use success::{
     AverageCell, SuccessCell, SuccessTable, TASK_NAMES, latex_escape, regime_name, task_name,
 };

@@ -1,0 +1,221 @@
+//! Replay success rates from an augment report (`augment_report.json`, written by
+//! `dexjoco-data augment` beside its replay folders).
+//!
+//! Only the fields read here are relied on: `replays_per_episode`, `episodes[]` with
+//! `task` and `success`, and `replays[]` with `task`, `success` and
+//! `max_state_deviation`.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::StatsError;
+
+/// The augment report's file name.
+pub const AUGMENT_REPORT: &str = "augment_report.json";
+
+#[derive(Deserialize)]
+struct ReportFile {
+    replays_per_episode: usize,
+    episodes: Vec<EpisodeRow>,
+    replays: Vec<ReplayRow>,
+}
+
+#[derive(Deserialize)]
+struct EpisodeRow {
+    task: String,
+    success: bool,
+}
+
+#[derive(Deserialize)]
+struct ReplayRow {
+    task: String,
+    success: bool,
+    max_state_deviation: f64,
+}
+
+/// One task's replay outcome.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TaskReplays {
+    /// Task id.
+    pub task: String,
+    /// Source episodes replayed.
+    pub source_episodes: usize,
+    /// Source episodes whose replay succeeded.
+    pub source_successes: usize,
+    /// Replays asked for: source episodes x replays per episode.
+    pub replays_asked: usize,
+    /// Replays on disk (successful ones, plus failures kept with `--keep-failed`).
+    pub replays_kept: usize,
+    /// Replays on disk whose task succeeded.
+    pub replays_successful: usize,
+    /// Largest state deviation from the recording over the kept replays.
+    pub max_state_deviation: f64,
+}
+
+impl TaskReplays {
+    /// Source episodes whose replay succeeded, as a fraction (0 when there are none).
+    pub fn source_success_rate(&self) -> f64 {
+        ratio(self.source_successes, self.source_episodes)
+    }
+
+    /// Successful replays on disk / replays asked for.
+    pub fn yield_rate(&self) -> f64 {
+        ratio(self.replays_successful, self.replays_asked)
+    }
+}
+
+fn ratio(a: usize, b: usize) -> f64 {
+    if b == 0 { 0.0 } else { a as f64 / b as f64 }
+}
+
+/// Replay success rates per task, from an augment report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReplayStats {
+    /// Replays asked per source episode.
+    pub replays_per_episode: usize,
+    /// Per task, sorted by task id.
+    pub tasks: Vec<TaskReplays>,
+}
+
+impl ReplayStats {
+    /// Reads `augment_report.json` (the file itself, or the augment output folder holding
+    /// it). `Ok(None)` when a folder holds no report.
+    pub fn read(path: &Path) -> Result<Option<Self>, StatsError> {
+        let file = if path.is_dir() {
+            let f = path.join(AUGMENT_REPORT);
+            if !f.is_file() {
+                return Ok(None);
+            }
+            f
+        } else {
+            path.to_path_buf()
+        };
+        let bytes = fs_err::read(&file)?;
+        let report: ReportFile =
+            serde_json::from_slice(&bytes).map_err(|source| StatsError::Json {
+                path: file.clone(),
+                source,
+            })?;
+        Ok(Some(Self::from_report(report)))
+    }
+
+    fn from_report(report: ReportFile) -> Self {
+        let mut tasks: BTreeMap<String, TaskReplays> = BTreeMap::new();
+        fn entry<'a>(
+            tasks: &'a mut BTreeMap<String, TaskReplays>,
+            task: &str,
+        ) -> &'a mut TaskReplays {
+            tasks.entry(task.to_owned()).or_insert_with(|| TaskReplays {
+                task: task.to_owned(),
+                source_episodes: 0,
+                source_successes: 0,
+                replays_asked: 0,
+                replays_kept: 0,
+                replays_successful: 0,
+                max_state_deviation: 0.0,
+            })
+        }
+        for e in &report.episodes {
+            let t = entry(&mut tasks, &e.task);
+            t.source_episodes += 1;
+            t.source_successes += usize::from(e.success);
+            t.replays_asked += report.replays_per_episode;
+        }
+        for r in &report.replays {
+            let t = entry(&mut tasks, &r.task);
+            t.replays_kept += 1;
+            t.replays_successful += usize::from(r.success);
+            t.max_state_deviation = t.max_state_deviation.max(r.max_state_deviation);
+        }
+        Self {
+            replays_per_episode: report.replays_per_episode,
+            tasks: tasks.into_values().collect(),
+        }
+    }
+
+    /// A Markdown table: per task, source episodes replayed to success and the yield of
+    /// successful replays, plus a total row.
+    pub fn to_markdown(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = String::from(
+            "| Task | Source episodes | Replayed to success | Replays asked | Kept | Successful | Yield | Max state deviation |\n\
+             |---|---:|---:|---:|---:|---:|---:|---:|\n",
+        );
+        let mut total = TaskReplays {
+            task: "**all**".into(),
+            source_episodes: 0,
+            source_successes: 0,
+            replays_asked: 0,
+            replays_kept: 0,
+            replays_successful: 0,
+            max_state_deviation: 0.0,
+        };
+        for t in &self.tasks {
+            total.source_episodes += t.source_episodes;
+            total.source_successes += t.source_successes;
+            total.replays_asked += t.replays_asked;
+            total.replays_kept += t.replays_kept;
+            total.replays_successful += t.replays_successful;
+            total.max_state_deviation = total.max_state_deviation.max(t.max_state_deviation);
+        }
+        for t in self.tasks.iter().chain(std::iter::once(&total)) {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} ({:.0} %) | {} | {} | {} | {:.0} % | {:e} |",
+                t.task,
+                t.source_episodes,
+                t.source_successes,
+                100.0 * t.source_success_rate(),
+                t.replays_asked,
+                t.replays_kept,
+                t.replays_successful,
+                100.0 * t.yield_rate(),
+                t.max_state_deviation
+            );
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_per_task_and_in_total() {
+        let json = r#"{"replays_per_episode": 3,
+            "episodes": [
+              {"task": "a", "success": true, "replays_kept": 3},
+              {"task": "a", "success": false, "replays_kept": 1},
+              {"task": "b", "success": true, "replays_kept": 3}],
+            "replays": [
+              {"task": "a", "success": true, "max_state_deviation": 0.0},
+              {"task": "a", "success": true, "max_state_deviation": 0.0},
+              {"task": "a", "success": true, "max_state_deviation": 0.0},
+              {"task": "a", "success": false, "max_state_deviation": 0.25},
+              {"task": "b", "success": true, "max_state_deviation": 0.0},
+              {"task": "b", "success": true, "max_state_deviation": 0.0},
+              {"task": "b", "success": true, "max_state_deviation": 0.0}]}"#;
+        let r = ReplayStats::from_report(serde_json::from_str(json).unwrap());
+        assert_eq!(r.tasks.len(), 2);
+        let a = &r.tasks[0];
+        assert_eq!((a.source_episodes, a.source_successes), (2, 1));
+        assert_eq!(
+            (a.replays_asked, a.replays_kept, a.replays_successful),
+            (6, 4, 3)
+        );
+        assert!((a.yield_rate() - 0.5).abs() < 1e-12);
+        assert_eq!(a.max_state_deviation, 0.25);
+        let md = r.to_markdown();
+        assert!(
+            md.contains("| a | 2 | 1 (50 %) | 6 | 4 | 3 | 50 % | 2.5e-1 |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| **all** | 3 | 2 (67 %) | 9 | 7 | 6 | 67 % | 2.5e-1 |"),
+            "{md}"
+        );
+    }
+}
