@@ -239,3 +239,47 @@ fn depth_streams_to_npz_that_numpy_loads_and_equals_a_direct_render() {
         Some(Path::new("videos/front_depth.npz"))
     );
 }
+
+/// A click_mouse demonstration recorded on the DexJoCo reference scene, as a raw folder
+/// under `<dir>/click_mouse/`, then augmented with `--scene-dir` pointing at the reference
+/// scenes (and so the reference camera pool and table textures).
+#[test]
+fn a_recording_on_the_reference_scene_replays_to_success_with_scene_dir() {
+    let xmls = dexjoco_testkit::upstream_dir().join("xmls");
+    let spec = dexjoco_augment::builtin_spec("click_mouse").unwrap();
+    let source = SceneSource::Dir(xmls.clone());
+    let scene = dexjoco_sim::load_task_scene(&source, &spec).unwrap();
+    let mut x = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut uniform = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let s0 = dexjoco_sim::TaskEnv::sample_initial_state(&scene, &spec, &mut uniform).unwrap();
+    let ep = dexjoco_sim::scripted::click_mouse_demo(&scene, &spec, &s0, "episode_000000").unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let raw_dir = tmp.path().join("recorded/click_mouse/episode_000000");
+    dexjoco_ingest::raw::write_replay_zarr(&raw_dir, &ep).unwrap();
+
+    let out = tmp.path().join("aug");
+    let mut c = config(vec![tmp.path().join("recorded")], &out);
+    c.scene = source;
+    c.replays = 2;
+    c.max_frames = None;
+    c.keep_failed = false;
+    let report = run(&c, 2);
+    let e = &report.episodes[0];
+    assert!(e.success, "{e:?}");
+    assert_eq!(e.first_success, Some(ep.len() - 1));
+    assert_eq!(e.max_state_deviation, 0.0);
+    assert_eq!(report.replays.len(), 2);
+    let pool = &report.camera_pools["click_mouse"];
+    assert!(pool.ends_with("replay_cameras.json"), "{pool}");
+    // The table looks come from the reference texture library, not the built-in one.
+    let looks = &report.table_library["click_mouse"];
+    assert!(
+        looks.len() > 1 && looks.iter().all(|l| !l.starts_with("table_tex_")),
+        "{looks:?}"
+    );
+}
