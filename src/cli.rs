@@ -220,10 +220,10 @@ pub struct BenchAugmentArgs {
     /// Episodes to replay (default: the sample demos in datasets/demos).
     pub inputs: Vec<PathBuf>,
     /// Replays per episode.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 2)]
     pub replays: usize,
     /// Only the first N frames of each episode (keeps the benchmark short).
-    #[arg(long, default_value_t = 120)]
+    #[arg(long, default_value_t = 60)]
     pub max_frames: usize,
     /// Image sizes (square), comma-separated.
     #[arg(long = "size", value_delimiter = ',', default_values_t = [224, 640])]

@@ -241,6 +241,51 @@ fn reference_scenes_render_through_the_cli() {
 }
 
 #[test]
+fn bench_augment_compares_with_the_reference_approach() {
+    let dir = tempfile::tempdir().unwrap();
+    let demo = dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000");
+    let out = run(
+        &[
+            "-j",
+            "2",
+            "bench",
+            "augment",
+            demo.to_str().unwrap(),
+            "--size",
+            "32",
+            "--preset",
+            "fast",
+            "--replays",
+            "2",
+            "--max-frames",
+            "4",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let table = text(&out.stdout);
+    for row in [
+        "| 32x32 | fast | reference | 1 |",
+        "| 32x32 | fast | ours | 1 |",
+        "| 32x32 | fast | ours | 2 |",
+    ] {
+        assert!(table.contains(row), "{row} missing:\n{table}");
+    }
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("dexjoco-work/bench/augment.json")).unwrap(),
+    )
+    .unwrap();
+    let runs = json["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 3);
+    for r in runs {
+        assert_eq!(r["replays"], 2);
+        assert_eq!(r["frames"], 8);
+        assert!(r["speedup"].as_f64().unwrap() > 0.0);
+    }
+    assert_eq!(runs[0]["speedup"], 1.0);
+}
+
+#[test]
 fn bench_render_prints_a_table() {
     let dir = tempfile::tempdir().unwrap();
     let scene = probe_scene();

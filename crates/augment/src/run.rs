@@ -702,6 +702,11 @@ pub fn augment(
             r
         })
         .collect::<Result<_, _>>()?;
+    // Close every worker's renderer (and its EGL context) now, in order, rather than at
+    // process exit while other threads are still alive.
+    rayon::broadcast(|_| {
+        RENDERER.with(|cell| cell.borrow_mut().take());
+    });
     let rendered_now = rendered.iter().map(Vec::len).sum();
     let _ = fs_err::remove_dir(&staging);
 
