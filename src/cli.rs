@@ -84,6 +84,9 @@ pub enum Command {
     Export(ExportArgs),
     /// Replay each episode under sampled camera/light/texture randomization; keep successes.
     Augment(AugmentArgs),
+    /// Build a third-person camera pose pool for a task: sample poses on a sphere, keep the
+    /// least occluded (the DexJoCo paper's way); `augment --camera-pool` reads it.
+    Cameras(CamerasArgs),
     /// Convert episodes to LeRobot v3.0 / v2.1 or a Diffusion Policy Zarr replay buffer.
     Convert(ConvertArgs),
     /// Dataset statistics, success tables and the language-generalization analysis.
@@ -586,4 +589,61 @@ pub struct AugmentArgs {
     /// Output folder (default: <work-dir>/augment).
     #[arg(short, long)]
     pub out: Option<PathBuf>,
+}
+
+/// `cameras` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data cameras --task click_mouse --preview
+  dexjoco-data cameras --task bimanual_hanoi --scene-dir ../shared/dexjoco-upstream/xmls
+  dexjoco-data cameras --task click_mouse --count 30 --elevation -10,-40 --azimuth -70,70 --out my_pool.json
+  dexjoco-data augment --camera-pool my_pool.json --replays 10
+
+Poses are sampled uniformly on the sphere band around the look-at point (0, 0, 1):
+uniform azimuth, uniform sine of the altitude. Each is scored in the task's default initial
+state by casting a ray from the camera to the centre of every visible geom of the task's
+objects (its state objects and derived poses); a point is occluded when the first visible
+geom the ray hits belongs to something else (robot, table, another object). The --count
+least occluded poses are kept and written as {\"rows\": [[azimuth, elevation, distance, 45],
+...]}, the format of the reference replay_cameras.json. Defaults follow the reference
+pools: 1.4 m and elevations -2..-30 for one arm, 2.4 m and -25..-50 for two.")]
+pub struct CamerasArgs {
+    /// Task id (its scene and objects).
+    #[arg(long)]
+    pub task: String,
+    /// Scene pack folder (e.g. the DexJoCo xmls/); default: the built-in scenes.
+    #[arg(long)]
+    pub scene_dir: Option<PathBuf>,
+    /// Poses kept.
+    #[arg(long, default_value_t = 50)]
+    pub count: usize,
+    /// Poses sampled and scored.
+    #[arg(long, default_value_t = 2000)]
+    pub candidates: usize,
+    /// Distance from the look-at point in metres (default: 1.4 one arm, 2.4 two arms).
+    #[arg(long)]
+    pub distance: Option<f64>,
+    /// Elevation band in degrees, negative = above, e.g. -2,-30.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        num_args = 2,
+        allow_negative_numbers = true
+    )]
+    pub elevation: Option<Vec<f64>>,
+    /// Azimuth band in degrees, e.g. -90,90.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        num_args = 2,
+        allow_negative_numbers = true
+    )]
+    pub azimuth: Option<Vec<f64>>,
+    /// Pool file (default: <work-dir>/cameras/<task>.json).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+    /// Also write a contact sheet of 16 kept views (<out>_preview.png).
+    #[arg(long)]
+    pub preview: bool,
 }

@@ -544,3 +544,75 @@ fn convert_writes_diffusion_policy_v21_and_norm_stats() {
     );
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
 }
+
+#[test]
+fn cameras_writes_a_pool_that_augment_uses() {
+    let dir = tempfile::tempdir().unwrap();
+    let pool = dir.path().join("pool.json");
+    let out = run(
+        &[
+            "cameras",
+            "--task",
+            "click_mouse",
+            "--count",
+            "10",
+            "--candidates",
+            "200",
+            "--out",
+            pool.to_str().unwrap(),
+            "--preview",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(stdout.contains("10 of 200 poses kept"), "{stdout}");
+    assert!(dir.path().join("pool_preview.png").is_file());
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&pool).unwrap()).unwrap();
+    let rows = json["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 10);
+    assert!(rows.iter().all(|r| r[2] == 1.4 && r[3] == 45.0));
+
+    let demo = dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000");
+    let aug = dir.path().join("aug");
+    let out = run(
+        &[
+            "-q",
+            "augment",
+            demo.to_str().unwrap(),
+            "--camera-pool",
+            pool.to_str().unwrap(),
+            "--replays",
+            "1",
+            "--max-frames",
+            "3",
+            "--size",
+            "32",
+            "--keep-failed",
+            "--out",
+            aug.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    // The first 3 frames do not reach success: exit 3 (partial), replay kept.
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(aug.join("augment_report.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        report["camera_pools"]["click_mouse"].as_str().unwrap(),
+        pool.to_str().unwrap()
+    );
+    let cam = &report["replays"][0]["sample"]["camera"];
+    assert!(
+        rows.iter()
+            .any(|r| r[0] == cam["azimuth"] && r[1] == cam["elevation"]),
+        "{cam} is not from the pool"
+    );
+
+    // An unknown task is a usage error naming it.
+    let out = run(&["cameras", "--task", "no_such_task"], dir.path());
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("no_such_task"));
+}

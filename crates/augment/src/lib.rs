@@ -7,10 +7,12 @@
 //! trajectory, each replay streaming its frames to its own encoder. Each replay gets its
 //! own seed derived from (global seed, episode id, replay index).
 
+mod camera_pool;
 mod error;
 mod randomize;
 mod run;
 
+pub use camera_pool::{BuiltPool, PoolOptions, ScoredPose, build_pool, occlusion};
 pub use error::AugmentError;
 pub use randomize::{
     CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,

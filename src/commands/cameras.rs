@@ -1,0 +1,125 @@
+//! `dexjoco-data cameras`: a third-person camera pose pool for a task, built the DexJoCo
+//! paper's way (uniform on a sphere, least occluded kept).
+
+use anyhow::Context;
+use dexjoco_augment::{PoolOptions, build_pool, builtin_spec};
+use dexjoco_sim::{
+    EnvOptions, RenderQuality, RenderSettings, Renderer, SceneSource, TaskEnv, load_task_scene,
+};
+
+use crate::cli::{CamerasArgs, GlobalArgs};
+use crate::exit::{CliError, ExitStatus};
+
+/// Runs `cameras`.
+pub fn run(global: &GlobalArgs, args: &CamerasArgs) -> anyhow::Result<ExitStatus> {
+    let spec = builtin_spec(&args.task).ok_or_else(|| CliError {
+        message: format!("unknown task '{}'", args.task),
+        hint: Some(format!(
+            "tasks: {}",
+            dexjoco_core::TASKS
+                .iter()
+                .map(|t| t.id)
+                .collect::<Vec<_>>()
+                .join(", ")
+        )),
+        status: ExitStatus::Usage,
+    })?;
+    let source = SceneSource::from_option(args.scene_dir.clone());
+    let scene = load_task_scene(&source, &spec)
+        .with_context(|| format!("loading the scene of '{}'", spec.id))?;
+    let mut options = PoolOptions::for_setup(spec.setup);
+    options.count = args.count;
+    options.candidates = args.candidates;
+    options.seed = global.seed;
+    if let Some(d) = args.distance {
+        options.distance = d;
+    }
+    if let Some(e) = &args.elevation {
+        options.elevation = (e[0], e[1]);
+    }
+    if let Some(a) = &args.azimuth {
+        options.azimuth = (a[0], a[1]);
+    }
+    let bar = crate::progress::bar(0, "scoring poses", global.quiet);
+    bar.set_message(format!("{} candidates", options.candidates));
+    let built = build_pool(&scene, &spec, &options).map_err(|e| CliError {
+        message: e.to_string(),
+        hint: None,
+        status: ExitStatus::Usage,
+    })?;
+    bar.finish_and_clear();
+
+    let out = args.out.clone().unwrap_or_else(|| {
+        global
+            .work_dir
+            .join("cameras")
+            .join(format!("{}.json", spec.id))
+    });
+    dexjoco_ingest::write_atomic(&out, built.to_json().as_bytes())
+        .with_context(|| format!("writing {}", out.display()))?;
+
+    let stats = |v: &mut dyn Iterator<Item = f64>| {
+        let v: Vec<f64> = v.collect();
+        let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+        let min = v.iter().copied().fold(f64::INFINITY, f64::min);
+        let max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (min, mean, max)
+    };
+    let all = stats(&mut built.candidates.iter().map(|c| c.occlusion));
+    let kept = stats(&mut built.kept.iter().map(|c| c.occlusion));
+    println!(
+        "{}: {} of {} poses kept ({} target points on {})",
+        spec.id,
+        built.kept.len(),
+        built.candidates.len(),
+        built.targets,
+        built.target_bodies.join(", ")
+    );
+    println!();
+    println!("| poses | occluded fraction min | mean | max |");
+    println!("|---|---:|---:|---:|");
+    println!(
+        "| kept ({}) | {:.3} | {:.3} | {:.3} |",
+        built.kept.len(),
+        kept.0,
+        kept.1,
+        kept.2
+    );
+    println!(
+        "| all candidates ({}) | {:.3} | {:.3} | {:.3} |",
+        built.candidates.len(),
+        all.0,
+        all.1,
+        all.2
+    );
+    println!();
+    println!("pool: {}", out.display());
+
+    if args.preview {
+        let state0 = TaskEnv::default_initial_state(&scene, &spec)?;
+        let mut env = TaskEnv::from_initial_state(&scene, &spec, &state0, EnvOptions::default())?;
+        let mut r = Renderer::new(
+            &scene.model,
+            RenderSettings {
+                width: 240,
+                height: 240,
+                quality: RenderQuality::FAST,
+                depth: false,
+            },
+        )?;
+        let n = built.kept.len();
+        let picks: Vec<usize> = (0..n.min(16)).map(|i| i * n / n.min(16)).collect();
+        let mut frames = Vec::with_capacity(picks.len());
+        for i in picks {
+            frames.push(r.render(env.data_mut(), built.kept[i].pose.view())?);
+        }
+        let stem = out.with_extension("");
+        let sheet = stem.with_file_name(format!(
+            "{}_preview.png",
+            stem.file_name().unwrap_or_default().to_string_lossy()
+        ));
+        super::render::contact_sheet(&frames, &sheet)?;
+        println!("preview: {}", sheet.display());
+    }
+    Ok(ExitStatus::Success)
+}
