@@ -21,16 +21,20 @@ BIN="$ROOT/target/release/dexjoco-data"
 # episode store; replayed 10 times each under camera/light/table randomization (224 px,
 # fast preset, so it takes minutes on a 2-core CPU; drop the flags for the reference's
 # 640 px multisampled look); converted to LeRobot v3.0 and a Diffusion Policy replay
-# buffer with openpi norm stats; dataset statistics of the augmented set.
+# buffer with openpi norm stats; dataset statistics of the augmented set, with the replay
+# success rates from the augment report.
 "$BIN" ingest datasets/demos
 "$BIN" augment dexjoco-work/ingest --replays 10 --size 224 --quality fast
 "$BIN" convert --overwrite --merge-bimanual
 "$BIN" convert --format diffusion-policy --norm-stats --overwrite --merge-bimanual
 "$BIN" stats --dataset dexjoco-work/augment
+# A camera pose pool for click_mouse, built the paper's way (least occluded of 2000
+# poses sampled on a sphere), with a preview sheet.
+"$BIN" cameras --task click_mouse --preview
 # A picture of every task: the built-in scenes (next to the reference ones when
 # ../shared/dexjoco-upstream is present).
 "$BIN" render --task all --size 240 --quality fast
 # The language-generalization analysis and success tables on the shipped EXAMPLE
 # evaluation outputs (made up by a script, not results).
 "$BIN" stats --language-eval --success-table
-echo "done: see dexjoco-work/augment/ (augment_report.md, contact_sheet.png), dexjoco-work/convert/, dexjoco-work/stats/ and dexjoco-work/render/" >&2
+echo "done: see dexjoco-work/augment/ (augment_report.md, contact_sheet.png), dexjoco-work/convert/, dexjoco-work/stats/, dexjoco-work/cameras/ and dexjoco-work/render/" >&2

@@ -930,6 +930,14 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// Syncs a fully written temporary file and renames it to `path`.
 pub(crate) fn persist_synced(tmp: tempfile::NamedTempFile, path: &Path) -> Result<()> {
+    // Temporary files are created owner-only; the finished file is an ordinary one.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))
+            .map_err(io_err("set permissions of", tmp.path()))?;
+    }
     tmp.as_file()
         .sync_all()
         .map_err(io_err("sync", tmp.path()))?;
