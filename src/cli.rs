@@ -544,6 +544,7 @@ Examples:
   dexjoco-data augment recordings/ --replays 5 --size 224 --quality fast
   dexjoco-data augment --replays 2 --camera handcam_rgb --keep-failed --out aug/
   dexjoco-data augment --replays 2 --camera front --depth --size 224  # + <camera>_depth.npz
+  dexjoco-data augment --replays 10 --dynamics           # + mass/friction/stiffness per replay
 
 Output: one DexJoCo raw folder per replay, <out>/<task>/<episode>__rNN/ (replay.zarr with
 the recorded actions, recomputed state and action_rotvec; videos/third_person.mp4 plus one
@@ -583,6 +584,11 @@ pub struct AugmentArgs {
     /// 640x640 frame before compression.
     #[arg(long)]
     pub depth: bool,
+    /// Randomize dynamics per replay as the task spec says (object masses, joint friction
+    /// losses and stiffnesses, drawn from the scene's values); each replay is then
+    /// simulated on its own and kept only if the task still succeeds.
+    #[arg(long)]
+    pub dynamics: bool,
     /// Only the first N frames of each episode (a quick look; success needs the whole).
     #[arg(long)]
     pub max_frames: Option<usize>,

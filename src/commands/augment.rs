@@ -72,6 +72,7 @@ pub fn run(global: &GlobalArgs, args: &AugmentArgs) -> anyhow::Result<ExitStatus
         resimulate_per_replay: false,
         contact_sheet: true,
         depth: args.depth,
+        dynamics: args.dynamics,
     };
     let bar = crate::progress::bar(0, "augment", global.quiet);
     let started = std::time::Instant::now();

@@ -90,6 +90,7 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
                     resimulate_per_replay: resimulate,
                     contact_sheet: false,
                     depth: false,
+                    dynamics: false,
                 };
                 let (report, seconds) = timed(&config, threads)?;
                 if device.is_empty() {

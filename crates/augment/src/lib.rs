@@ -8,11 +8,13 @@
 //! own seed derived from (global seed, episode id, replay index).
 
 mod camera_pool;
+mod dynamics;
 mod error;
 mod randomize;
 mod run;
 
 pub use camera_pool::{BuiltPool, PoolOptions, ScoredPose, build_pool, occlusion};
+pub use dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, read_dynamics, sample_dynamics};
 pub use error::AugmentError;
 pub use randomize::{
     CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,

@@ -17,6 +17,7 @@ use dexjoco_video::{Codec, VideoSpec, VideoWriter};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, sample_dynamics};
 use crate::error::{AugmentError, io_err};
 use crate::randomize::{CameraPool, TableLibrary, VisualSample, apply_visuals, builtin_pool};
 
@@ -86,6 +87,9 @@ pub struct AugmentConfig {
     pub contact_sheet: bool,
     /// Also write each camera's depth (`videos/<camera>_depth.npz`, float32 metres).
     pub depth: bool,
+    /// Dynamics randomization per replay (the task spec's `[[dynamics]]`): every replay is
+    /// simulated on its own model copy and kept only if the task still succeeds.
+    pub dynamics: bool,
 }
 
 /// One replay in the report.
@@ -116,6 +120,9 @@ pub struct ReplayRecord {
     /// Depth files written (`videos/<camera>_depth.npz`), relative to the replay folder.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub depth: Vec<String>,
+    /// The dynamics drawn for this replay (`--dynamics`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dynamics: Option<Vec<DynamicsValue>>,
 }
 
 /// The result of replaying one source episode (physics only).
@@ -375,6 +382,8 @@ struct Pending {
     writers: Vec<(String, VideoWriter)>,
     /// One per camera, in the order of `writers`, with `--depth`.
     depth: Vec<DepthWriter>,
+    /// The drawn dynamics, with `--dynamics`.
+    dynamics: Option<Vec<DynamicsValue>>,
     preview: Option<dexjoco_sim::Frame>,
 }
 
@@ -426,6 +435,15 @@ fn render_unit(
         fs_err::create_dir_all(&videos).map_err(io_err("create", &videos))?;
         let seed = crate::randomize::replay_seed(config.seed, ep_key, r);
         let sample = VisualSample::sample(seed, &assets.pool, &assets.table, assets.nlight);
+        let dynamics = if config.dynamics {
+            Some(sample_dynamics(
+                &src.spec,
+                &assets.scene.model,
+                dynamics_seed(seed),
+            )?)
+        } else {
+            None
+        };
         let mut writers = Vec::new();
         let mut depth = Vec::new();
         for cam in std::iter::once(THIRD_PERSON).chain(fixed.iter().map(|(c, _)| c.as_str())) {
@@ -447,13 +465,29 @@ fn render_unit(
             sample,
             writers,
             depth,
+            dynamics,
             preview: None,
         });
     }
 
-    let mut env = new_env(src, assets)?;
+    // With --dynamics a unit holds one replay, simulated on its own model copy.
+    let mut env = match pending.first().and_then(|p| p.dynamics.as_ref()) {
+        Some(values) => {
+            debug_assert_eq!(pending.len(), 1);
+            let model = apply_dynamics(&src.spec, &assets.scene.model, values)?;
+            let scene = Scene {
+                model: Arc::new(model),
+                path: assets.scene.path.clone(),
+            };
+            let state0 = src.episode.array(Episode::STATE).expect("checked").row(0);
+            TaskEnv::from_initial_state(&scene, &src.spec, state0, EnvOptions::default())
+                .map_err(sim_err(id))?
+        }
+        None => new_env(src, assets)?,
+    };
     let actions = src.episode.array(Episode::ACTION).expect("checked");
     let mut rows = Vec::with_capacity(n);
+    let mut first_success = None;
     with_renderer(
         &assets.key,
         &assets.scene.model,
@@ -480,22 +514,50 @@ fn render_unit(
                         }
                     }
                 }
-                env.step(actions.row(k)).map_err(sim_err(id))?;
+                let v = env.step(actions.row(k)).map_err(sim_err(id))?;
+                if v.success && first_success.is_none() {
+                    first_success = Some(k);
+                }
             }
             Ok(())
         },
     )?;
-    // This simulation must be the validated one, bit for bit.
     let replayed = FrameArray::from_rows(&rows).map_err(|e| AugmentError::Input(e.to_string()))?;
-    if replayed
-        .as_slice()
-        .iter()
-        .zip(physics.states.as_slice())
-        .any(|(a, b)| a.to_bits() != b.to_bits())
-    {
-        return Err(AugmentError::Input(format!(
-            "episode '{id}': the rendering simulation diverged from the validation one"
-        )));
+    let randomized_dynamics = pending.iter().any(|p| p.dynamics.is_some());
+    // Without --dynamics this simulation must be the validated one, bit for bit; with
+    // it, this simulation is the replay's own, and says whether it succeeded.
+    let (states, first_success, max_dev, dev_at) = if randomized_dynamics {
+        let recorded = src.episode.array(Episode::STATE).expect("checked");
+        let (d, at) = deviation(&replayed, recorded);
+        (replayed, first_success, d, at)
+    } else {
+        if replayed
+            .as_slice()
+            .iter()
+            .zip(physics.states.as_slice())
+            .any(|(a, b)| a.to_bits() != b.to_bits())
+        {
+            return Err(AugmentError::Input(format!(
+                "episode '{id}': the rendering simulation diverged from the validation one"
+            )));
+        }
+        (
+            physics.states.clone(),
+            physics.first_success,
+            physics.deviation,
+            physics.deviation_at,
+        )
+    };
+    if randomized_dynamics && first_success.is_none() && !config.keep_failed {
+        // The task failed under these dynamics: nothing of this replay is kept.
+        for p in pending {
+            for (_, w) in p.writers {
+                let _ = w.finish();
+            }
+            let _ = fs_err::remove_dir_all(&p.staging);
+            tracing::debug!(episode = %id, replay = p.index, "failed under randomized dynamics; dropped");
+        }
+        return Ok(Vec::new());
     }
 
     let mut records = Vec::new();
@@ -542,8 +604,7 @@ fn render_unit(
             Episode::ACTION.into(),
             take(Episode::ACTION).expect("checked"),
         );
-        ep.arrays
-            .insert(Episode::STATE.into(), physics.states.clone());
+        ep.arrays.insert(Episode::STATE.into(), states.clone());
         let ts = take(Episode::TIMESTAMP)
             .unwrap_or_else(|| Episode::regular_timestamps(n, src.episode.fps));
         ep.arrays.insert(Episode::TIMESTAMP.into(), ts);
@@ -556,13 +617,14 @@ fn render_unit(
             episode: id.clone(),
             replay: p.index,
             sample: p.sample,
-            success: physics.first_success.is_some(),
-            first_success: physics.first_success,
+            success: first_success.is_some(),
+            first_success,
             steps: n,
-            max_state_deviation: physics.deviation,
-            deviation_at: physics.deviation_at,
+            max_state_deviation: max_dev,
+            deviation_at: dev_at,
             videos,
             depth,
+            dynamics: p.dynamics,
         };
         if let Some(frame) = &p.preview {
             let dir = out.join(PREVIEWS);
@@ -667,7 +729,7 @@ pub fn augment(
         if todo.is_empty() {
             continue;
         }
-        let per_unit = if config.resimulate_per_replay {
+        let per_unit = if config.resimulate_per_replay || config.dynamics {
             1
         } else {
             // Enough units to keep every worker busy; the output never depends on it.
@@ -813,6 +875,29 @@ fn write_report(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> 
             a[2],
             if r.success { "yes" } else { "FAILED (kept)" }
         ));
+    }
+    if report.replays.iter().any(|r| r.dynamics.is_some()) {
+        md.push_str("\n## Dynamics (`--dynamics`)\n\n| replay | success | max state deviation | drawn values (original -> used) |\n|---|---|---:|---|\n");
+        for r in &report.replays {
+            let values = r.dynamics.as_deref().unwrap_or_default();
+            let cells: Vec<String> = values
+                .iter()
+                .map(|v| {
+                    format!(
+                        "{} {}: {:.4} -> {:.4}",
+                        v.kind, v.target, v.original, v.value
+                    )
+                })
+                .collect();
+            md.push_str(&format!(
+                "| {}/{} | {} | {:.3e} | {} |\n",
+                r.task,
+                r.name,
+                if r.success { "yes" } else { "FAILED (kept)" },
+                r.max_state_deviation,
+                cells.join("; ")
+            ));
+        }
     }
     write_atomic(&out.join(REPORT_MD), md.as_bytes())
 }

@@ -32,6 +32,7 @@ fn config(inputs: Vec<PathBuf>, out: &Path) -> AugmentConfig {
         resimulate_per_replay: false,
         contact_sheet: false,
         depth: false,
+        dynamics: false,
     }
 }
 
@@ -282,4 +283,106 @@ fn a_recording_on_the_reference_scene_replays_to_success_with_scene_dir() {
         looks.len() > 1 && looks.iter().all(|l| !l.starts_with("table_tex_")),
         "{looks:?}"
     );
+}
+
+#[test]
+fn dynamics_are_drawn_in_the_spec_ranges_per_replay_and_change_the_physics() {
+    use dexjoco_core::DynamicsRandomization as D;
+    let spec = dexjoco_augment::builtin_spec("click_mouse").unwrap();
+    assert!(!spec.dynamics.is_empty());
+    let scene = dexjoco_sim::load_task_scene(&SceneSource::BuiltIn, &spec).unwrap();
+    let original = dexjoco_augment::read_dynamics(&spec, &scene.model).unwrap();
+    let ranges: Vec<(bool, [f64; 2])> = spec
+        .dynamics
+        .iter()
+        .map(|d| match d {
+            D::FrictionlossUniform { range, .. } => (false, *range),
+            D::MassScale { range, .. }
+            | D::FrictionlossScale { range, .. }
+            | D::StiffnessScale { range, .. } => (true, *range),
+        })
+        .collect();
+    let mut draws = Vec::new();
+    for seed in 0..20 {
+        let v = dexjoco_augment::sample_dynamics(&spec, &scene.model, seed).unwrap();
+        for ((d, &(scale, r)), o) in v.iter().zip(&ranges).zip(&original) {
+            assert_eq!(d.original, *o);
+            let (lo, hi) = if scale {
+                (o * r[0], o * r[1])
+            } else {
+                (r[0], r[1])
+            };
+            assert!(d.value >= lo && d.value <= hi, "{d:?} outside [{lo}, {hi}]");
+        }
+        let m = dexjoco_augment::apply_dynamics(&spec, &scene.model, &v).unwrap();
+        let applied = dexjoco_augment::read_dynamics(&spec, &m).unwrap();
+        assert_eq!(applied, v.iter().map(|d| d.value).collect::<Vec<_>>());
+        draws.push(v);
+    }
+    // The scene's model is untouched, and the draws differ.
+    assert_eq!(
+        dexjoco_augment::read_dynamics(&spec, &scene.model).unwrap(),
+        original
+    );
+    assert!(draws.windows(2).all(|w| w[0] != w[1]));
+
+    // Whole click_mouse episodes (the hand pushes the mouse, whose mass is drawn).
+    let tmp = tempfile::tempdir().unwrap();
+    let inputs = vec![demos().join("click_mouse/episode_000000")];
+    let mut c = config(inputs.clone(), &tmp.path().join("dyn1"));
+    c.settings.width = 32;
+    c.settings.height = 32;
+    c.max_frames = None;
+    c.dynamics = true;
+    let one = run(&c, 1);
+    assert_eq!(one.replays.len(), 2, "keep_failed keeps both");
+    for r in &one.replays {
+        let v = r.dynamics.as_ref().expect("drawn values in the report");
+        assert_eq!(v.len(), spec.dynamics.len());
+    }
+    assert_ne!(one.replays[0].dynamics, one.replays[1].dynamics);
+    assert!(
+        one.replays.iter().any(|r| r.max_state_deviation > 0.0),
+        "randomized masses left the physics unchanged: {:?}",
+        one.replays
+            .iter()
+            .map(|r| (r.max_state_deviation, r.success))
+            .collect::<Vec<_>>()
+    );
+    // The state written is the replay's own simulation.
+    let rec = &one.replays[0];
+    let ep =
+        dexjoco_ingest::read_stored_episode(&tmp.path().join("dyn1/click_mouse").join(&rec.name))
+            .unwrap();
+    let src = dexjoco_ingest::read_stored_episode(&inputs[0]).unwrap();
+    let (a, b) = (
+        ep.array(dexjoco_core::Episode::STATE).unwrap(),
+        src.array(dexjoco_core::Episode::STATE).unwrap(),
+    );
+    let dev = a
+        .as_slice()
+        .iter()
+        .zip(b.as_slice())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    assert_eq!(dev, rec.max_state_deviation);
+
+    // Same seed, two workers: the same bytes.
+    c.out = tmp.path().join("dyn2");
+    let two = run(&c, 2);
+    assert_eq!(
+        tree(&tmp.path().join("dyn1")),
+        tree(&tmp.path().join("dyn2"))
+    );
+    assert_eq!(one.replays, two.replays);
+
+    // The visual draw of a replay does not depend on --dynamics.
+    c.out = tmp.path().join("plain");
+    c.dynamics = false;
+    c.max_frames = Some(4);
+    let plain = run(&c, 2);
+    for (a, b) in plain.replays.iter().zip(&one.replays) {
+        assert_eq!(a.sample, b.sample);
+        assert!(a.dynamics.is_none());
+    }
 }
