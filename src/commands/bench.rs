@@ -78,15 +78,7 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
                     depth: false,
                 };
                 let mut r = Renderer::new(&scene.model, settings)?;
-                device = format!(
-                    "{} ({})",
-                    r.device().gl_renderer.as_deref().unwrap_or("unknown GL"),
-                    if r.device().software {
-                        "software"
-                    } else {
-                        "GPU"
-                    }
-                );
+                device = r.device().label();
                 for _ in 0..3 {
                     r.render(&mut data, CameraView::Fixed(camera))?;
                 }

@@ -98,17 +98,7 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
                         &dexjoco_sim::Scene::from_xml_str(super::TABLETOP_XML, "probe")?.model,
                         config.settings,
                     )
-                    .map(|r| {
-                        format!(
-                            "{} ({})",
-                            r.device().gl_renderer.as_deref().unwrap_or("unknown GL"),
-                            if r.device().software {
-                                "software"
-                            } else {
-                                "GPU"
-                            }
-                        )
-                    })
+                    .map(|r| r.device().label())
                     .unwrap_or_default();
                 }
                 let replays = report.replays.len();

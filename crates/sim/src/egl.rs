@@ -37,6 +37,17 @@ pub struct EglDevice {
     pub error: Option<String>,
 }
 
+impl EglDevice {
+    /// `GL_RENDERER (software|GPU)`, as benchmark tables name the device.
+    pub fn label(&self) -> String {
+        format!(
+            "{} ({})",
+            self.gl_renderer.as_deref().unwrap_or("unknown GL"),
+            if self.software { "software" } else { "GPU" }
+        )
+    }
+}
+
 /// Every EGL device and whether an offscreen context opens on it.
 #[derive(Debug, Clone, Serialize)]
 pub struct EglProbe {

@@ -55,6 +55,18 @@ pub struct TaskReplays {
 }
 
 impl TaskReplays {
+    fn empty(task: &str) -> Self {
+        Self {
+            task: task.to_owned(),
+            source_episodes: 0,
+            source_successes: 0,
+            replays_asked: 0,
+            replays_kept: 0,
+            replays_successful: 0,
+            max_state_deviation: 0.0,
+        }
+    }
+
     /// Source episodes whose replay succeeded, as a fraction (0 when there are none).
     pub fn source_success_rate(&self) -> f64 {
         ratio(self.source_successes, self.source_episodes)
@@ -107,15 +119,9 @@ impl ReplayStats {
             tasks: &'a mut BTreeMap<String, TaskReplays>,
             task: &str,
         ) -> &'a mut TaskReplays {
-            tasks.entry(task.to_owned()).or_insert_with(|| TaskReplays {
-                task: task.to_owned(),
-                source_episodes: 0,
-                source_successes: 0,
-                replays_asked: 0,
-                replays_kept: 0,
-                replays_successful: 0,
-                max_state_deviation: 0.0,
-            })
+            tasks
+                .entry(task.to_owned())
+                .or_insert_with(|| TaskReplays::empty(task))
         }
         for e in &report.episodes {
             let t = entry(&mut tasks, &e.task);
@@ -143,15 +149,7 @@ impl ReplayStats {
             "| Task | Source episodes | Replayed to success | Replays asked | Kept | Successful | Yield | Max state deviation |\n\
              |---|---:|---:|---:|---:|---:|---:|---:|\n",
         );
-        let mut total = TaskReplays {
-            task: "**all**".into(),
-            source_episodes: 0,
-            source_successes: 0,
-            replays_asked: 0,
-            replays_kept: 0,
-            replays_successful: 0,
-            max_state_deviation: 0.0,
-        };
+        let mut total = TaskReplays::empty("**all**");
         for t in &self.tasks {
             total.source_episodes += t.source_episodes;
             total.source_successes += t.source_successes;
