@@ -184,7 +184,8 @@ pub struct RenderArgs {
     /// (default: ../shared/dexjoco-upstream/xmls when present).
     #[arg(long, requires = "task")]
     pub scene_dir: Option<PathBuf>,
-    /// With --task: the folder of task specs (default: schemas/tasks).
+    /// With --task: a folder of task specs to use instead of the ones built in (the
+    /// repository's schemas/tasks).
     #[arg(long, requires = "task")]
     pub tasks_dir: Option<PathBuf>,
 }

@@ -546,6 +546,57 @@ fn convert_writes_diffusion_policy_v21_and_norm_stats() {
 }
 
 #[test]
+fn render_task_uses_the_specs_built_in_outside_the_checkout() {
+    // The working folder is a temporary one: no schemas/tasks beside it.
+    let dir = tempfile::tempdir().unwrap();
+    let out = run(
+        &[
+            "-q",
+            "render",
+            "--task",
+            "click_mouse",
+            "--camera",
+            "front",
+            "--size",
+            "32",
+            "--quality",
+            "fast",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let png = dir
+        .path()
+        .join("dexjoco-work/render/click_mouse_builtin_front.png");
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (32, 32));
+
+    let out = run(&["render", "--task", "no_such_task"], dir.path());
+    assert!(!out.status.success());
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("unknown task 'no_such_task'") && err.contains("click_mouse"),
+        "{err}"
+    );
+
+    // --tasks-dir replaces the built-in specs: an empty folder has no click_mouse.
+    let empty = dir.path().join("specs");
+    std::fs::create_dir(&empty).unwrap();
+    let out = run(
+        &[
+            "render",
+            "--task",
+            "click_mouse",
+            "--tasks-dir",
+            empty.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert!(!out.status.success());
+    assert!(text(&out.stderr).contains("unknown task 'click_mouse' (tasks: )"));
+}
+
+#[test]
 fn cameras_writes_a_pool_that_augment_uses() {
     let dir = tempfile::tempdir().unwrap();
     let pool = dir.path().join("pool.json");

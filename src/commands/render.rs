@@ -194,16 +194,12 @@ pub fn contact_sheet(frames: &[Frame], path: &PathBuf) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The task specs folder: `--tasks-dir`, else `schemas/tasks` here or in the checkout.
-fn tasks_dir(args: &RenderArgs) -> PathBuf {
-    if let Some(d) = &args.tasks_dir {
-        return d.clone();
-    }
-    let here = PathBuf::from("schemas/tasks");
-    if here.is_dir() {
-        here
-    } else {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/tasks")
+/// The task specs: those in `--tasks-dir`, else the ones shipped in this build.
+fn task_specs(args: &RenderArgs) -> anyhow::Result<Vec<TaskSpec>> {
+    match &args.tasks_dir {
+        Some(dir) => TaskSpec::load_dir(dir)
+            .with_context(|| format!("cannot read the task specs in '{}'", dir.display())),
+        None => Ok(TaskSpec::builtin_all()),
     }
 }
 
@@ -240,9 +236,7 @@ fn render_task_scene(
 
 /// `render --task T|all`.
 fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Result<ExitStatus> {
-    let dir = tasks_dir(args);
-    let specs = TaskSpec::load_dir(&dir)
-        .with_context(|| format!("cannot read the task specs in '{}'", dir.display()))?;
+    let specs = task_specs(args)?;
     let out = args
         .out
         .clone()

@@ -34,28 +34,9 @@ const TABLE_GEOM: &str = "table_visual";
 const STAGING: &str = ".staging";
 const PREVIEWS: &str = ".previews";
 
-/// The task specs shipped with this build, by id.
+/// The task specs shipped with this build, by id (see [`TaskSpec::builtin`]).
 pub fn builtin_spec(task: &str) -> Option<TaskSpec> {
-    macro_rules! specs {
-        ($($id:literal),*) => {
-            [$(($id, include_str!(concat!("../../../schemas/tasks/", $id, ".toml")))),*]
-        };
-    }
-    let all = specs!(
-        "bimanual_assembly",
-        "bimanual_hanoi",
-        "bimanual_microwave_cook",
-        "bimanual_photograph",
-        "bimanual_unlock_ipad",
-        "click_mouse",
-        "fold_glasses",
-        "hammer_nail",
-        "pick_bucket",
-        "pinch_tongs",
-        "water_plant"
-    );
-    let (id, text) = all.into_iter().find(|(id, _)| *id == task)?;
-    TaskSpec::from_toml_str(text, id).ok()
+    TaskSpec::builtin(task)
 }
 
 /// What to do.

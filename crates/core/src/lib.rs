@@ -17,7 +17,7 @@ pub use error::{CoreError, Location};
 pub use layout::{ArmSetup, ArrayLayout, FieldSlice, HAND_DOF, POSE_DIM, ROTVEC_POSE_DIM};
 pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};
 pub use task_spec::{
-    ArmTargetInit, Axis, BoxAxes, CameraSpec, Cmp, ConstraintKind, DerivedPose,
+    ArmTargetInit, Axis, BUILTIN_SPEC_FILES, BoxAxes, CameraSpec, Cmp, ConstraintKind, DerivedPose,
     DynamicsRandomization, FrameRef, GeomSet, HandSource, HanoiDisk, JointRef, KeypadButton,
     LegStyle, NameKind, Node, Placement, PointRef, PoseSource, ResetSpec, StateObject, StateSpec,
     TableSpec, TaskSpec, TaskSpecError, Threshold, ZRule,

@@ -824,7 +824,50 @@ pub enum TaskSpecError {
     },
 }
 
+/// An embedded spec is checked by this crate's tests, so failing here is a build defect.
+fn parse_builtin(id: &str, text: &str) -> TaskSpec {
+    TaskSpec::from_toml_str(text, &format!("schemas/tasks/{id}.toml"))
+        .unwrap_or_else(|e| panic!("embedded task spec {id}: {e}"))
+}
+
+/// The task specs shipped in `schemas/tasks/`, embedded at build time: (task id, TOML).
+pub const BUILTIN_SPEC_FILES: [(&str, &str); 11] = {
+    macro_rules! specs {
+        ($($id:literal),*) => {
+            [$(($id, include_str!(concat!("../../../schemas/tasks/", $id, ".toml")))),*]
+        };
+    }
+    specs!(
+        "bimanual_assembly",
+        "bimanual_hanoi",
+        "bimanual_microwave_cook",
+        "bimanual_photograph",
+        "bimanual_unlock_ipad",
+        "click_mouse",
+        "fold_glasses",
+        "hammer_nail",
+        "pick_bucket",
+        "pinch_tongs",
+        "water_plant"
+    )
+};
+
 impl TaskSpec {
+    /// The shipped spec of a task (embedded from `schemas/tasks/`); `None` for an unknown
+    /// id.
+    pub fn builtin(id: &str) -> Option<Self> {
+        let (id, text) = BUILTIN_SPEC_FILES.iter().find(|(t, _)| *t == id)?;
+        Some(parse_builtin(id, text))
+    }
+
+    /// Every shipped spec, sorted by task id.
+    pub fn builtin_all() -> Vec<Self> {
+        BUILTIN_SPEC_FILES
+            .iter()
+            .map(|(id, text)| parse_builtin(id, text))
+            .collect()
+    }
+
     /// Parses a spec from TOML text (strict: unknown keys are errors) and validates it.
     pub fn from_toml_str(text: &str, label: &str) -> Result<Self, TaskSpecError> {
         let spec: Self = toml::from_str(text).map_err(|e| TaskSpecError::Parse {
@@ -1274,6 +1317,15 @@ mod tests {
         ("pinch_tongs", 31),
         ("water_plant", 38),
     ];
+
+    #[test]
+    fn the_embedded_specs_are_the_folder() {
+        let from_dir = TaskSpec::load_dir(&schemas_dir().join("tasks")).unwrap();
+        let embedded = TaskSpec::builtin_all();
+        assert_eq!(embedded, from_dir);
+        assert_eq!(TaskSpec::builtin("click_mouse").unwrap(), from_dir[5]);
+        assert!(TaskSpec::builtin("no_such_task").is_none());
+    }
 
     #[test]
     fn every_task_spec_loads_and_validates() {
