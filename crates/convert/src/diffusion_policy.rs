@@ -17,12 +17,11 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use dexjoco_core::Location;
+use dexjoco_ingest::zarr_v2::{self, Blosc};
 use dexjoco_video::VideoReader;
-use serde_json::{Value, json};
-use zarrs::array::{Array, ArrayMetadata, ArrayMetadataOptions, ArrayMetadataV2, CodecOptions};
+use serde_json::json;
+use zarrs::array::{Array, ArrayMetadata, ArrayMetadataOptions, CodecOptions};
 use zarrs::filesystem::FilesystemStore;
-use zarrs::group::{Group, GroupMetadata, GroupMetadataOptions};
-use zarrs::metadata::v2::GroupMetadataV2;
 
 use crate::error::ConvertError;
 use crate::lerobot_v3::write_json;
@@ -51,26 +50,8 @@ fn metadata(
     dtype: &str,
     compressed: bool,
 ) -> Result<ArrayMetadata, ConvertError> {
-    let compressor = if compressed {
-        json!({"id": "blosc", "cname": "lz4", "clevel": 5, "shuffle": 0, "blocksize": 0})
-    } else {
-        Value::Null
-    };
-    let fill = if dtype == "<f8" { json!(0.0) } else { json!(0) };
-    let meta = json!({
-        "zarr_format": 2,
-        "shape": shape,
-        "chunks": chunks,
-        "dtype": dtype,
-        "compressor": compressor,
-        "fill_value": fill,
-        "order": "C",
-        "filters": null,
-        "dimension_separator": ".",
-    });
-    let v2: ArrayMetadataV2 =
-        serde_json::from_value(meta).map_err(|e| zarr_err(path)(e.to_string()))?;
-    Ok(ArrayMetadata::V2(v2))
+    let compressor = compressed.then_some(Blosc::DIFFUSION_POLICY);
+    zarr_v2::array_metadata(shape, chunks, dtype, compressor).map_err(zarr_err(path))
 }
 
 /// A float64 array along time, written a chunk at a time.
@@ -183,16 +164,7 @@ impl ZarrWriter {
         let err = zarr_err(&zarr);
         fs_err::create_dir_all(&zarr)?;
         let store = Arc::new(FilesystemStore::new(&zarr).map_err(|e| err(e.to_string()))?);
-        for path in ["/", "/data", "/meta"] {
-            Group::new_with_metadata(
-                store.clone(),
-                path,
-                GroupMetadata::V2(GroupMetadataV2::new()),
-            )
-            .map_err(|e| err(e.to_string()))?
-            .store_metadata_opt(&GroupMetadataOptions::default())
-            .map_err(|e| err(e.to_string()))?;
-        }
+        zarr_v2::create_groups(&store, &["/", "/data", "/meta"]).map_err(&err)?;
         let series = |name: &str, width: usize, one_d: bool| -> Result<Series, ConvertError> {
             let chunk = (CHUNK_BYTES / (8 * width.max(1))).max(1);
             let (shape, chunks) = if one_d {

@@ -15,6 +15,7 @@ mod store;
 pub mod synth;
 pub mod teleop;
 mod validate;
+pub mod zarr_v2;
 
 pub use error::{IngestError, Problem, ProblemCode, Result};
 pub use store::{

@@ -6,13 +6,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use dexjoco_core::{CameraStream, Episode, FrameArray, Location, TaskInfo};
-use serde_json::{Value, json};
-use zarrs::array::{Array, ArrayMetadata, ArrayMetadataOptions, ArrayMetadataV2, CodecOptions};
+use serde_json::Value;
+use zarrs::array::{Array, ArrayMetadataOptions, CodecOptions};
 use zarrs::filesystem::FilesystemStore;
-use zarrs::group::{Group, GroupMetadata, GroupMetadataOptions};
-use zarrs::metadata::v2::GroupMetadataV2;
 
 use crate::error::{IngestError, ProblemCode, Result, io_err};
+use crate::zarr_v2::{self, Blosc};
 
 /// Name of the Zarr store inside an episode folder.
 pub const REPLAY_ZARR: &str = "replay.zarr";
@@ -436,35 +435,6 @@ fn cameras_of(videos: &[PathBuf]) -> Vec<CameraStream> {
     cams
 }
 
-fn metadata_v2(
-    shape: &[u64],
-    chunks: &[u64],
-    dtype: &str,
-    compressed: bool,
-) -> Result<ArrayMetadataV2> {
-    let compressor = if compressed {
-        json!({"id": "blosc", "cname": "zstd", "clevel": 5, "shuffle": 2, "blocksize": 0})
-    } else {
-        Value::Null
-    };
-    let fill = if dtype == "<i8" { json!(0) } else { json!(0.0) };
-    let meta = json!({
-        "zarr_format": 2,
-        "shape": shape,
-        "chunks": chunks,
-        "dtype": dtype,
-        "compressor": compressor,
-        "fill_value": fill,
-        "order": "C",
-        "filters": null,
-        "dimension_separator": ".",
-    });
-    serde_json::from_value(meta).map_err(|e| IngestError::Zarr {
-        at: Location::default(),
-        message: format!("building .zarray: {e}"),
-    })
-}
-
 fn zarr_write_err(at: &Location) -> impl Fn(String) -> IngestError + '_ {
     move |message| IngestError::Zarr {
         at: at.clone(),
@@ -481,17 +451,7 @@ pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
     let err = zarr_write_err(&at);
     fs_err::create_dir_all(&zarr).map_err(io_err("create", &zarr))?;
     let store = Arc::new(FilesystemStore::new(&zarr).map_err(|e| err(e.to_string()))?);
-    let group_opts = GroupMetadataOptions::default();
-    for path in ["/", "/data", "/meta"] {
-        Group::new_with_metadata(
-            store.clone(),
-            path,
-            GroupMetadata::V2(GroupMetadataV2::new()),
-        )
-        .map_err(|e| err(e.to_string()))?
-        .store_metadata_opt(&group_opts)
-        .map_err(|e| err(e.to_string()))?;
-    }
+    zarr_v2::create_groups(&store, &["/", "/data", "/meta"]).map_err(&err)?;
     let array_opts = ArrayMetadataOptions::default().with_include_zarrs_metadata(false);
     let codec_opts = CodecOptions::default().with_store_empty_chunks(true);
     let frames = ep.len() as u64;
@@ -504,13 +464,10 @@ pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
         } else {
             (vec![frames, width], vec![chunk_frames, width])
         };
-        let meta = metadata_v2(&shape, &chunks, "<f8", true)?;
-        let array = Array::new_with_metadata(
-            store.clone(),
-            &format!("/data/{name}"),
-            ArrayMetadata::V2(meta),
-        )
-        .map_err(|e| err(e.to_string()))?;
+        let meta =
+            zarr_v2::array_metadata(&shape, &chunks, "<f8", Some(Blosc::RECORDER)).map_err(&err)?;
+        let array = Array::new_with_metadata(store.clone(), &format!("/data/{name}"), meta)
+            .map_err(|e| err(e.to_string()))?;
         array
             .store_metadata_opt(&array_opts)
             .map_err(|e| err(e.to_string()))?;
@@ -520,10 +477,9 @@ pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
                 .map_err(|e| err(e.to_string()))?;
         }
     }
-    let meta = metadata_v2(&[1], &[1024], "<i8", false)?;
-    let array =
-        Array::new_with_metadata(store.clone(), "/meta/episode_ends", ArrayMetadata::V2(meta))
-            .map_err(|e| err(e.to_string()))?;
+    let meta = zarr_v2::array_metadata(&[1], &[1024], "<i8", None).map_err(&err)?;
+    let array = Array::new_with_metadata(store.clone(), "/meta/episode_ends", meta)
+        .map_err(|e| err(e.to_string()))?;
     array
         .store_metadata_opt(&array_opts)
         .map_err(|e| err(e.to_string()))?;
