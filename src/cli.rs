@@ -184,8 +184,8 @@ pub struct RenderArgs {
     /// (default: ../shared/dexjoco-upstream/xmls when present).
     #[arg(long, requires = "task")]
     pub scene_dir: Option<PathBuf>,
-    /// With --task: a folder of task specs to use instead of the ones built in (the
-    /// repository's schemas/tasks).
+    /// With --task: a folder of task specs (`<task_id>.toml`) that replace the built-in
+    /// ones of the same id or add tasks.
     #[arg(long, requires = "task")]
     pub tasks_dir: Option<PathBuf>,
 }
@@ -552,7 +552,9 @@ the recorded actions, recomputed state and action_rotvec; videos/third_person.mp
 video per --camera; with --depth videos/<camera>_depth.npz), augment_report.json / .md and
 contact_sheet.png. A killed run resumes
 where it stopped when run again; the same --seed gives the same output whatever --jobs is.
-Exit code 3: some episodes did not replay to success.")]
+Inputs that cannot be replayed (unreadable, unknown task, missing field) are skipped and
+listed; the rest of the batch goes on.
+Exit code 3: some episodes were skipped or did not replay to success.")]
 pub struct AugmentArgs {
     /// Raw episode folders, episode stores or MCAP files (default: the sample data in
     /// datasets/demos).
@@ -580,6 +582,10 @@ pub struct AugmentArgs {
     /// Keep replays whose task failed (flagged in the report).
     #[arg(long)]
     pub keep_failed: bool,
+    /// A folder of task specs (`<task_id>.toml`) replacing the built-in ones of the same
+    /// id, e.g. other --dynamics ranges or success thresholds.
+    #[arg(long)]
+    pub tasks_dir: Option<PathBuf>,
     /// Also write each camera's depth as videos/<camera>_depth.npz (key "depth", float32
     /// (T, H, W), metres, as numpy.savez_compressed writes it). Large: 1.6 MB per
     /// 640x640 frame before compression.

@@ -129,7 +129,7 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
     );
     assert!(stdout.contains("6 episodes"), "{stdout}");
     assert!(
-        stdout.contains("| click_mouse | 1 | 1 (100 %) | 6 | 6 | 6 | 100 % | 0e0 |"),
+        stdout.contains("| click_mouse | 1 | 1 (100 %) | 6 | 6 | 6 | 0 | 100 % | 0e0 |"),
         "{stdout}"
     );
     let replays: serde_json::Value = serde_json::from_slice(

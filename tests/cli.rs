@@ -579,21 +579,23 @@ fn render_task_uses_the_specs_built_in_outside_the_checkout() {
         "{err}"
     );
 
-    // --tasks-dir replaces the built-in specs: an empty folder has no click_mouse.
-    let empty = dir.path().join("specs");
-    std::fs::create_dir(&empty).unwrap();
+    // --tasks-dir adds to the built-in specs; a broken file there is named.
+    let specs = dir.path().join("specs");
+    std::fs::create_dir(&specs).unwrap();
+    std::fs::write(specs.join("my_task.toml"), "id = \"my_task\"\nbogus = 1\n").unwrap();
     let out = run(
         &[
             "render",
             "--task",
             "click_mouse",
             "--tasks-dir",
-            empty.to_str().unwrap(),
+            specs.to_str().unwrap(),
         ],
         dir.path(),
     );
     assert!(!out.status.success());
-    assert!(text(&out.stderr).contains("unknown task 'click_mouse' (tasks: )"));
+    let err = text(&out.stderr);
+    assert!(err.contains("my_task.toml"), "{err}");
 }
 
 #[test]

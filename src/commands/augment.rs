@@ -56,6 +56,7 @@ pub fn run(global: &GlobalArgs, args: &AugmentArgs) -> anyhow::Result<ExitStatus
         inputs,
         out: out.clone(),
         replays: args.replays,
+        tasks_dir: args.tasks_dir.clone(),
         seed: global.seed,
         scene: SceneSource::from_option(args.scene_dir.clone()),
         camera_pool: args.camera_pool.clone(),
@@ -94,6 +95,15 @@ pub fn run(global: &GlobalArgs, args: &AugmentArgs) -> anyhow::Result<ExitStatus
         report.rendered_now,
         started.elapsed().as_secs_f64()
     );
+    if !report.dropped.is_empty() {
+        println!(
+            "  {} replay(s) failed under their --dynamics draw and were dropped (--keep-failed keeps them)",
+            report.dropped.len()
+        );
+    }
+    for k in &report.skipped {
+        println!("  SKIPPED: {}: {}", k.source, k.reason);
+    }
     for e in report.episodes.iter().filter(|e| !e.success) {
         println!(
             "  FAILED: {}/{} (max state deviation {:e})",
@@ -101,7 +111,7 @@ pub fn run(global: &GlobalArgs, args: &AugmentArgs) -> anyhow::Result<ExitStatus
         );
     }
     println!("report: {}", out.join(dexjoco_augment::REPORT_MD).display());
-    Ok(if failed > 0 {
+    Ok(if failed > 0 || !report.skipped.is_empty() {
         ExitStatus::Partial
     } else {
         ExitStatus::Success

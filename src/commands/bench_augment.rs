@@ -75,6 +75,7 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
                     inputs: inputs.clone(),
                     out: tmp.path().join("out"),
                     replays: args.replays,
+                    tasks_dir: None,
                     seed: global.seed,
                     scene: SceneSource::BuiltIn,
                     camera_pool: None,

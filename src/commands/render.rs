@@ -194,13 +194,13 @@ pub fn contact_sheet(frames: &[Frame], path: &PathBuf) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The task specs: those in `--tasks-dir`, else the ones shipped in this build.
+/// The task specs: the built-in ones, with those in `--tasks-dir` replacing or adding.
 fn task_specs(args: &RenderArgs) -> anyhow::Result<Vec<TaskSpec>> {
-    match &args.tasks_dir {
-        Some(dir) => TaskSpec::load_dir(dir)
-            .with_context(|| format!("cannot read the task specs in '{}'", dir.display())),
-        None => Ok(TaskSpec::builtin_all()),
-    }
+    let dir = args.tasks_dir.as_deref();
+    TaskSpec::builtin_and(dir).with_context(|| match dir {
+        Some(d) => format!("cannot read the task specs in '{}'", d.display()),
+        None => "the built-in task specs".into(),
+    })
 }
 
 fn render_settings(args: &RenderArgs) -> RenderSettings {

@@ -33,6 +33,10 @@ const RECORD: &str = "replay.json";
 const TABLE_GEOM: &str = "table_visual";
 const STAGING: &str = ".staging";
 const PREVIEWS: &str = ".previews";
+/// Records of replays that failed under `--dynamics` and were not kept
+/// (`.dropped/<task>/<replay>.json`), so a resumed run does not simulate them again and
+/// the report can list them.
+const DROPPED: &str = ".dropped";
 
 /// The task specs shipped with this build, by id (see [`TaskSpec::builtin`]).
 pub fn builtin_spec(task: &str) -> Option<TaskSpec> {
@@ -50,6 +54,8 @@ pub struct AugmentConfig {
     pub replays: usize,
     /// Global seed.
     pub seed: u64,
+    /// A folder of task specs replacing the built-in ones of the same id.
+    pub tasks_dir: Option<PathBuf>,
     /// Where the task scenes come from.
     pub scene: SceneSource,
     /// Camera pool file; default: the reference pool beside `--scene-dir`, else built-in.
@@ -144,6 +150,14 @@ pub struct AugmentReport {
     pub episodes: Vec<EpisodeOutcome>,
     /// Per replay, sorted by folder.
     pub replays: Vec<ReplayRecord>,
+    /// Replays that failed under `--dynamics` and were not kept (no folder), in the same
+    /// order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub dropped: Vec<ReplayRecord>,
+    /// Inputs that could not be replayed (unreadable, unknown task, missing field, rejected
+    /// by the simulator), in input order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub skipped: Vec<SkippedInput>,
     /// Replays rendered by this run (the rest were already there).
     pub rendered_now: usize,
 }
@@ -166,41 +180,74 @@ struct Source {
     path: PathBuf,
 }
 
-fn read_sources(inputs: &[PathBuf]) -> Result<Vec<Source>, AugmentError> {
+/// An input that could not be replayed, and why; the rest of the batch goes on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SkippedInput {
+    /// The file or folder.
+    pub source: String,
+    /// What is wrong with it (episode, field and frame where known).
+    pub reason: String,
+}
+
+/// Reads every input episode and its task spec. A folder or MCAP file that cannot be
+/// read, an unknown task or a missing field skips that episode only.
+fn read_sources(
+    inputs: &[PathBuf],
+    specs: &[TaskSpec],
+) -> Result<(Vec<Source>, Vec<SkippedInput>), AugmentError> {
     let mut out = Vec::new();
+    let mut skipped = Vec::new();
+    let mut skip = |path: &Path, reason: String| {
+        tracing::warn!(input = %path.display(), "skipped: {reason}");
+        skipped.push(SkippedInput {
+            source: path.display().to_string(),
+            reason,
+        });
+    };
     for input in inputs {
         let mut eps = Vec::new();
         if input.is_file() {
-            let bytes = fs_err::read(input).map_err(io_err("read", input))?;
-            let mut t = dexjoco_ingest::teleop::read_episode_mcap(input, &bytes)?.episode;
-            if t.id.is_empty() {
-                t.id = input
-                    .file_stem()
-                    .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+            let read = fs_err::read(input)
+                .map_err(io_err("read", input))
+                .and_then(|bytes| Ok(dexjoco_ingest::teleop::read_episode_mcap(input, &bytes)?));
+            match read {
+                Ok(t) => {
+                    let mut t = t.episode;
+                    if t.id.is_empty() {
+                        t.id = input
+                            .file_stem()
+                            .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+                    }
+                    eps.push((t, input.clone()));
+                }
+                Err(e) => skip(input, e.to_string()),
             }
-            eps.push((t, input.clone()));
         } else {
             for dir in dexjoco_ingest::episode_dirs(input)? {
-                let ep = dexjoco_ingest::read_stored_episode(&dir)?;
-                eps.push((ep, dir));
+                match dexjoco_ingest::read_stored_episode(&dir) {
+                    Ok(ep) => eps.push((ep, dir)),
+                    Err(e) => skip(&dir, e.to_string()),
+                }
             }
         }
-        for (episode, path) in eps {
-            let spec = builtin_spec(&episode.task).ok_or_else(|| {
-                AugmentError::Input(format!(
-                    "'{}': episode '{}': unknown task '{}'",
-                    path.display(),
-                    episode.id,
-                    episode.task
-                ))
-            })?;
+        'episodes: for (episode, path) in eps {
+            let Some(spec) = specs.iter().find(|s| s.id == episode.task).cloned() else {
+                skip(
+                    &path,
+                    format!("episode '{}': unknown task '{}'", episode.id, episode.task),
+                );
+                continue;
+            };
             for field in [Episode::ACTION, Episode::STATE] {
                 if episode.array(field).is_none_or(FrameArray::is_empty) {
-                    return Err(AugmentError::Input(format!(
-                        "'{}': episode '{}': field '{field}' is missing or empty (frame 0)",
-                        path.display(),
-                        episode.id
-                    )));
+                    skip(
+                        &path,
+                        format!(
+                            "episode '{}': field '{field}' is missing or empty (frame 0)",
+                            episode.id
+                        ),
+                    );
+                    continue 'episodes;
                 }
             }
             out.push(Source {
@@ -222,7 +269,7 @@ fn read_sources(inputs: &[PathBuf]) -> Result<Vec<Source>, AugmentError> {
             )));
         }
     }
-    Ok(out)
+    Ok((out, skipped))
 }
 
 /// A task's scene and what randomization needs of it, shared by every worker.
@@ -530,12 +577,34 @@ fn render_unit(
         )
     };
     if randomized_dynamics && first_success.is_none() && !config.keep_failed {
-        // The task failed under these dynamics: nothing of this replay is kept.
+        // The task failed under these dynamics: only the record of the draw is kept.
         for p in pending {
             for (_, w) in p.writers {
                 let _ = w.finish();
             }
             let _ = fs_err::remove_dir_all(&p.staging);
+            let record = ReplayRecord {
+                name: replay_name(id, p.index),
+                task: src.spec.id.clone(),
+                episode: id.clone(),
+                replay: p.index,
+                sample: p.sample,
+                success: false,
+                first_success: None,
+                steps: n,
+                max_state_deviation: max_dev,
+                deviation_at: dev_at,
+                videos: Vec::new(),
+                depth: Vec::new(),
+                dynamics: p.dynamics,
+            };
+            let path = dropped_path(out, &record.task, &record.name);
+            let dir = path.parent().expect("has parent");
+            fs_err::create_dir_all(dir).map_err(io_err("create", dir))?;
+            write_atomic(
+                &path,
+                &serde_json::to_vec_pretty(&record).expect("serializable"),
+            )?;
             tracing::debug!(episode = %id, replay = p.index, "failed under randomized dynamics; dropped");
         }
         return Ok(Vec::new());
@@ -623,6 +692,8 @@ fn render_unit(
         let parent = final_dir.parent().expect("has parent");
         fs_err::create_dir_all(parent).map_err(io_err("create", parent))?;
         fs_err::rename(&p.staging, &final_dir).map_err(io_err("rename", &p.staging))?;
+        // A replay dropped by an earlier run without --keep-failed is now kept.
+        let _ = std::fs::remove_file(dropped_path(out, &src.spec.id, &name));
         tracing::debug!(replay = %final_dir.display(), "replay written");
         records.push(record);
     }
@@ -646,8 +717,17 @@ fn sync_dir(dir: &Path) {
 }
 
 fn read_record(dir: &Path) -> Option<ReplayRecord> {
-    let bytes = std::fs::read(dir.join(RECORD)).ok()?;
+    read_record_file(&dir.join(RECORD))
+}
+
+fn read_record_file(path: &Path) -> Option<ReplayRecord> {
+    let bytes = std::fs::read(path).ok()?;
     serde_json::from_slice(&bytes).ok()
+}
+
+/// Where the record of a replay dropped under `--dynamics` lives.
+fn dropped_path(out: &Path, task: &str, name: &str) -> PathBuf {
+    out.join(DROPPED).join(task).join(format!("{name}.json"))
 }
 
 /// Runs the augment stage; `progress` is called after each unit with (done, total).
@@ -655,7 +735,9 @@ pub fn augment(
     config: &AugmentConfig,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<AugmentReport, AugmentError> {
-    let sources = read_sources(&config.inputs)?;
+    let specs = TaskSpec::builtin_and(config.tasks_dir.as_deref())
+        .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
+    let (sources, mut skipped) = read_sources(&config.inputs, &specs)?;
     let out = &config.out;
     fs_err::create_dir_all(out).map_err(io_err("create", out))?;
     // A killed run leaves at most staged (never renamed) replays: drop them.
@@ -688,10 +770,30 @@ pub fn augment(
     }
 
     // Physics once per episode: success and deviation from the recording.
-    let physics: Vec<Physics> = sources
+    // An episode the simulator rejects (e.g. a state that does not fit the scene) is
+    // skipped, not the batch.
+    let simulated: Vec<Result<Physics, AugmentError>> = sources
         .par_iter()
         .map(|s| simulate(s, &assets[&s.spec.id], frames(s, config)))
-        .collect::<Result<_, _>>()?;
+        .collect();
+    let mut physics = Vec::new();
+    let mut kept_sources = Vec::new();
+    for (s, p) in sources.into_iter().zip(simulated) {
+        match p {
+            Ok(p) => {
+                physics.push(p);
+                kept_sources.push(s);
+            }
+            Err(e) => {
+                tracing::warn!(input = %s.path.display(), "skipped: {e}");
+                skipped.push(SkippedInput {
+                    source: s.path.display().to_string(),
+                    reason: e.to_string(),
+                });
+            }
+        }
+    }
+    let sources = kept_sources;
 
     // Which replays are still to do (resume: finished ones have their record).
     let mut units = Vec::new();
@@ -702,9 +804,16 @@ pub fn augment(
             tracing::warn!(task = %s.spec.id, episode = %s.episode.id, "replay failed; no replays kept");
             continue;
         }
+        // Done: the replay's folder is there, or (without --keep-failed, which would now
+        // keep it) it was dropped under --dynamics.
         let todo: Vec<usize> = (0..config.replays)
             .filter(|&r| {
-                read_record(&out.join(&s.spec.id).join(replay_name(&s.episode.id, r))).is_none()
+                let name = replay_name(&s.episode.id, r);
+                let kept = read_record(&out.join(&s.spec.id).join(&name)).is_some();
+                let dropped = config.dynamics
+                    && !config.keep_failed
+                    && read_record_file(&dropped_path(out, &s.spec.id, &name)).is_some();
+                !kept && !dropped
             })
             .collect();
         if todo.is_empty() {
@@ -755,15 +864,19 @@ pub fn augment(
 
     // The report covers every replay on disk for these episodes.
     let mut replays = Vec::new();
+    let mut dropped = Vec::new();
     let mut episodes = Vec::new();
     for (i, s) in sources.iter().enumerate() {
         let mut kept = 0;
         for r in 0..config.replays {
-            if let Some(rec) =
-                read_record(&out.join(&s.spec.id).join(replay_name(&s.episode.id, r)))
-            {
+            let name = replay_name(&s.episode.id, r);
+            if let Some(rec) = read_record(&out.join(&s.spec.id).join(&name)) {
                 kept += 1;
                 replays.push(rec);
+            } else if config.dynamics
+                && let Some(rec) = read_record_file(&dropped_path(out, &s.spec.id, &name))
+            {
+                dropped.push(rec);
             }
         }
         episodes.push(EpisodeOutcome {
@@ -796,6 +909,8 @@ pub fn augment(
             .collect(),
         episodes,
         replays,
+        dropped,
+        skipped,
         rendered_now,
     };
     write_report(out, &report)?;
@@ -837,6 +952,15 @@ fn write_report(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> 
             e.replays_kept
         ));
     }
+    if !report.skipped.is_empty() {
+        md.push_str(&format!(
+            "\n**Skipped inputs ({}):**\n\n",
+            report.skipped.len()
+        ));
+        for k in &report.skipped {
+            md.push_str(&format!("- `{}`: {}\n", k.source, k.reason));
+        }
+    }
     md.push_str("\n| replay | seed | camera (az, el, d) | table | headlight ambient | success |\n|---|---|---|---|---|---|\n");
     for r in &report.replays {
         let c = &r.sample.camera;
@@ -857,9 +981,21 @@ fn write_report(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> 
             if r.success { "yes" } else { "FAILED (kept)" }
         ));
     }
-    if report.replays.iter().any(|r| r.dynamics.is_some()) {
-        md.push_str("\n## Dynamics (`--dynamics`)\n\n| replay | success | max state deviation | drawn values (original -> used) |\n|---|---|---:|---|\n");
-        for r in &report.replays {
+    if report
+        .replays
+        .iter()
+        .chain(&report.dropped)
+        .any(|r| r.dynamics.is_some())
+    {
+        md.push_str(&format!(
+            "\n## Dynamics (`--dynamics`)\n\n{} replay(s) kept, {} failed under their draw and dropped (rerun with `--keep-failed` to keep them).\n\n",
+            report.replays.len(),
+            report.dropped.len()
+        ));
+        md.push_str("| replay | success | max state deviation | drawn values (original -> used) |\n|---|---|---:|---|\n");
+        let mut rows: Vec<&ReplayRecord> = report.replays.iter().chain(&report.dropped).collect();
+        rows.sort_by(|a, b| (&a.task, &a.name).cmp(&(&b.task, &b.name)));
+        for r in rows {
             let values = r.dynamics.as_deref().unwrap_or_default();
             let cells: Vec<String> = values
                 .iter()
@@ -874,7 +1010,11 @@ fn write_report(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> 
                 "| {}/{} | {} | {:.3e} | {} |\n",
                 r.task,
                 r.name,
-                if r.success { "yes" } else { "FAILED (kept)" },
+                match (r.success, r.videos.is_empty()) {
+                    (true, _) => "yes",
+                    (false, false) => "FAILED (kept)",
+                    (false, true) => "FAILED (dropped)",
+                },
                 r.max_state_deviation,
                 cells.join("; ")
             ));

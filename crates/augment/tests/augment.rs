@@ -18,6 +18,7 @@ fn config(inputs: Vec<PathBuf>, out: &Path) -> AugmentConfig {
         out: out.to_path_buf(),
         replays: 2,
         seed: 7,
+        tasks_dir: None,
         scene: SceneSource::BuiltIn,
         camera_pool: None,
         cameras: Vec::new(),
@@ -384,5 +385,124 @@ fn dynamics_are_drawn_in_the_spec_ranges_per_replay_and_change_the_physics() {
     for (a, b) in plain.replays.iter().zip(&one.replays) {
         assert_eq!(a.sample, b.sample);
         assert!(a.dynamics.is_none());
+    }
+}
+
+#[test]
+fn a_bad_input_is_skipped_and_named_while_the_rest_is_replayed() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A raw folder whose action array is gone, and a file that is not MCAP.
+    let broken = tmp.path().join("click_mouse/episode_000007");
+    let src = demos().join("click_mouse/episode_000000");
+    std::fs::create_dir_all(broken.parent().unwrap()).unwrap();
+    let status = std::process::Command::new("cp")
+        .args(["-r", src.to_str().unwrap(), broken.to_str().unwrap()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    std::fs::remove_dir_all(broken.join("replay.zarr/data/action")).unwrap();
+    let junk = tmp.path().join("junk.mcap");
+    std::fs::write(&junk, b"not an mcap").unwrap();
+
+    let inputs = vec![
+        demos().join("click_mouse/episode_000001"),
+        broken.parent().unwrap().to_path_buf(),
+        junk.clone(),
+    ];
+    let mut c = config(inputs, &tmp.path().join("out"));
+    c.replays = 1;
+    c.max_frames = Some(3);
+    let report = run(&c, 1);
+    assert_eq!(report.episodes.len(), 1);
+    assert_eq!(report.replays.len(), 1);
+    assert_eq!(report.skipped.len(), 2, "{:?}", report.skipped);
+    let by_source = |p: &Path| {
+        report
+            .skipped
+            .iter()
+            .find(|k| k.source == p.display().to_string())
+            .unwrap_or_else(|| panic!("{} not skipped: {:?}", p.display(), report.skipped))
+            .reason
+            .clone()
+    };
+    let reason = by_source(&broken);
+    assert!(reason.contains("field 'action'"), "{reason}");
+    assert!(by_source(&junk).contains("not an MCAP file"));
+    let md = std::fs::read_to_string(tmp.path().join("out/augment_report.md")).unwrap();
+    assert!(md.contains("Skipped inputs (2)"), "{md}");
+}
+
+#[test]
+fn replays_failing_under_their_dynamics_draw_are_recorded_once_and_kept_on_request() {
+    // Own specs: the mouse up to 20 times heavier, so some draws fail the task.
+    let tmp = tempfile::tempdir().unwrap();
+    let specs = tmp.path().join("specs");
+    std::fs::create_dir(&specs).unwrap();
+    let text = std::fs::read_to_string(
+        dexjoco_testkit::workspace_root().join("schemas/tasks/click_mouse.toml"),
+    )
+    .unwrap();
+    assert!(text.contains("range = [0.75, 1.25]"));
+    std::fs::write(
+        specs.join("click_mouse.toml"),
+        text.replace("range = [0.75, 1.25]", "range = [1.0, 20.0]"),
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    let mut c = config(vec![demos().join("click_mouse/episode_000000")], &out);
+    c.tasks_dir = Some(specs);
+    c.replays = 4;
+    c.settings.width = 32;
+    c.settings.height = 32;
+    c.max_frames = None;
+    c.dynamics = true;
+    c.keep_failed = false;
+    let first = run(&c, 2);
+    assert!(
+        !first.replays.is_empty() && !first.dropped.is_empty(),
+        "{first:?}"
+    );
+    assert_eq!(first.replays.len() + first.dropped.len(), 4);
+    assert!(first.replays.iter().all(|r| r.success));
+    for d in &first.dropped {
+        assert!(!d.success && d.videos.is_empty());
+        assert!(d.dynamics.as_ref().unwrap()[0].value > d.dynamics.as_ref().unwrap()[0].original);
+        assert!(!out.join("click_mouse").join(&d.name).exists());
+    }
+    let stamp = |name: &str| {
+        std::fs::metadata(
+            out.join(".dropped/click_mouse")
+                .join(format!("{name}.json")),
+        )
+        .unwrap()
+        .modified()
+        .unwrap()
+    };
+    let stamps: Vec<_> = first.dropped.iter().map(|d| stamp(&d.name)).collect();
+
+    // Run again: nothing is simulated or rendered again, and the report is the same.
+    let again = run(&c, 2);
+    assert_eq!(again.rendered_now, 0);
+    assert_eq!(again.dropped, first.dropped);
+    assert_eq!(again.replays, first.replays);
+    let now: Vec<_> = first.dropped.iter().map(|d| stamp(&d.name)).collect();
+    assert_eq!(now, stamps, "a dropped replay was simulated again");
+
+    // With --keep-failed the dropped ones are made and kept, flagged, with the same draw.
+    c.keep_failed = true;
+    let kept = run(&c, 2);
+    assert!(kept.dropped.is_empty());
+    assert_eq!(kept.replays.len(), 4);
+    assert_eq!(kept.rendered_now, first.dropped.len());
+    for d in &first.dropped {
+        let r = kept.replays.iter().find(|r| r.name == d.name).unwrap();
+        assert!(!r.success);
+        assert_eq!(r.dynamics, d.dynamics);
+        assert_eq!(r.sample, d.sample);
+        assert!(
+            !out.join(".dropped/click_mouse")
+                .join(format!("{}.json", d.name))
+                .exists()
+        );
     }
 }

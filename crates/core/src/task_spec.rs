@@ -868,6 +868,21 @@ impl TaskSpec {
             .collect()
     }
 
+    /// The built-in specs, with those in `dir` (when given) replacing the built-in ones of
+    /// the same id or adding tasks; sorted by task id.
+    pub fn builtin_and(dir: Option<&std::path::Path>) -> Result<Vec<Self>, TaskSpecError> {
+        let mut all: std::collections::BTreeMap<String, Self> = Self::builtin_all()
+            .into_iter()
+            .map(|s| (s.id.clone(), s))
+            .collect();
+        if let Some(dir) = dir {
+            for s in Self::load_dir(dir)? {
+                all.insert(s.id.clone(), s);
+            }
+        }
+        Ok(all.into_values().collect())
+    }
+
     /// Parses a spec from TOML text (strict: unknown keys are errors) and validates it.
     pub fn from_toml_str(text: &str, label: &str) -> Result<Self, TaskSpecError> {
         let spec: Self = toml::from_str(text).map_err(|e| TaskSpecError::Parse {
@@ -1325,6 +1340,20 @@ mod tests {
         assert_eq!(embedded, from_dir);
         assert_eq!(TaskSpec::builtin("click_mouse").unwrap(), from_dir[5]);
         assert!(TaskSpec::builtin("no_such_task").is_none());
+        // A folder of specs replaces built-in ones by id and adds new ones.
+        let tmp = tempfile::tempdir().unwrap();
+        let mut text = BUILTIN_SPEC_FILES[5]
+            .1
+            .replace("prompt = \"", "prompt = \"Changed. ");
+        std::fs::write(tmp.path().join("click_mouse.toml"), &text).unwrap();
+        text = text.replace("id = \"click_mouse\"", "id = \"my_click\"");
+        std::fs::write(tmp.path().join("my_click.toml"), &text).unwrap();
+        let all = TaskSpec::builtin_and(Some(tmp.path())).unwrap();
+        assert_eq!(all.len(), 12);
+        let mine = all.iter().find(|s| s.id == "click_mouse").unwrap();
+        assert!(mine.prompt.starts_with("Changed. "), "{}", mine.prompt);
+        assert!(all.iter().any(|s| s.id == "my_click"));
+        assert_eq!(TaskSpec::builtin_and(None).unwrap(), from_dir);
     }
 
     #[test]

@@ -2,8 +2,9 @@
 //! `dexjoco-data augment` beside its replay folders).
 //!
 //! Only the fields read here are relied on: `replays_per_episode`, `episodes[]` with
-//! `task` and `success`, and `replays[]` with `task`, `success` and
-//! `max_state_deviation`.
+//! `task` and `success`, `replays[]` with `task`, `success` and `max_state_deviation`,
+//! and the optional `dropped[]` (replays that failed under `--dynamics` and were not
+//! kept) with `task`.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -20,6 +21,13 @@ struct ReportFile {
     replays_per_episode: usize,
     episodes: Vec<EpisodeRow>,
     replays: Vec<ReplayRow>,
+    #[serde(default)]
+    dropped: Vec<DroppedRow>,
+}
+
+#[derive(Deserialize)]
+struct DroppedRow {
+    task: String,
 }
 
 #[derive(Deserialize)]
@@ -50,6 +58,9 @@ pub struct TaskReplays {
     pub replays_kept: usize,
     /// Replays on disk whose task succeeded.
     pub replays_successful: usize,
+    /// Replays that failed under their `--dynamics` draw and were not kept.
+    #[serde(default)]
+    pub replays_dropped: usize,
     /// Largest state deviation from the recording over the kept replays.
     pub max_state_deviation: f64,
 }
@@ -63,6 +74,7 @@ impl TaskReplays {
             replays_asked: 0,
             replays_kept: 0,
             replays_successful: 0,
+            replays_dropped: 0,
             max_state_deviation: 0.0,
         }
     }
@@ -135,6 +147,9 @@ impl ReplayStats {
             t.replays_successful += usize::from(r.success);
             t.max_state_deviation = t.max_state_deviation.max(r.max_state_deviation);
         }
+        for r in &report.dropped {
+            entry(&mut tasks, &r.task).replays_dropped += 1;
+        }
         Self {
             replays_per_episode: report.replays_per_episode,
             tasks: tasks.into_values().collect(),
@@ -146,8 +161,8 @@ impl ReplayStats {
     pub fn to_markdown(&self) -> String {
         use std::fmt::Write as _;
         let mut s = String::from(
-            "| Task | Source episodes | Replayed to success | Replays asked | Kept | Successful | Yield | Max state deviation |\n\
-             |---|---:|---:|---:|---:|---:|---:|---:|\n",
+            "| Task | Source episodes | Replayed to success | Replays asked | Kept | Successful | Dropped (dynamics) | Yield | Max state deviation |\n\
+             |---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         );
         let mut total = TaskReplays::empty("**all**");
         for t in &self.tasks {
@@ -156,12 +171,13 @@ impl ReplayStats {
             total.replays_asked += t.replays_asked;
             total.replays_kept += t.replays_kept;
             total.replays_successful += t.replays_successful;
+            total.replays_dropped += t.replays_dropped;
             total.max_state_deviation = total.max_state_deviation.max(t.max_state_deviation);
         }
         for t in self.tasks.iter().chain(std::iter::once(&total)) {
             let _ = writeln!(
                 s,
-                "| {} | {} | {} ({:.0} %) | {} | {} | {} | {:.0} % | {:e} |",
+                "| {} | {} | {} ({:.0} %) | {} | {} | {} | {} | {:.0} % | {:e} |",
                 t.task,
                 t.source_episodes,
                 t.source_successes,
@@ -169,6 +185,7 @@ impl ReplayStats {
                 t.replays_asked,
                 t.replays_kept,
                 t.replays_successful,
+                t.replays_dropped,
                 100.0 * t.yield_rate(),
                 t.max_state_deviation
             );
@@ -195,7 +212,8 @@ mod tests {
               {"task": "a", "success": false, "max_state_deviation": 0.25},
               {"task": "b", "success": true, "max_state_deviation": 0.0},
               {"task": "b", "success": true, "max_state_deviation": 0.0},
-              {"task": "b", "success": true, "max_state_deviation": 0.0}]}"#;
+              {"task": "b", "success": true, "max_state_deviation": 0.0}],
+            "dropped": [{"task": "b", "success": false}]}"#;
         let r = ReplayStats::from_report(serde_json::from_str(json).unwrap());
         assert_eq!(r.tasks.len(), 2);
         let a = &r.tasks[0];
@@ -208,11 +226,11 @@ mod tests {
         assert_eq!(a.max_state_deviation, 0.25);
         let md = r.to_markdown();
         assert!(
-            md.contains("| a | 2 | 1 (50 %) | 6 | 4 | 3 | 50 % | 2.5e-1 |"),
+            md.contains("| a | 2 | 1 (50 %) | 6 | 4 | 3 | 0 | 50 % | 2.5e-1 |"),
             "{md}"
         );
         assert!(
-            md.contains("| **all** | 3 | 2 (67 %) | 9 | 7 | 6 | 67 % | 2.5e-1 |"),
+            md.contains("| **all** | 3 | 2 (67 %) | 9 | 7 | 6 | 1 | 67 % | 2.5e-1 |"),
             "{md}"
         );
     }
