@@ -487,7 +487,11 @@ encoded (AV1 by default).
 --format diffusion-policy writes <out>/replay_buffer.zarr (data/action, data/state,
 data/timestamp as float64, data/<camera> as uint8 frames, meta/episode_ends); --videos
 also keeps <out>/videos/<episode>/<camera>.mp4 with videos/name_map.json.
---norm-stats writes openpi's <out>/norm_stats.json (state, actions: mean, std, q01, q99).")]
+--norm-stats writes openpi's <out>/norm_stats.json (state, actions: mean, std, q01, q99).
+
+An episode that cannot be read, lacks what the selection asks for or does not fit the
+dataset's layout is left out and named with its reason; the rest is written and the exit
+code is 3. The dataset appears in <out> only when complete.")]
 pub struct ConvertArgs {
     /// Episode store or folder of DexJoCo raw episodes (default: <work-dir>/augment).
     #[arg(short, long, env = "DEXJOCO_CONVERT_INPUT")]

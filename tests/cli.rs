@@ -474,6 +474,22 @@ fn convert_writes_lerobot_v3_and_refuses_to_overwrite() {
         text(&out.stdout).contains("1 episodes")
             && text(&out.stdout).contains("left out: episode_000001")
     );
+
+    // A broken episode is left out and named; the other is written; exit code 3.
+    let broken = input.join("click_mouse/episode_000000");
+    std::fs::remove_file(broken.join("videos/front.mp4")).unwrap();
+    let mut over = args.to_vec();
+    over.push("--overwrite");
+    let out = run(&over, dir.path());
+    let stdout = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(3), "{stdout}{}", text(&out.stderr));
+    assert!(stdout.contains("1 episodes, 7 frames"), "{stdout}");
+    assert!(
+        stdout.contains("1 episode(s) could not be converted")
+            && stdout.contains("episode_000000")
+            && stdout.contains("front"),
+        "{stdout}"
+    );
 }
 
 #[test]

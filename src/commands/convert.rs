@@ -20,6 +20,11 @@ impl Reporter for Bar {
         }
         self.0.inc(1);
     }
+
+    fn failed(&self, id: &str, reason: &str) {
+        self.0.println(format!("LEFT OUT {id}: {reason}"));
+        self.0.inc(1);
+    }
 }
 
 /// Runs `convert`.
@@ -143,7 +148,17 @@ pub fn run(global: &GlobalArgs, args: &ConvertArgs) -> anyhow::Result<ExitStatus
             format!("; left out: {}", summary.excluded.join(", "))
         }
     );
-    Ok(ExitStatus::Success)
+    if summary.failed.is_empty() {
+        return Ok(ExitStatus::Success);
+    }
+    println!(
+        "{} episode(s) could not be converted and are not in the dataset:",
+        summary.failed.len()
+    );
+    for f in &summary.failed {
+        println!("  {}: {}", f.episode, f.reason);
+    }
+    Ok(ExitStatus::Partial)
 }
 
 /// Reads one DexJoCo raw episode folder (arrays from `replay.zarr`, cameras from

@@ -51,6 +51,14 @@ impl Writer {
         }
     }
 
+    fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), ConvertError> {
+        match self {
+            Self::V3(w) => w.check_compatible(ep),
+            Self::V21(w) => w.check_compatible(ep),
+            Self::Zarr(w) => w.check_compatible(ep),
+        }
+    }
+
     fn counts(&self) -> (usize, usize) {
         match self {
             Self::V3(w) => (w.episodes(), w.frames()),
@@ -95,6 +103,8 @@ pub struct ConvertOptions {
 pub trait Reporter: Sync {
     /// An episode was written (or left out, with `excluded`).
     fn episode(&self, _id: &str, _excluded: bool) {}
+    /// An episode could not be converted and is left out.
+    fn failed(&self, _id: &str, _reason: &str) {}
 }
 
 /// A reporter that reports nothing.
@@ -116,10 +126,21 @@ pub struct Summary {
     pub skipped_frames: usize,
     /// Episodes left out by the bad-episodes list.
     pub excluded: Vec<String>,
+    /// Episodes that could not be converted, and why; the rest of the dataset is written.
+    pub failed: Vec<FailedEpisode>,
     /// Camera videos joined by stream copy / encoded.
     pub videos_copied: usize,
     /// Camera videos encoded.
     pub videos_encoded: usize,
+}
+
+/// An input episode left out because it could not be read, prepared or fit the dataset.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FailedEpisode {
+    /// The episode id, or the input folder when the episode could not be read.
+    pub episode: String,
+    /// The error, naming file, episode, field and frame where known.
+    pub reason: String,
 }
 
 /// True when `dir` exists and has any entry.
@@ -174,6 +195,84 @@ where
     }
 }
 
+/// Episodes the dataset's layout is chosen from (see [`layout_leader`]).
+const LAYOUT_WINDOW: usize = 8;
+
+/// Opens the dataset writer with the layout of `p`.
+fn new_writer(
+    root: &Path,
+    p: &PreparedEpisode,
+    options: &ConvertOptions,
+) -> Result<Writer, ConvertError> {
+    Ok(match options.format {
+        OutputFormat::LeRobotV3 => {
+            Writer::V3(Box::new(V3Writer::try_new(root, p, options.v3.clone())?))
+        }
+        OutputFormat::LeRobotV21 => Writer::V21(Box::new(V21Writer::try_new(
+            root,
+            p,
+            options.v3.robot_type.clone(),
+        )?)),
+        OutputFormat::DiffusionPolicy => {
+            Writer::Zarr(Box::new(ZarrWriter::try_new(root, p, options.videos)?))
+        }
+    })
+}
+
+/// The episode whose layout (fps, widths, cameras and their videos) the dataset takes:
+/// the most common one in the first batch; among equals the one with more cameras (a
+/// missing video is likelier than an extra one), then the first. A broken first episode
+/// thus does not decide the layout of the whole dataset.
+fn layout_leader(prepared: &[Result<PreparedEpisode, ConvertError>]) -> Option<&PreparedEpisode> {
+    let ok: Vec<&PreparedEpisode> = prepared.iter().filter_map(|p| p.as_ref().ok()).collect();
+    let key = |p: &PreparedEpisode| {
+        let videos: Vec<_> = p
+            .videos
+            .iter()
+            .map(|v| {
+                (
+                    v.name.clone(),
+                    v.info.width,
+                    v.info.height,
+                    v.info.codec.clone(),
+                    v.info.pix_fmt.clone(),
+                )
+            })
+            .collect();
+        (p.fps, p.action.width(), p.state.width(), videos)
+    };
+    let keys: Vec<_> = ok.iter().map(|p| key(p)).collect();
+    (0..ok.len())
+        .max_by_key(|&i| {
+            let count = keys.iter().filter(|k| **k == keys[i]).count();
+            (count, ok[i].videos.len(), std::cmp::Reverse(i))
+        })
+        .map(|i| ok[i])
+}
+
+/// Episodes left out so far, keyed by input position: `(k, 0)` for an input that could not
+/// be read just before the k-th readable one, `(k, 1)` for the k-th readable one.
+type Failures = Vec<((usize, u8), FailedEpisode)>;
+
+/// Records an episode left out, and tells the reporter.
+fn fail(
+    failures: &mut Failures,
+    key: (usize, u8),
+    reporter: &dyn Reporter,
+    episode: String,
+    e: &ConvertError,
+) {
+    tracing::warn!(%episode, "left out: {e}");
+    reporter.failed(&episode, &e.to_string());
+    failures.push((
+        key,
+        FailedEpisode {
+            episode,
+            reason: e.to_string(),
+        },
+    ));
+}
+
 fn run<I>(
     inputs: I,
     root: &Path,
@@ -196,10 +295,28 @@ where
     let mut norm = options.norm_stats.map(NormStats::new);
     let mut inputs = inputs.into_iter();
     let mut ordinal = 0usize;
+    let mut failures = Failures::new();
     loop {
-        let mut pending = Vec::with_capacity(batch);
+        // Until the layout is chosen, batches are LAYOUT_WINDOW episodes whatever the
+        // thread count, so the choice (and the output) does not depend on it.
+        let size = if writer.is_none() {
+            LAYOUT_WINDOW
+        } else {
+            batch
+        };
+        let mut pending = Vec::with_capacity(size);
         for item in inputs.by_ref() {
-            let item = item?;
+            let item = match item {
+                Ok(item) => item,
+                Err(e) => {
+                    let source = match &e {
+                        ConvertError::Input { path, .. } => path.display().to_string(),
+                        _ => String::from("?"),
+                    };
+                    fail(&mut failures, (ordinal, 0), reporter, source, &e);
+                    continue;
+                }
+            };
             if options.selection.bad_episodes.contains(&item.episode.id) {
                 reporter.episode(&item.episode.id, true);
                 summary.excluded.push(item.episode.id);
@@ -207,7 +324,7 @@ where
             }
             pending.push((ordinal, item));
             ordinal += 1;
-            if pending.len() == batch {
+            if pending.len() == size {
                 break;
             }
         }
@@ -218,8 +335,31 @@ where
             .par_iter()
             .map(|(i, input)| prepare(input, &options.selection, options.video, layout, &work, *i))
             .collect();
-        for p in prepared {
-            let p = p?;
+        if writer.is_none()
+            && let Some(leader) = layout_leader(&prepared)
+        {
+            writer = Some(new_writer(root, leader, options)?);
+        }
+        for (p, (i, input)) in prepared.into_iter().zip(&pending) {
+            let p = match p {
+                Ok(p) => p,
+                Err(e) => {
+                    fail(
+                        &mut failures,
+                        (*i, 1),
+                        reporter,
+                        input.episode.id.clone(),
+                        &e,
+                    );
+                    continue;
+                }
+            };
+            if let Some(w) = writer.as_ref()
+                && let Err(e) = w.check_compatible(&p)
+            {
+                fail(&mut failures, (*i, 1), reporter, p.id.clone(), &e);
+                continue;
+            }
             let id = p.id.clone();
             summary.skipped_frames += p.skipped;
             summary.videos_copied += p.videos.iter().filter(|v| v.copied).count();
@@ -232,27 +372,23 @@ where
                     p.action.width(),
                 );
             }
-            let w = match writer.as_mut() {
-                Some(w) => w,
-                None => writer.insert(match options.format {
-                    OutputFormat::LeRobotV3 => {
-                        Writer::V3(Box::new(V3Writer::try_new(root, &p, options.v3.clone())?))
-                    }
-                    OutputFormat::LeRobotV21 => Writer::V21(Box::new(V21Writer::try_new(
-                        root,
-                        &p,
-                        options.v3.robot_type.clone(),
-                    )?)),
-                    OutputFormat::DiffusionPolicy => {
-                        Writer::Zarr(Box::new(ZarrWriter::try_new(root, &p, options.videos)?))
-                    }
-                }),
-            };
+            let w = writer.as_mut().expect("made from the first batch");
             w.write_episode(p)?;
             reporter.episode(&id, false);
         }
     }
-    let w = writer.ok_or(ConvertError::NoEpisodes)?;
+    failures.sort_by_key(|(k, _)| *k);
+    summary.failed = failures.into_iter().map(|(_, f)| f).collect();
+    let Some(w) = writer else {
+        // Nothing to write: say why when every episode failed.
+        return Err(match summary.failed.first() {
+            Some(f) => ConvertError::AllFailed {
+                count: summary.failed.len(),
+                first: format!("{}: {}", f.episode, f.reason),
+            },
+            None => ConvertError::NoEpisodes,
+        });
+    };
     (summary.episodes, summary.frames) = w.counts();
     w.finish()?;
     if let Some(norm) = norm {

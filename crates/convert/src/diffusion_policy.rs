@@ -240,10 +240,15 @@ impl ZarrWriter {
         self.episode_ends.last().map_or(0, |e| *e as usize)
     }
 
+    /// Checks that `ep` can join this store (fps, widths, cameras).
+    pub(crate) fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), ConvertError> {
+        let want: Vec<&str> = self.images.iter().map(|c| c.name.as_str()).collect();
+        ep.check_layout(self.fps, self.action.width, self.state.width, &want)
+    }
+
     /// Appends one episode: arrays, decoded camera frames, and its videos.
     pub fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), ConvertError> {
-        let want: Vec<&str> = self.images.iter().map(|c| c.name.as_str()).collect();
-        ep.check_layout(self.fps, self.action.width, self.state.width, &want)?;
+        self.check_compatible(&ep)?;
         let n = ep.len();
         let start = self.frames() as u64;
         let err = zarr_err(&self.zarr);

@@ -37,6 +37,14 @@ pub enum ConvertError {
     /// The output folder exists and is not empty.
     #[error("output folder '{0}' is not empty")]
     OutputNotEmpty(PathBuf),
+    /// Every episode failed; the first reason is given.
+    #[error("none of the {count} episode(s) could be converted; the first: {first}")]
+    AllFailed {
+        /// Episodes that failed.
+        count: usize,
+        /// The first failure.
+        first: String,
+    },
     /// Nothing to convert.
     #[error("no episodes to convert (all were excluded or the input is empty)")]
     NoEpisodes,

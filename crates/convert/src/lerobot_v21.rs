@@ -111,8 +111,8 @@ impl V21Writer {
         self.frames
     }
 
-    /// Writes one episode's parquet and videos and its metadata lines.
-    pub fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), ConvertError> {
+    /// Checks that `ep` can join this dataset (layout, video size and codec).
+    pub(crate) fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), ConvertError> {
         let bad = |m: String| Err(ConvertError::episode(&ep.id, m));
         let want: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
         ep.check_layout(
@@ -129,6 +129,12 @@ impl V21Writer {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Writes one episode's parquet and videos and its metadata lines.
+    pub fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), ConvertError> {
+        self.check_compatible(&ep)?;
         let n = ep.len();
         let index = self.stats.len();
         let chunk = index / CHUNKS_SIZE;

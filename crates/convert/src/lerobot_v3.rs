@@ -238,7 +238,8 @@ impl V3Writer {
         self.frames
     }
 
-    fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), ConvertError> {
+    /// Checks that `ep` can join this dataset (layout, and videos that stream-copy).
+    pub(crate) fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), ConvertError> {
         let bad = |m: String| Err(ConvertError::episode(&ep.id, m));
         let want: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
         ep.check_layout(

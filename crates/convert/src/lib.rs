@@ -36,7 +36,8 @@ pub use config::{
     ActionSource, ColumnSlice, DEXJOCO_INSTRUCTIONS, Selection, TaskSelection, first_moving_frame,
 };
 pub use convert::{
-    ConvertOptions, OutputFormat, Reporter, Silent, Summary, convert, is_non_empty_dir,
+    ConvertOptions, FailedEpisode, OutputFormat, Reporter, Silent, Summary, convert,
+    is_non_empty_dir,
 };
 pub use diffusion_policy::{REPLAY_BUFFER, ZarrWriter};
 pub use error::ConvertError;

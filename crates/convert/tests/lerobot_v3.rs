@@ -5,7 +5,7 @@
 mod common;
 
 use common::{check_items, fixture, load, selection};
-use dexjoco_convert::{ConvertOptions, Silent, VideoCodec, VideoOptions, convert};
+use dexjoco_convert::{ConvertError, ConvertOptions, Silent, VideoCodec, VideoOptions, convert};
 use serde_json::Value;
 
 fn options(video: VideoOptions) -> ConvertOptions {
@@ -110,10 +110,12 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
     assert!(err.to_string().contains("not empty"), "{err}");
     assert!(out.join("keep.txt").exists());
 
-    // A missing camera: the error names episode and camera; nothing is left behind and
-    // the old folder is untouched even with overwrite.
+    // Every episode lacks a camera: the error names the first, nothing is left behind
+    // and the old folder is untouched even with overwrite.
     let mut bad = fx.inputs.clone();
-    bad[2].episode.cameras.retain(|c| c.name != "handcam_rgb");
+    for b in &mut bad {
+        b.episode.cameras.retain(|c| c.name != "handcam_rgb");
+    }
     let opts = ConvertOptions {
         overwrite: true,
         ..opts
@@ -122,11 +124,41 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("episode_000002") && err.contains("handcam_rgb"),
+        err.contains("none of the 3")
+            && err.contains("episode_000000")
+            && err.contains("handcam_rgb"),
         "{err}"
     );
     assert!(out.join("keep.txt").exists());
     assert_eq!(std::fs::read_dir(out_dir.path()).unwrap().count(), 1);
+
+    // One episode lacks it and one input cannot be read: those two are left out and
+    // named, the rest is written.
+    let mut bad = fx.inputs.clone();
+    bad[2].episode.cameras.retain(|c| c.name != "handcam_rgb");
+    let unreadable = out_dir.path().join("broken_episode");
+    let inputs = bad
+        .into_iter()
+        .map(Ok)
+        .chain(std::iter::once(Err(ConvertError::Input {
+            path: unreadable.clone(),
+            message: "replay.zarr is missing".into(),
+        })));
+    let s = convert(inputs, &out, &opts, &Silent).unwrap();
+    assert_eq!(s.episodes, 2);
+    let failed: Vec<_> = s.failed.iter().map(|f| f.episode.clone()).collect();
+    assert_eq!(
+        failed,
+        [
+            "episode_000002".to_owned(),
+            unreadable.display().to_string()
+        ]
+    );
+    assert!(s.failed[0].reason.contains("handcam_rgb"), "{:?}", s.failed);
+    assert!(s.failed[1].reason.contains("replay.zarr is missing"));
+    let info: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("meta/info.json")).unwrap()).unwrap();
+    assert_eq!(info["total_episodes"], 2);
 
     // Overwrite, with a bad-episodes list.
     let mut opts = opts;

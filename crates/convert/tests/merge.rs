@@ -174,7 +174,8 @@ fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
     let base = &it["images"]["observation.images.base"];
     assert!((base[0].as_f64().unwrap() - 200.0).abs() <= 3.0, "{base}");
 
-    // Without the merge the widths differ and the error says how to fix it.
+    // Without the merge the widths differ: the two-arm episode is left out, and the
+    // reason says how to fix it.
     let opts = ConvertOptions {
         selection: Selection {
             merge_bimanual: false,
@@ -182,16 +183,20 @@ fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
         },
         ..ConvertOptions::default()
     };
-    let err = convert(
+    let s = convert(
         inputs.into_iter().map(Ok),
         &out_dir.path().join("x"),
         &opts,
         &Silent,
     )
-    .unwrap_err()
-    .to_string();
+    .unwrap();
+    assert_eq!(s.episodes, 3);
+    assert_eq!(s.failed.len(), 1, "{:?}", s.failed);
+    let f = &s.failed[0];
+    assert_eq!(f.episode, "bimanual_000000");
     assert!(
-        err.contains("bimanual_000000") && err.contains("widths"),
-        "{err}"
+        f.reason.contains("widths") && f.reason.contains("select the same arrays"),
+        "{}",
+        f.reason
     );
 }
