@@ -154,8 +154,8 @@ pub struct AugmentReport {
     /// order.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub dropped: Vec<ReplayRecord>,
-    /// Inputs that could not be replayed (unreadable, unknown task, missing field, rejected
-    /// by the simulator), in input order.
+    /// Inputs that could not be replayed: those unreadable, of an unknown task or missing
+    /// a field, in input order, then those the simulator rejected, by task and episode.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub skipped: Vec<SkippedInput>,
     /// Replays rendered by this run (the rest were already there).
@@ -223,7 +223,14 @@ fn read_sources(
                 Err(e) => skip(input, e.to_string()),
             }
         } else {
-            for dir in dexjoco_ingest::episode_dirs(input)? {
+            let dirs = match dexjoco_ingest::episode_dirs(input) {
+                Ok(dirs) => dirs,
+                Err(e) => {
+                    skip(input, e.to_string());
+                    continue;
+                }
+            };
+            for dir in dirs {
                 match dexjoco_ingest::read_stored_episode(&dir) {
                     Ok(ep) => eps.push((ep, dir)),
                     Err(e) => skip(&dir, e.to_string()),
@@ -738,6 +745,16 @@ pub fn augment(
     let specs = TaskSpec::builtin_and(config.tasks_dir.as_deref())
         .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
     let (sources, mut skipped) = read_sources(&config.inputs, &specs)?;
+    if sources.is_empty()
+        && let Some(first) = skipped.first()
+    {
+        return Err(AugmentError::Input(format!(
+            "none of the {} input(s) can be replayed; the first: '{}': {}",
+            skipped.len(),
+            first.source,
+            first.reason
+        )));
+    }
     let out = &config.out;
     fs_err::create_dir_all(out).map_err(io_err("create", out))?;
     // A killed run leaves at most staged (never renamed) replays: drop them.
@@ -804,18 +821,37 @@ pub fn augment(
             tracing::warn!(task = %s.spec.id, episode = %s.episode.id, "replay failed; no replays kept");
             continue;
         }
-        // Done: the replay's folder is there, or (without --keep-failed, which would now
-        // keep it) it was dropped under --dynamics.
-        let todo: Vec<usize> = (0..config.replays)
-            .filter(|&r| {
-                let name = replay_name(&s.episode.id, r);
-                let kept = read_record(&out.join(&s.spec.id).join(&name)).is_some();
-                let dropped = config.dynamics
-                    && !config.keep_failed
-                    && read_record_file(&dropped_path(out, &s.spec.id, &name)).is_some();
-                !kept && !dropped
-            })
-            .collect();
+        // Done: the replay's folder is there (made with this seed), or, without
+        // --keep-failed (which would now keep it), it was dropped under --dynamics with the
+        // same seed and the same draw (a changed spec draws again).
+        let key = format!("{}/{}", s.spec.id, s.episode.id);
+        let mut todo = Vec::new();
+        for r in 0..config.replays {
+            let name = replay_name(&s.episode.id, r);
+            let seed = crate::randomize::replay_seed(config.seed, &key, r);
+            let folder = out.join(&s.spec.id).join(&name);
+            if let Some(rec) = read_record(&folder) {
+                if rec.sample.seed != seed {
+                    return Err(AugmentError::Input(format!(
+                        "'{}' was made with another --seed (replay seed {}, now {seed}): augment into another --out, or remove it",
+                        folder.display(),
+                        rec.sample.seed
+                    )));
+                }
+                continue;
+            }
+            if config.dynamics
+                && !config.keep_failed
+                && let Some(rec) = read_record_file(&dropped_path(out, &s.spec.id, &name))
+            {
+                let model = &assets[&s.spec.id].scene.model;
+                let draw = sample_dynamics(&s.spec, model, dynamics_seed(seed))?;
+                if rec.sample.seed == seed && rec.dynamics.as_ref() == Some(&draw) {
+                    continue;
+                }
+            }
+            todo.push(r);
+        }
         if todo.is_empty() {
             continue;
         }

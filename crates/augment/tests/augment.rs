@@ -403,11 +403,22 @@ fn a_bad_input_is_skipped_and_named_while_the_rest_is_replayed() {
     std::fs::remove_dir_all(broken.join("replay.zarr/data/action")).unwrap();
     let junk = tmp.path().join("junk.mcap");
     std::fs::write(&junk, b"not an mcap").unwrap();
+    // A one-arm recording filed under a two-arm task: read, then rejected by the scene.
+    let misfiled = tmp.path().join("two/bimanual_unlock_ipad/episode_000009");
+    std::fs::create_dir_all(misfiled.parent().unwrap()).unwrap();
+    let status = std::process::Command::new("cp")
+        .args(["-r", src.to_str().unwrap(), misfiled.to_str().unwrap()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let missing = tmp.path().join("no_such_folder");
 
     let inputs = vec![
         demos().join("click_mouse/episode_000001"),
         broken.parent().unwrap().to_path_buf(),
         junk.clone(),
+        missing.clone(),
+        misfiled.parent().unwrap().to_path_buf(),
     ];
     let mut c = config(inputs, &tmp.path().join("out"));
     c.replays = 1;
@@ -415,7 +426,7 @@ fn a_bad_input_is_skipped_and_named_while_the_rest_is_replayed() {
     let report = run(&c, 1);
     assert_eq!(report.episodes.len(), 1);
     assert_eq!(report.replays.len(), 1);
-    assert_eq!(report.skipped.len(), 2, "{:?}", report.skipped);
+    assert_eq!(report.skipped.len(), 4, "{:?}", report.skipped);
     let by_source = |p: &Path| {
         report
             .skipped
@@ -428,8 +439,22 @@ fn a_bad_input_is_skipped_and_named_while_the_rest_is_replayed() {
     let reason = by_source(&broken);
     assert!(reason.contains("field 'action'"), "{reason}");
     assert!(by_source(&junk).contains("not an MCAP file"));
+    assert!(by_source(&missing).contains("no_such_folder"));
+    let reason = by_source(&misfiled);
+    assert!(
+        reason.contains("episode_000009") && reason.contains("61"),
+        "{reason}"
+    );
     let md = std::fs::read_to_string(tmp.path().join("out/augment_report.md")).unwrap();
-    assert!(md.contains("Skipped inputs (2)"), "{md}");
+    assert!(md.contains("Skipped inputs (4)"), "{md}");
+
+    // Nothing replayable at all: an error with the first reason.
+    let c = config(vec![junk.clone()], &tmp.path().join("none"));
+    let err = augment(&c, &|_, _| {}).unwrap_err().to_string();
+    assert!(
+        err.contains("none of the 1 input(s)") && err.contains("junk.mcap"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -487,6 +512,15 @@ fn replays_failing_under_their_dynamics_draw_are_recorded_once_and_kept_on_reque
     assert_eq!(again.replays, first.replays);
     let now: Vec<_> = first.dropped.iter().map(|d| stamp(&d.name)).collect();
     assert_eq!(now, stamps, "a dropped replay was simulated again");
+
+    // Another seed into the same folder is refused, naming a replay folder.
+    let mut other = c.clone();
+    other.seed = 8;
+    let err = augment(&other, &|_, _| {}).unwrap_err().to_string();
+    assert!(
+        err.contains("another --seed") && err.contains("episode_000000__r"),
+        "{err}"
+    );
 
     // With --keep-failed the dropped ones are made and kept, flagged, with the same draw.
     c.keep_failed = true;

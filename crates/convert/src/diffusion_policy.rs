@@ -243,7 +243,19 @@ impl ZarrWriter {
     /// Checks that `ep` can join this store (fps, widths, cameras).
     pub(crate) fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), ConvertError> {
         let want: Vec<&str> = self.images.iter().map(|c| c.name.as_str()).collect();
-        ep.check_layout(self.fps, self.action.width, self.state.width, &want)
+        ep.check_layout(self.fps, self.action.width, self.state.width, &want)?;
+        for (v, img) in ep.videos.iter().zip(&self.images) {
+            if (v.info.width, v.info.height) != (img.width, img.height) {
+                return Err(ConvertError::episode(
+                    &ep.id,
+                    format!(
+                        "camera '{}': {}x{} differs from the store's {}x{}",
+                        img.name, v.info.width, v.info.height, img.width, img.height
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Appends one episode: arrays, decoded camera frames, and its videos.
