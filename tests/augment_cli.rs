@@ -1,7 +1,6 @@
 //! The `augment` command end to end: a run killed midway and run again completes with no
 //! duplicate and no partial replay, byte-identical to an uninterrupted run.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -33,20 +32,6 @@ fn finished(out: &Path) -> Vec<PathBuf> {
         .unwrap_or_default();
     v.sort();
     v
-}
-
-fn tree(dir: &Path, out: &mut BTreeMap<String, Vec<u8>>, root: &Path) {
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            tree(&p, out, root);
-        } else {
-            out.insert(
-                p.strip_prefix(root).unwrap().display().to_string(),
-                std::fs::read(&p).unwrap(),
-            );
-        }
-    }
 }
 
 #[test]
@@ -105,9 +90,8 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
         out.status,
         String::from_utf8_lossy(&out.stderr)
     );
-    let (mut a, mut b) = (BTreeMap::new(), BTreeMap::new());
-    tree(&killed.join("click_mouse"), &mut a, &killed);
-    tree(&clean.join("click_mouse"), &mut b, &clean);
+    let a = dexjoco_testkit::file_tree(&killed.join("click_mouse"));
+    let b = dexjoco_testkit::file_tree(&clean.join("click_mouse"));
     assert_eq!(a.len(), b.len());
     assert_eq!(a, b);
 

@@ -2,7 +2,8 @@
 //! paper's way (uniform on a sphere, least occluded kept).
 
 use anyhow::Context;
-use dexjoco_augment::{PoolOptions, build_pool, builtin_spec};
+use dexjoco_augment::{PoolOptions, build_pool};
+use dexjoco_core::TaskSpec;
 use dexjoco_sim::{
     EnvOptions, RenderQuality, RenderSettings, Renderer, SceneSource, TaskEnv, load_task_scene,
 };
@@ -12,7 +13,7 @@ use crate::exit::{CliError, ExitStatus};
 
 /// Runs `cameras`.
 pub fn run(global: &GlobalArgs, args: &CamerasArgs) -> anyhow::Result<ExitStatus> {
-    let spec = builtin_spec(&args.task).ok_or_else(|| CliError {
+    let spec = TaskSpec::builtin(&args.task).ok_or_else(|| CliError {
         message: format!("unknown task '{}'", args.task),
         hint: Some(format!(
             "tasks: {}",
@@ -96,8 +97,7 @@ pub fn run(global: &GlobalArgs, args: &CamerasArgs) -> anyhow::Result<ExitStatus
     println!("pool: {}", out.display());
 
     if args.preview {
-        let state0 = TaskEnv::default_initial_state(&scene, &spec)?;
-        let mut env = TaskEnv::from_initial_state(&scene, &spec, &state0, EnvOptions::default())?;
+        let mut env = TaskEnv::new(&scene, &spec, EnvOptions::default())?;
         let mut r = Renderer::new(
             &scene.model,
             RenderSettings {

@@ -214,16 +214,8 @@ pub fn build_pool(
     if options.distance.is_nan() || options.distance <= 0.0 {
         return Err(bad(format!("distance {} must be > 0", options.distance)));
     }
-    let sim = |source| AugmentError::Sim {
-        episode: spec.id.clone(),
-        source,
-    };
-    let state0 = TaskEnv::default_initial_state(scene, spec).map_err(sim)?;
-    let mut env = TaskEnv::from_initial_state(scene, spec, &state0, EnvOptions::default())
-        .map_err(|source| AugmentError::Sim {
-            episode: spec.id.clone(),
-            source,
-        })?;
+    let mut env =
+        TaskEnv::new(scene, spec, EnvOptions::default()).map_err(crate::run::sim_err(&spec.id))?;
     let model = scene.model.clone();
     let roots = target_bodies(&model, spec);
     if roots.is_empty() {

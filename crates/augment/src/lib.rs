@@ -22,5 +22,5 @@ pub use randomize::{
 };
 pub use run::{
     AugmentConfig, AugmentReport, EpisodeOutcome, REPORT_JSON, REPORT_MD, ReplayRecord,
-    SkippedInput, THIRD_PERSON, augment, builtin_spec, replay_name,
+    SkippedInput, THIRD_PERSON, augment, replay_name,
 };

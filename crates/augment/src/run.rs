@@ -38,11 +38,6 @@ const PREVIEWS: &str = ".previews";
 /// the report can list them.
 const DROPPED: &str = ".dropped";
 
-/// The task specs shipped with this build, by id (see [`TaskSpec::builtin`]).
-pub fn builtin_spec(task: &str) -> Option<TaskSpec> {
-    TaskSpec::builtin(task)
-}
-
 /// What to do.
 #[derive(Debug, Clone)]
 pub struct AugmentConfig {
@@ -315,7 +310,7 @@ struct Physics {
     deviation_at: Option<(usize, usize)>,
 }
 
-fn sim_err(episode: &str) -> impl FnOnce(dexjoco_sim::SimError) -> AugmentError + '_ {
+pub(crate) fn sim_err(episode: &str) -> impl FnOnce(dexjoco_sim::SimError) -> AugmentError + '_ {
     move |source| AugmentError::Sim {
         episode: episode.into(),
         source,

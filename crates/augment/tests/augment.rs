@@ -48,21 +48,8 @@ fn run(c: &AugmentConfig, threads: usize) -> AugmentReport {
 
 /// Every file under `dir` (relative path -> bytes), reports left out.
 fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    fn walk(root: &Path, p: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
-        for e in std::fs::read_dir(p).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                walk(root, &p, out);
-            } else {
-                let rel = p.strip_prefix(root).unwrap().to_string_lossy().into_owned();
-                if !rel.starts_with("augment_report") {
-                    out.insert(rel, std::fs::read(&p).unwrap());
-                }
-            }
-        }
-    }
-    let mut m = BTreeMap::new();
-    walk(dir, dir, &mut m);
+    let mut m = dexjoco_testkit::file_tree(dir);
+    m.retain(|rel, _| !rel.starts_with("augment_report"));
     m
 }
 
@@ -199,7 +186,7 @@ fn depth_streams_to_npz_that_numpy_loads_and_equals_a_direct_render() {
         got["centre_last"].as_f64().unwrap() as f32,
         values[5 * 64 * 64 + 32 * 64 + 32]
     );
-    let spec = dexjoco_augment::builtin_spec("click_mouse").unwrap();
+    let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
     let scene = dexjoco_sim::load_task_scene(&SceneSource::BuiltIn, &spec).unwrap();
     let ep =
         dexjoco_ingest::read_stored_episode(&demos().join("click_mouse/episode_000000")).unwrap();
@@ -248,7 +235,7 @@ fn depth_streams_to_npz_that_numpy_loads_and_equals_a_direct_render() {
 #[test]
 fn a_recording_on_the_reference_scene_replays_to_success_with_scene_dir() {
     let xmls = dexjoco_testkit::upstream_dir().join("xmls");
-    let spec = dexjoco_augment::builtin_spec("click_mouse").unwrap();
+    let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
     let source = SceneSource::Dir(xmls.clone());
     let scene = dexjoco_sim::load_task_scene(&source, &spec).unwrap();
     let mut x = 0x9e37_79b9_7f4a_7c15_u64;
@@ -289,7 +276,7 @@ fn a_recording_on_the_reference_scene_replays_to_success_with_scene_dir() {
 #[test]
 fn dynamics_are_drawn_in_the_spec_ranges_per_replay_and_change_the_physics() {
     use dexjoco_core::DynamicsRandomization as D;
-    let spec = dexjoco_augment::builtin_spec("click_mouse").unwrap();
+    let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
     assert!(!spec.dynamics.is_empty());
     let scene = dexjoco_sim::load_task_scene(&SceneSource::BuiltIn, &spec).unwrap();
     let original = dexjoco_augment::read_dynamics(&spec, &scene.model).unwrap();

@@ -1,13 +1,14 @@
 //! Building a camera pose pool: poses on the requested sphere band, deterministic, the
 //! kept ones less occluded than the rest, and an occlusion score that sees blockers.
 
-use dexjoco_augment::{CameraPool, PoolOptions, build_pool, builtin_spec, occlusion};
+use dexjoco_augment::{CameraPool, PoolOptions, build_pool, occlusion};
 use dexjoco_core::NameKind;
+use dexjoco_core::TaskSpec;
 use dexjoco_sim::{EnvOptions, SceneSource, TaskEnv, load_task_scene, name_id};
 
 #[test]
 fn pools_are_on_the_band_deterministic_and_keep_the_least_occluded() {
-    let spec = builtin_spec("click_mouse").unwrap();
+    let spec = TaskSpec::builtin("click_mouse").unwrap();
     let scene = load_task_scene(&SceneSource::BuiltIn, &spec).unwrap();
     let options = PoolOptions {
         count: 20,
@@ -86,7 +87,7 @@ fn pools_are_on_the_band_deterministic_and_keep_the_least_occluded() {
 
 #[test]
 fn occlusion_sees_the_table_between_the_camera_and_the_mouse() {
-    let spec = builtin_spec("click_mouse").unwrap();
+    let spec = TaskSpec::builtin("click_mouse").unwrap();
     let scene = load_task_scene(&SceneSource::BuiltIn, &spec).unwrap();
     let s0 = TaskEnv::default_initial_state(&scene, &spec).unwrap();
     let mut env = TaskEnv::from_initial_state(&scene, &spec, &s0, EnvOptions::default()).unwrap();

@@ -176,7 +176,7 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
         let failed: Vec<_> = s.failed.iter().map(|f| f.episode.as_str()).collect();
         assert_eq!(failed, ["episode_000000"]);
         assert!(s.failed[0].reason.contains("handcam_rgb"), "{:?}", s.failed);
-        trees.push(files(&dir));
+        trees.push(dexjoco_testkit::file_tree(&dir));
         std::fs::remove_dir_all(&dir).unwrap();
     }
     assert_eq!(trees[0], trees[1]);
@@ -219,26 +219,4 @@ fn size_caps_split_data_and_video_files_and_lerobot_follows() {
     }
     let loaded = load(&out, "pyav");
     check_items(&fx, &loaded, 3.0);
-}
-
-/// Every file under `dir` (relative path -> bytes).
-fn files(dir: &std::path::Path) -> std::collections::BTreeMap<String, Vec<u8>> {
-    fn walk(
-        root: &std::path::Path,
-        p: &std::path::Path,
-        out: &mut std::collections::BTreeMap<String, Vec<u8>>,
-    ) {
-        for e in std::fs::read_dir(p).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                walk(root, &p, out);
-            } else {
-                let rel = p.strip_prefix(root).unwrap().to_string_lossy().into_owned();
-                out.insert(rel, std::fs::read(&p).unwrap());
-            }
-        }
-    }
-    let mut m = std::collections::BTreeMap::new();
-    walk(dir, dir, &mut m);
-    m
 }

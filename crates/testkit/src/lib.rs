@@ -5,6 +5,7 @@
 //!   with a hint when it is missing: they are never skipped.
 //! - [`upstream_dir`]: the DexJoCo reference scenes at `../shared/dexjoco-upstream`.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -82,4 +83,25 @@ pub fn upstream_dir() -> PathBuf {
              (or set DEXJOCO_UPSTREAM)"
         )
     })
+}
+
+/// Every file below `dir` (path relative to `dir` -> bytes), for comparing outputs byte
+/// for byte.
+pub fn file_tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    fn walk(root: &Path, p: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
+        let entries = std::fs::read_dir(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        for e in entries {
+            let p = e.expect("directory entry").path();
+            if p.is_dir() {
+                walk(root, &p, out);
+            } else {
+                let rel = p.strip_prefix(root).expect("below root");
+                let bytes = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+                out.insert(rel.to_string_lossy().into_owned(), bytes);
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
 }
