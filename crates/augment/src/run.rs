@@ -175,6 +175,13 @@ struct Source {
     path: PathBuf,
 }
 
+impl Source {
+    /// `<task>/<episode>`: what a replay's seed is derived from.
+    fn key(&self) -> String {
+        format!("{}/{}", self.spec.id, self.episode.id)
+    }
+}
+
 /// An input that could not be replayed, and why; the rest of the batch goes on.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SkippedInput {
@@ -182,6 +189,23 @@ pub struct SkippedInput {
     pub source: String,
     /// What is wrong with it (episode, field and frame where known).
     pub reason: String,
+}
+
+impl SkippedInput {
+    fn new(path: &Path, reason: String) -> Self {
+        tracing::warn!(input = %path.display(), "skipped: {reason}");
+        Self {
+            source: path.display().to_string(),
+            reason,
+        }
+    }
+}
+
+/// What became of one replay: its folder was written, or it failed under `--dynamics`
+/// and only its record was kept (`.dropped/`).
+enum Outcome {
+    Kept(ReplayRecord),
+    Dropped(ReplayRecord),
 }
 
 /// Reads every input episode and its task spec. A folder or MCAP file that cannot be
@@ -192,13 +216,7 @@ fn read_sources(
 ) -> Result<(Vec<Source>, Vec<SkippedInput>), AugmentError> {
     let mut out = Vec::new();
     let mut skipped = Vec::new();
-    let mut skip = |path: &Path, reason: String| {
-        tracing::warn!(input = %path.display(), "skipped: {reason}");
-        skipped.push(SkippedInput {
-            source: path.display().to_string(),
-            reason,
-        });
-    };
+    let mut skip = |path: &Path, reason: String| skipped.push(SkippedInput::new(path, reason));
     for input in inputs {
         let mut eps = Vec::new();
         if input.is_file() {
@@ -433,7 +451,7 @@ fn render_unit(
     config: &AugmentConfig,
     ep_key: &str,
     out: &Path,
-) -> Result<Vec<ReplayRecord>, AugmentError> {
+) -> Result<Vec<Outcome>, AugmentError> {
     let n = frames(src, config);
     let id = &src.episode.id;
     let fixed: Vec<(String, usize)> = config
@@ -553,10 +571,9 @@ fn render_unit(
         },
     )?;
     let replayed = FrameArray::from_rows(&rows).map_err(|e| AugmentError::Input(e.to_string()))?;
-    let randomized_dynamics = pending.iter().any(|p| p.dynamics.is_some());
     // Without --dynamics this simulation must be the validated one, bit for bit; with
     // it, this simulation is the replay's own, and says whether it succeeded.
-    let (states, first_success, max_dev, dev_at) = if randomized_dynamics {
+    let (states, first_success, max_dev, dev_at) = if config.dynamics {
         let recorded = src.episode.array(Episode::STATE).expect("checked");
         let (d, at) = deviation(&replayed, recorded);
         (replayed, first_success, d, at)
@@ -578,28 +595,34 @@ fn render_unit(
             physics.deviation_at,
         )
     };
-    if randomized_dynamics && first_success.is_none() && !config.keep_failed {
+    let record_of = |index: usize,
+                     sample: VisualSample,
+                     dynamics: Option<Vec<DynamicsValue>>,
+                     videos: Vec<String>,
+                     depth: Vec<String>| ReplayRecord {
+        name: replay_name(id, index),
+        task: src.spec.id.clone(),
+        episode: id.clone(),
+        replay: index,
+        sample,
+        success: first_success.is_some(),
+        first_success,
+        steps: n,
+        max_state_deviation: max_dev,
+        deviation_at: dev_at,
+        videos,
+        depth,
+        dynamics,
+    };
+    if config.dynamics && first_success.is_none() && !config.keep_failed {
         // The task failed under these dynamics: only the record of the draw is kept.
+        let mut dropped = Vec::new();
         for p in pending {
             for (_, w) in p.writers {
                 let _ = w.finish();
             }
             let _ = fs_err::remove_dir_all(&p.staging);
-            let record = ReplayRecord {
-                name: replay_name(id, p.index),
-                task: src.spec.id.clone(),
-                episode: id.clone(),
-                replay: p.index,
-                sample: p.sample,
-                success: false,
-                first_success: None,
-                steps: n,
-                max_state_deviation: max_dev,
-                deviation_at: dev_at,
-                videos: Vec::new(),
-                depth: Vec::new(),
-                dynamics: p.dynamics,
-            };
+            let record = record_of(p.index, p.sample, p.dynamics, Vec::new(), Vec::new());
             let path = dropped_path(out, &record.task, &record.name);
             let dir = path.parent().expect("has parent");
             fs_err::create_dir_all(dir).map_err(io_err("create", dir))?;
@@ -608,8 +631,9 @@ fn render_unit(
                 &serde_json::to_vec_pretty(&record).expect("serializable"),
             )?;
             tracing::debug!(episode = %id, replay = p.index, "failed under randomized dynamics; dropped");
+            dropped.push(Outcome::Dropped(record));
         }
-        return Ok(Vec::new());
+        return Ok(dropped);
     }
 
     let mut records = Vec::new();
@@ -663,21 +687,7 @@ fn render_unit(
         ep.compute_action_rotvec(src.spec.setup)
             .map_err(|e| AugmentError::Input(format!("episode '{id}': {e}")))?;
         raw::write_replay_zarr(&p.staging, &ep)?;
-        let record = ReplayRecord {
-            name: name.clone(),
-            task: src.spec.id.clone(),
-            episode: id.clone(),
-            replay: p.index,
-            sample: p.sample,
-            success: first_success.is_some(),
-            first_success,
-            steps: n,
-            max_state_deviation: max_dev,
-            deviation_at: dev_at,
-            videos,
-            depth,
-            dynamics: p.dynamics,
-        };
+        let record = record_of(p.index, p.sample, p.dynamics, videos, depth);
         if let Some(frame) = &p.preview {
             let dir = out.join(PREVIEWS);
             fs_err::create_dir_all(&dir).map_err(io_err("create", &dir))?;
@@ -697,7 +707,7 @@ fn render_unit(
         // A replay dropped by an earlier run without --keep-failed is now kept.
         let _ = std::fs::remove_file(dropped_path(out, &src.spec.id, &name));
         tracing::debug!(replay = %final_dir.display(), "replay written");
-        records.push(record);
+        records.push(Outcome::Kept(record));
     }
     Ok(records)
 }
@@ -788,38 +798,27 @@ pub fn augment(
         .par_iter()
         .map(|s| simulate(s, &assets[&s.spec.id], frames(s, config)))
         .collect();
-    let mut physics = Vec::new();
-    let mut kept_sources = Vec::new();
-    for (s, p) in sources.into_iter().zip(simulated) {
-        match p {
-            Ok(p) => {
-                physics.push(p);
-                kept_sources.push(s);
-            }
+    let (sources, physics): (Vec<Source>, Vec<Physics>) = sources
+        .into_iter()
+        .zip(simulated)
+        .filter_map(|(s, p)| match p {
+            Ok(p) => Some((s, p)),
             Err(e) => {
-                tracing::warn!(input = %s.path.display(), "skipped: {e}");
-                skipped.push(SkippedInput {
-                    source: s.path.display().to_string(),
-                    reason: e.to_string(),
-                });
+                skipped.push(SkippedInput::new(&s.path, e.to_string()));
+                None
             }
-        }
-    }
-    let sources = kept_sources;
+        })
+        .unzip();
 
-    // Which replays are still to do (resume: finished ones have their record).
+    // What is on disk already (resume), read once, and which replays are still to do.
+    let mut outcomes: BTreeMap<(usize, usize), Outcome> = BTreeMap::new();
     let mut units = Vec::new();
     let jobs = rayon::current_num_threads().max(1);
     for (i, s) in sources.iter().enumerate() {
-        let ok = physics[i].first_success.is_some();
-        if !ok && !config.keep_failed {
-            tracing::warn!(task = %s.spec.id, episode = %s.episode.id, "replay failed; no replays kept");
-            continue;
-        }
         // Done: the replay's folder is there (made with this seed), or, without
         // --keep-failed (which would now keep it), it was dropped under --dynamics with the
         // same seed and the same draw (a changed spec draws again).
-        let key = format!("{}/{}", s.spec.id, s.episode.id);
+        let key = s.key();
         let mut todo = Vec::new();
         for r in 0..config.replays {
             let name = replay_name(&s.episode.id, r);
@@ -833,6 +832,7 @@ pub fn augment(
                         rec.sample.seed
                     )));
                 }
+                outcomes.insert((i, r), Outcome::Kept(rec));
                 continue;
             }
             if config.dynamics
@@ -842,10 +842,15 @@ pub fn augment(
                 let model = &assets[&s.spec.id].scene.model;
                 let draw = sample_dynamics(&s.spec, model, dynamics_seed(seed))?;
                 if rec.sample.seed == seed && rec.dynamics.as_ref() == Some(&draw) {
+                    outcomes.insert((i, r), Outcome::Dropped(rec));
                     continue;
                 }
             }
             todo.push(r);
+        }
+        if physics[i].first_success.is_none() && !config.keep_failed {
+            tracing::warn!(task = %s.spec.id, episode = %s.episode.id, "replay failed; no replays kept");
+            continue;
         }
         if todo.is_empty() {
             continue;
@@ -866,11 +871,11 @@ pub fn augment(
     }
     let total = units.len();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let rendered: Vec<Vec<ReplayRecord>> = units
+    let rendered: Vec<Vec<Outcome>> = units
         .par_iter()
         .map(|u| {
             let s = &sources[u.source];
-            let key = format!("{}/{}", s.spec.id, s.episode.id);
+            let key = s.key();
             let r = render_unit(
                 u,
                 s,
@@ -890,26 +895,37 @@ pub fn augment(
     rayon::broadcast(|_| {
         RENDERER.with(|cell| cell.borrow_mut().take());
     });
-    let rendered_now = rendered.iter().map(Vec::len).sum();
     let _ = fs_err::remove_dir(&staging);
+    let mut rendered_now = 0;
+    for (u, done) in units.iter().zip(rendered) {
+        for o in done {
+            let r = match &o {
+                Outcome::Kept(rec) => {
+                    rendered_now += 1;
+                    rec.replay
+                }
+                Outcome::Dropped(rec) => rec.replay,
+            };
+            outcomes.insert((u.source, r), o);
+        }
+    }
 
-    // The report covers every replay on disk for these episodes.
+    // The report covers every replay of these episodes on disk, in (episode, replay)
+    // order.
     let mut replays = Vec::new();
     let mut dropped = Vec::new();
+    let mut kept = vec![0; sources.len()];
+    for ((i, _), o) in outcomes {
+        match o {
+            Outcome::Kept(rec) => {
+                kept[i] += 1;
+                replays.push(rec);
+            }
+            Outcome::Dropped(rec) => dropped.push(rec),
+        }
+    }
     let mut episodes = Vec::new();
     for (i, s) in sources.iter().enumerate() {
-        let mut kept = 0;
-        for r in 0..config.replays {
-            let name = replay_name(&s.episode.id, r);
-            if let Some(rec) = read_record(&out.join(&s.spec.id).join(&name)) {
-                kept += 1;
-                replays.push(rec);
-            } else if config.dynamics
-                && let Some(rec) = read_record_file(&dropped_path(out, &s.spec.id, &name))
-            {
-                dropped.push(rec);
-            }
-        }
         episodes.push(EpisodeOutcome {
             task: s.spec.id.clone(),
             episode: s.episode.id.clone(),
@@ -918,7 +934,7 @@ pub fn augment(
             first_success: physics[i].first_success,
             steps: frames(s, config),
             max_state_deviation: physics[i].deviation,
-            replays_kept: kept,
+            replays_kept: kept[i],
         });
     }
     let report = AugmentReport {
@@ -954,6 +970,11 @@ pub fn augment(
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), AugmentError> {
     dexjoco_ingest::write_atomic(path, bytes)?;
     Ok(())
+}
+
+/// The success cell of a replay that has its folder.
+fn kept_label(r: &ReplayRecord) -> &'static str {
+    if r.success { "yes" } else { "FAILED (kept)" }
 }
 
 fn write_report(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> {
@@ -1009,7 +1030,7 @@ fn write_report(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> 
             a[0],
             a[1],
             a[2],
-            if r.success { "yes" } else { "FAILED (kept)" }
+            kept_label(r)
         ));
     }
     if report
@@ -1024,9 +1045,14 @@ fn write_report(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> 
             report.dropped.len()
         ));
         md.push_str("| replay | success | max state deviation | drawn values (original -> used) |\n|---|---|---:|---|\n");
-        let mut rows: Vec<&ReplayRecord> = report.replays.iter().chain(&report.dropped).collect();
-        rows.sort_by(|a, b| (&a.task, &a.name).cmp(&(&b.task, &b.name)));
-        for r in rows {
+        let mut rows: Vec<(&ReplayRecord, &str)> = report
+            .replays
+            .iter()
+            .map(|r| (r, kept_label(r)))
+            .chain(report.dropped.iter().map(|r| (r, "FAILED (dropped)")))
+            .collect();
+        rows.sort_by(|(a, _), (b, _)| (&a.task, &a.name).cmp(&(&b.task, &b.name)));
+        for (r, label) in rows {
             let values = r.dynamics.as_deref().unwrap_or_default();
             let cells: Vec<String> = values
                 .iter()
@@ -1041,11 +1067,7 @@ fn write_report(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> 
                 "| {}/{} | {} | {:.3e} | {} |\n",
                 r.task,
                 r.name,
-                match (r.success, r.videos.is_empty()) {
-                    (true, _) => "yes",
-                    (false, false) => "FAILED (kept)",
-                    (false, true) => "FAILED (dropped)",
-                },
+                label,
                 r.max_state_deviation,
                 cells.join("; ")
             ));
