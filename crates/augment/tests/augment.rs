@@ -375,29 +375,29 @@ fn dynamics_are_drawn_in_the_spec_ranges_per_replay_and_change_the_physics() {
     }
 }
 
+/// Copies the folder `src` to `dst` (parents made), as `cp -r` does.
+fn copy_dir(src: &Path, dst: &Path) {
+    std::fs::create_dir_all(dst.parent().unwrap()).unwrap();
+    let status = std::process::Command::new("cp")
+        .args(["-r", src.to_str().unwrap(), dst.to_str().unwrap()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+}
+
 #[test]
 fn a_bad_input_is_skipped_and_named_while_the_rest_is_replayed() {
     let tmp = tempfile::tempdir().unwrap();
     // A raw folder whose action array is gone, and a file that is not MCAP.
     let broken = tmp.path().join("click_mouse/episode_000007");
     let src = demos().join("click_mouse/episode_000000");
-    std::fs::create_dir_all(broken.parent().unwrap()).unwrap();
-    let status = std::process::Command::new("cp")
-        .args(["-r", src.to_str().unwrap(), broken.to_str().unwrap()])
-        .status()
-        .unwrap();
-    assert!(status.success());
+    copy_dir(&src, &broken);
     std::fs::remove_dir_all(broken.join("replay.zarr/data/action")).unwrap();
     let junk = tmp.path().join("junk.mcap");
     std::fs::write(&junk, b"not an mcap").unwrap();
     // A one-arm recording filed under a two-arm task: read, then rejected by the scene.
     let misfiled = tmp.path().join("two/bimanual_unlock_ipad/episode_000009");
-    std::fs::create_dir_all(misfiled.parent().unwrap()).unwrap();
-    let status = std::process::Command::new("cp")
-        .args(["-r", src.to_str().unwrap(), misfiled.to_str().unwrap()])
-        .status()
-        .unwrap();
-    assert!(status.success());
+    copy_dir(&src, &misfiled);
     let missing = tmp.path().join("no_such_folder");
 
     let inputs = vec![
