@@ -107,26 +107,52 @@ if ((want_python)); then
   echo "$VENV/bin/python" > "$ROOT/.deps/python-path"
 
   # Diffusion Policy has no package: its tests use the real ReplayBuffer class, one file
-  # of real-stanford/diffusion_policy at a pinned commit, fetched into the cache (never
-  # into the repo) and checked by its sha256.
+  # of real-stanford/diffusion_policy at a pinned commit. It goes into the cache (never
+  # into the repo), checked by its sha256, from the first source that has it:
+  #   1. GitHub (raw.githubusercontent.com), when reachable;
+  #   2. ../shared/third_party/diffusion_policy-<commit>/ (the same file beside the
+  #      project, for machines that reach only the package registries).
   DP_COMMIT=5ba07ac6661db573af695b419a7947ecb704690f
   DP_SHA256=c8d59f208525ed5c2164b67f85faf8642251d408533eec1639282076a79d80b4
+  DP_REL=diffusion_policy/common/replay_buffer.py
   DP_DIR="${XDG_CACHE_HOME:-$HOME/.cache}/dexjoco-data/diffusion_policy-$DP_COMMIT"
-  DP_FILE="$DP_DIR/diffusion_policy/common/replay_buffer.py"
-  if [ ! -f "$DP_FILE" ]; then
-    log "fetching Diffusion Policy's replay_buffer.py at $DP_COMMIT"
+  DP_FILE="$DP_DIR/$DP_REL"
+  DP_SHARED="${DEXJOCO_THIRD_PARTY:-$ROOT/../shared/third_party}/diffusion_policy-$DP_COMMIT"
+  sha_ok() { [ -f "$1" ] && [ "$(sha256sum "$1" | cut -d' ' -f1)" = "$DP_SHA256" ]; }
+  if ! sha_ok "$DP_FILE"; then
     mkdir -p "$(dirname "$DP_FILE")"
-    "$VENV/bin/python" - "$DP_COMMIT" "$DP_SHA256" "$DP_FILE" <<'PY' || echo "warning: could not fetch replay_buffer.py; the Diffusion Policy test will say how to get it" >&2
+    log "fetching Diffusion Policy's replay_buffer.py at $DP_COMMIT from GitHub"
+    "$VENV/bin/python" - "$DP_COMMIT" "$DP_SHA256" "$DP_FILE" <<'PY' || true
 import hashlib, os, sys, urllib.request
 commit, sha, dest = sys.argv[1:4]
 url = f"https://raw.githubusercontent.com/real-stanford/diffusion_policy/{commit}/diffusion_policy/common/replay_buffer.py"
-data = urllib.request.urlopen(url, timeout=60).read()
+try:
+    data = urllib.request.urlopen(url, timeout=15).read()
+except Exception as e:
+    sys.exit(f"[setup] GitHub not reachable ({e})")
 if hashlib.sha256(data).hexdigest() != sha:
-    sys.exit(f"{url}: unexpected sha256")
+    sys.exit(f"[setup] {url}: unexpected sha256, not used")
 tmp = dest + ".tmp"
 open(tmp, "wb").write(data)
 os.replace(tmp, dest)
 PY
+    if ! sha_ok "$DP_FILE"; then
+      if sha_ok "$DP_SHARED/$DP_REL"; then
+        log "taking Diffusion Policy's replay_buffer.py from $DP_SHARED"
+        cp "$DP_SHARED/$DP_REL" "$DP_FILE.tmp" && mv "$DP_FILE.tmp" "$DP_FILE"
+        if [ -f "$DP_SHARED/LICENSE" ]; then cp "$DP_SHARED/LICENSE" "$DP_DIR/LICENSE"; fi
+      elif [ -f "$DP_SHARED/$DP_REL" ]; then
+        log "warning: $DP_SHARED/$DP_REL has the wrong sha256; not used"
+      fi
+    fi
+    if ! sha_ok "$DP_FILE"; then
+      echo "error: Diffusion Policy's replay_buffer.py (commit $DP_COMMIT, sha256 $DP_SHA256)" >&2
+      echo "       could not be fetched from GitHub and is not at $DP_SHARED/$DP_REL" >&2
+      echo "hint: put that file (real-stanford/diffusion_policy at $DP_COMMIT, $DP_REL) at" >&2
+      echo "      $DP_FILE" >&2
+      echo "      or under \$DEXJOCO_THIRD_PARTY/diffusion_policy-$DP_COMMIT/$DP_REL" >&2
+      exit 1
+    fi
   fi
   echo "$DP_DIR" > "$ROOT/.deps/diffusion-policy-path"
 fi

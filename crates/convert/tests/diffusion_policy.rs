@@ -34,9 +34,9 @@ fn diffusion_policy_dir() -> PathBuf {
     assert!(
         dir.join("diffusion_policy/common/replay_buffer.py")
             .is_file(),
-        "Diffusion Policy's replay_buffer.py is missing from {}: fetch \
-         https://raw.githubusercontent.com/real-stanford/diffusion_policy/{DP_COMMIT}/diffusion_policy/common/replay_buffer.py \
-         into diffusion_policy/common/ there (or set DEXJOCO_DIFFUSION_POLICY)",
+        "Diffusion Policy's replay_buffer.py is missing from {}: run `scripts/setup.sh --python`, \
+         which takes it (checked by sha256) from GitHub or from \
+         ../shared/third_party/diffusion_policy-{DP_COMMIT}/ (or set DEXJOCO_DIFFUSION_POLICY)",
         dir.display()
     );
     dir
