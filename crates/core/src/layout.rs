@@ -7,6 +7,40 @@ pub const POSE_DIM: usize = 7;
 /// A pose in `action_rotvec`: xyz + rotation vector.
 pub const ROTVEC_POSE_DIM: usize = 6;
 
+/// Frames per second DexJoCo data is labelled with.
+pub const DEXJOCO_FPS: f64 = 30.0;
+
+/// The table height offset range (m) the reset draws dh from.
+pub const TABLE_OFFSET_RANGE: (f64, f64) = (0.0, 0.05);
+
+/// Allegro hand position-actuator control ranges (rad), in ff, mf, rf, th order (j0..j3
+/// each). The left hand's recorded order rf, mf, ff, th has the same ranges per column
+/// because the three fingers share theirs.
+pub const HAND_CTRL_RANGES: [(f64, f64); HAND_DOF] = {
+    const BASE: (f64, f64) = (-0.47, 0.47);
+    const PROX: (f64, f64) = (-0.196, 1.61);
+    const MED: (f64, f64) = (-0.174, 1.709);
+    const DIST: (f64, f64) = (-0.227, 1.618);
+    [
+        BASE,
+        PROX,
+        MED,
+        DIST,
+        BASE,
+        PROX,
+        MED,
+        DIST,
+        BASE,
+        PROX,
+        MED,
+        DIST,
+        (0.263, 1.396),
+        (-0.105, 1.163),
+        (-0.189, 1.644),
+        (-0.162, 1.719),
+    ]
+};
+
 /// Which robot a task uses: one arm and hand, or two.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]

@@ -9,20 +9,21 @@ mod episode;
 mod error;
 mod layout;
 mod rotation;
+pub mod synth;
+mod task_set;
 mod task_spec;
-mod tasks;
 
 pub use episode::{CameraStream, Episode, FrameArray};
 pub use error::{CoreError, Location};
-pub use layout::{ArmSetup, ArrayLayout, FieldSlice, HAND_DOF, POSE_DIM, ROTVEC_POSE_DIM};
+pub use layout::{
+    ArmSetup, ArrayLayout, DEXJOCO_FPS, FieldSlice, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM,
+    ROTVEC_POSE_DIM, TABLE_OFFSET_RANGE,
+};
 pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};
+pub use task_set::{BUILTIN_SPEC_FILES, PrivilegedField, PrivilegedKind, TaskSet};
 pub use task_spec::{
-    ArmTargetInit, Axis, BUILTIN_SPEC_FILES, BoxAxes, CameraSpec, Cmp, ConstraintKind, DerivedPose,
+    ArmTargetInit, Axis, BoxAxes, CameraSpec, Cmp, ConstraintKind, DerivedPose,
     DynamicsRandomization, FrameRef, GeomSet, HandSource, HanoiDisk, JointRef, KeypadButton,
     LegStyle, NameKind, Node, Placement, PointRef, PoseSource, ResetSpec, StateObject, StateSpec,
     TableSpec, TaskSpec, TaskSpecError, Threshold, ZRule,
-};
-pub use tasks::{
-    DEXJOCO_FPS, HAND_CTRL_RANGES, PrivilegedField, PrivilegedKind, TABLE_OFFSET_RANGE, TASKS,
-    TaskInfo, task_info,
 };

@@ -1,253 +1,35 @@
-//! The one error type of the ingest crate, and the problem records a manifest keeps.
+//! The error type of the ingest stage: a file problem (from `dexjoco-formats`) or an
+//! episode that fails validation.
 
-use std::path::PathBuf;
-
-use dexjoco_core::{CoreError, Location};
-use serde::{Deserialize, Serialize};
-
-/// Why an input was rejected, as a stable machine-readable code (kept in the manifest).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ProblemCode {
-    /// The file could not be read at all (permissions, dangling link, I/O error).
-    Unreadable,
-    /// The file is empty.
-    EmptyFile,
-    /// The file ends early (an MCAP without its footer, a cut chunk).
-    Truncated,
-    /// The file is damaged or not in the expected format.
-    Corrupt,
-    /// A required array or channel is absent.
-    MissingArray,
-    /// An array has an unexpected data type.
-    WrongDtype,
-    /// An array has unexpected dimensions.
-    WrongDimensions,
-    /// Arrays disagree on the number of frames, or there are none.
-    WrongLength,
-    /// `meta/episode_ends` does not say one episode of all the frames.
-    EpisodeEndsMismatch,
-    /// The task is not one of the 11 DexJoCo tasks, or cannot be told.
-    UnknownTask,
-    /// A NaN or infinite value.
-    NotFinite,
-    /// Timestamps not increasing at the stated rate.
-    Timestamps,
-    /// A quaternion that is not of unit norm.
-    NotUnitQuaternion,
-    /// A hand target outside the actuator's control range.
-    HandOutOfRange,
-    /// The table height offset dh outside [0, 0.05].
-    TableOffsetOutOfRange,
-    /// More frames than the task's step cap.
-    TooLong,
-    /// The same content was already given in this run (the first copy is kept).
-    Duplicate,
-}
-
-impl ProblemCode {
-    /// The code as written in manifests and reports.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Unreadable => "unreadable",
-            Self::EmptyFile => "empty_file",
-            Self::Truncated => "truncated",
-            Self::Corrupt => "corrupt",
-            Self::MissingArray => "missing_array",
-            Self::WrongDtype => "wrong_dtype",
-            Self::WrongDimensions => "wrong_dimensions",
-            Self::WrongLength => "wrong_length",
-            Self::EpisodeEndsMismatch => "episode_ends_mismatch",
-            Self::UnknownTask => "unknown_task",
-            Self::NotFinite => "not_finite",
-            Self::Timestamps => "timestamps",
-            Self::NotUnitQuaternion => "not_unit_quaternion",
-            Self::HandOutOfRange => "hand_out_of_range",
-            Self::TableOffsetOutOfRange => "table_offset_out_of_range",
-            Self::TooLong => "too_long",
-            Self::Duplicate => "duplicate",
-        }
-    }
-}
-
-impl std::fmt::Display for ProblemCode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-/// One problem found in an input: its code, where it is and what is wrong.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Problem {
-    /// Machine-readable code.
-    pub code: ProblemCode,
-    /// The file or folder.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub file: Option<PathBuf>,
-    /// The episode id (or source name before an id exists).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub episode: Option<String>,
-    /// The array or channel, with a column when one is meant (`state[37]`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub field: Option<String>,
-    /// The frame.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub frame: Option<usize>,
-    /// What is wrong, in words, with the location.
-    pub message: String,
-}
-
-impl Problem {
-    /// A problem at `at`; `detail` says what is wrong (the location is prefixed).
-    pub fn new(code: ProblemCode, at: &Location, detail: impl std::fmt::Display) -> Self {
-        Self {
-            code,
-            file: at.path.clone(),
-            episode: at.episode.clone(),
-            field: at.field.clone(),
-            frame: at.frame,
-            message: format!("{at}: {detail}"),
-        }
-    }
-
-    /// The location it names.
-    pub fn location(&self) -> Location {
-        Location {
-            path: self.file.clone(),
-            episode: self.episode.clone(),
-            field: self.field.clone(),
-            frame: self.frame,
-        }
-    }
-}
-
-impl std::fmt::Display for Problem {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "[{}] {}", self.code, self.message)
-    }
-}
+use dexjoco_core::Location;
+use dexjoco_formats::{FormatError, Problem, ProblemCode};
 
 /// Errors of reading, validating and storing episodes.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum IngestError {
-    /// A file operation failed.
-    #[error("{op} '{}': {source}", path.display())]
-    Io {
-        /// What was being done (`read`, `write`, `rename`...).
-        op: &'static str,
-        /// The path.
-        path: PathBuf,
-        /// The cause.
-        #[source]
-        source: std::io::Error,
-    },
-    /// An input has one problem that stops reading it.
-    #[error("{0}")]
-    Input(Box<Problem>),
+    /// Reading or writing a file failed, or an input has one problem that stops reading it.
+    #[error(transparent)]
+    Format(#[from] FormatError),
     /// An episode failed validation (every problem found is listed).
     #[error("{} problem(s); first: {}", .0.len(), .0.first().map(ToString::to_string).unwrap_or_default())]
     Invalid(Vec<Problem>),
-    /// Zarr storage or codec failure while writing.
-    #[error("{at}: zarr: {message}")]
-    Zarr {
-        /// Where.
-        at: Location,
-        /// What zarrs said.
-        message: String,
-    },
-    /// MCAP writing failed.
-    #[error("{at}: mcap: {source}")]
-    Mcap {
-        /// Where.
-        at: Location,
-        /// The cause.
-        #[source]
-        source: Box<mcap::McapError>,
-    },
-    /// A manifest could not be read or written.
-    #[error("manifest '{}': {message}", path.display())]
-    Manifest {
-        /// The manifest file.
-        path: PathBuf,
-        /// What is wrong.
-        message: String,
-    },
-    /// Another process is using the store.
-    #[error(
-        "the store '{}' is in use by process {pid} (if no ingest is running, remove its .lock file)",
-        path.display()
-    )]
-    Locked {
-        /// The store.
-        path: PathBuf,
-        /// The process holding it.
-        pid: u32,
-    },
-    /// An episode breaks the core data model.
-    #[error(transparent)]
-    Core(#[from] CoreError),
 }
 
 impl IngestError {
     /// An input problem.
     pub fn input(code: ProblemCode, at: &Location, detail: impl std::fmt::Display) -> Self {
-        Self::Input(Box::new(Problem::new(code, at, detail)))
+        Self::Format(FormatError::input(code, at, detail))
     }
 
     /// The problems this error stands for, as recorded in a manifest.
     pub fn problems(&self) -> Vec<Problem> {
         match self {
-            Self::Input(p) => vec![(**p).clone()],
+            Self::Format(e) => e.problems(),
             Self::Invalid(ps) => ps.clone(),
-            Self::Io { path, source, .. } => vec![Problem::new(
-                if source.kind() == std::io::ErrorKind::UnexpectedEof {
-                    ProblemCode::Truncated
-                } else {
-                    ProblemCode::Unreadable
-                },
-                &Location::default().path(path),
-                format!("{self}"),
-            )],
-            Self::Core(e) => vec![core_problem(e)],
-            other => vec![Problem::new(
-                ProblemCode::Corrupt,
-                &Location::default(),
-                other.to_string(),
-            )],
         }
     }
 }
 
-fn core_problem(e: &CoreError) -> Problem {
-    let (code, at) = match e {
-        CoreError::Width { at, .. } => (ProblemCode::WrongDimensions, at),
-        CoreError::Length { at, .. } => (ProblemCode::WrongLength, at),
-        CoreError::Ragged { at, .. } => (ProblemCode::WrongDimensions, at),
-        CoreError::NotFinite { at, .. } => (ProblemCode::NotFinite, at),
-        _ => {
-            return Problem {
-                code: ProblemCode::Corrupt,
-                file: None,
-                episode: None,
-                field: None,
-                frame: None,
-                message: e.to_string(),
-            };
-        }
-    };
-    let mut p = Problem::new(code, at, "");
-    p.message = e.to_string();
-    p
-}
-
 /// Shorthand for results of this crate.
 pub type Result<T, E = IngestError> = std::result::Result<T, E>;
-
-pub(crate) fn io_err(
-    op: &'static str,
-    path: impl Into<PathBuf>,
-) -> impl FnOnce(std::io::Error) -> IngestError {
-    let path = path.into();
-    move |source| IngestError::Io { op, path, source }
-}

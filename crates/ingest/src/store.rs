@@ -18,149 +18,55 @@
 //! interrupted run's manifest is rebuilt on the next open. Ids are the first 16 hex
 //! digits of the SHA-256 of the input's bytes, so re-running on the same input skips it.
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::HashMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use dexjoco_core::{Episode, Location, task_info};
+use dexjoco_core::{Location, TaskSet};
+use dexjoco_formats::episodes::{ReadOptions, Source};
+use dexjoco_formats::error::io_err;
+use dexjoco_formats::fs::{copy_tree, replace_dir, write_atomic};
+use dexjoco_formats::manifest::{
+    ENTRY_FILE, MANIFEST, Manifest, ManifestEntry, SourceKind, Status,
+};
+use dexjoco_formats::{DirLock, FormatError, Problem, ProblemCode, raw};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use sha2::{Digest, Sha256};
 
-use crate::error::{IngestError, Problem, ProblemCode, Result, io_err};
-use crate::raw::{self, REPLAY_ZARR};
-use crate::teleop;
+use crate::error::{IngestError, Result};
 use crate::validate::{ValidationOptions, validate};
 
-/// File name of a store's manifest.
-pub const MANIFEST: &str = "manifest.json";
 /// Folder of rejected inputs.
 pub const QUARANTINE: &str = "quarantine";
 /// Folder of work in progress.
 pub const STAGING: &str = ".staging";
-/// Held by the process using a store; holds its pid.
-pub const LOCK_FILE: &str = ".lock";
-/// A landed episode's own manifest entry, inside its folder.
-pub const ENTRY_FILE: &str = ".dexjoco-ingest.json";
 /// A quarantined input's manifest entry.
 pub const REASON_FILE: &str = "reason.json";
-/// Format name written in manifests.
-pub const MANIFEST_FORMAT: &str = "dexjoco-data/ingest-manifest";
-/// Manifest format version.
-pub const MANIFEST_VERSION: u32 = 1;
-
-/// What kind of input a source is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SourceKind {
-    /// A DexJoCo raw episode folder (holding `replay.zarr`).
-    Raw,
-    /// An MCAP teleop log (one episode).
-    Mcap,
-}
-
-/// One input to ingest.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Source {
-    /// The file or folder.
-    pub path: PathBuf,
-    /// Its kind.
-    pub kind: SourceKind,
-}
-
-/// Whether an entry's episode landed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Status {
-    /// Stored and valid.
-    Ok,
-    /// Rejected; the input is copied under `quarantine/<id>/`.
-    Quarantined,
-}
-
-/// One episode (or rejected input) of a store.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ManifestEntry {
-    /// Stable id: the first 16 hex digits of the input's SHA-256.
-    pub id: String,
-    /// Task id, when known.
-    pub task: Option<String>,
-    /// The input file or folder, as given.
-    pub source: PathBuf,
-    /// The input's kind.
-    pub source_kind: SourceKind,
-    /// `sha256:<hex>` of the input's bytes (folders: of every file's path and bytes).
-    pub source_hash: String,
-    /// Frames (0 when the input could not be read).
-    pub length: usize,
-    /// Landed or quarantined.
-    pub status: Status,
-    /// The episode folder (or quarantine folder), relative to the store.
-    pub path: PathBuf,
-    /// Why it was rejected (empty when landed).
-    #[serde(default)]
-    pub problems: Vec<Problem>,
-    /// What reading changed or left out.
-    #[serde(default)]
-    pub notes: Vec<String>,
-}
-
-/// A store's manifest.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Manifest {
-    /// Always [`MANIFEST_FORMAT`].
-    pub format: String,
-    /// Always [`MANIFEST_VERSION`].
-    pub version: u32,
-    /// Every entry, landed first in (task, path) order, then quarantined by id.
-    pub episodes: Vec<ManifestEntry>,
-}
-
-impl Default for Manifest {
-    fn default() -> Self {
-        Self {
-            format: MANIFEST_FORMAT.into(),
-            version: MANIFEST_VERSION,
-            episodes: Vec::new(),
-        }
-    }
-}
-
-impl Manifest {
-    /// The entry with this id.
-    pub fn get(&self, id: &str) -> Option<&ManifestEntry> {
-        self.episodes.iter().find(|e| e.id == id)
-    }
-
-    fn upsert(&mut self, entry: ManifestEntry) {
-        match self.episodes.iter_mut().find(|e| e.id == entry.id) {
-            Some(e) => *e = entry,
-            None => self.episodes.push(entry),
-        }
-    }
-
-    fn sort(&mut self) {
-        self.episodes.sort_by(|a, b| {
-            (a.status != Status::Ok, &a.task, &a.path, &a.id).cmp(&(
-                b.status != Status::Ok,
-                &b.task,
-                &b.path,
-                &b.id,
-            ))
-        });
-    }
-}
 
 /// Options of an ingest run.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct IngestOptions {
     /// Re-read and rewrite inputs already in the store (same folders, same ids).
     pub force: bool,
-    /// The task of raw folders whose path does not name one.
+    /// The task of every raw folder, whatever its path says.
     pub task: Option<String>,
     /// Validation tolerances.
     pub validation: ValidationOptions,
+    /// The known tasks (default: the built-in specs).
+    pub tasks: TaskSet,
+}
+
+impl Default for IngestOptions {
+    fn default() -> Self {
+        Self {
+            force: false,
+            task: None,
+            validation: ValidationOptions::default(),
+            tasks: TaskSet::builtin().clone(),
+        }
+    }
 }
 
 /// What happened to one source.
@@ -233,146 +139,12 @@ pub struct NoReporter;
 
 impl Reporter for NoReporter {}
 
-/// Finds the sources under `inputs`: folders holding `replay.zarr` (searched
-/// recursively) and `*.mcap` files; files named explicitly are read as MCAP whatever
-/// their extension. `exclude` (the store itself) is never entered.
-pub fn discover(inputs: &[PathBuf], exclude: &Path) -> Result<Vec<Source>> {
-    let exclude = exclude.canonicalize().ok();
-    let mut out = Vec::new();
-    for input in inputs {
-        let meta = std::fs::symlink_metadata(input).map_err(io_err("read", input))?;
-        if input.is_dir() {
-            if input.file_name().is_some_and(|n| n == REPLAY_ZARR) {
-                let parent = input
-                    .parent()
-                    .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
-                out.push(Source {
-                    path: parent,
-                    kind: SourceKind::Raw,
-                });
-            } else {
-                walk(input, exclude.as_deref(), &mut HashSet::new(), &mut out)?;
-            }
-        } else {
-            let _ = meta;
-            out.push(Source {
-                path: input.clone(),
-                kind: SourceKind::Mcap,
-            });
-        }
-    }
-    let mut seen = HashSet::new();
-    out.retain(|s| seen.insert(s.path.clone()));
-    Ok(out)
-}
-
-fn walk(
-    dir: &Path,
-    exclude: Option<&Path>,
-    visited: &mut HashSet<PathBuf>,
-    out: &mut Vec<Source>,
-) -> Result<()> {
-    let real = dir.canonicalize().map_err(io_err("resolve", dir))?;
-    // Linked folders are followed once (no loops); the store itself is never entered.
-    if exclude == Some(real.as_path()) || !visited.insert(real) {
-        return Ok(());
-    }
-    if dir.join(REPLAY_ZARR).is_dir() {
-        out.push(Source {
-            path: dir.to_owned(),
-            kind: SourceKind::Raw,
-        });
-        return Ok(());
-    }
-    let mut entries: Vec<_> = fs_err::read_dir(dir)
-        .map_err(io_err("list", dir))?
-        .flatten()
-        .collect();
-    entries.sort_by_key(|e| e.file_name());
-    for e in entries {
-        let p = e.path();
-        let is_mcap = p
-            .extension()
-            .is_some_and(|x| x.eq_ignore_ascii_case("mcap"));
-        if p.is_dir() {
-            walk(&p, exclude, visited, out)?;
-        } else if is_mcap {
-            out.push(Source {
-                path: p,
-                kind: SourceKind::Mcap,
-            });
-        }
-    }
-    Ok(())
-}
-
 /// A store of episodes in the DexJoCo raw layout with its manifest.
 #[derive(Debug)]
 pub struct Store {
     root: PathBuf,
     manifest: Manifest,
-    _lock: StoreLock,
-}
-
-/// Exclusive use of a store by one process (`<store>/.lock` holds its pid). A lock left
-/// by a process that no longer exists (killed) is taken over.
-#[derive(Debug)]
-struct StoreLock {
-    path: PathBuf,
-}
-
-impl StoreLock {
-    fn acquire(root: &Path) -> Result<Self> {
-        use std::io::Write;
-        let path = root.join(LOCK_FILE);
-        for _ in 0..3 {
-            match std::fs::OpenOptions::new()
-                .write(true)
-                .create_new(true)
-                .open(&path)
-            {
-                Ok(mut f) => {
-                    write!(f, "{}", std::process::id()).map_err(io_err("write", &path))?;
-                    return Ok(Self { path });
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                    let owner = std::fs::read_to_string(&path)
-                        .ok()
-                        .and_then(|s| s.trim().parse::<u32>().ok());
-                    match owner {
-                        Some(pid) if process_exists(pid) => {
-                            return Err(IngestError::Locked {
-                                path: root.to_owned(),
-                                pid,
-                            });
-                        }
-                        _ => {
-                            tracing::info!("taking over the lock of a process that has ended");
-                            let _ = std::fs::remove_file(&path);
-                        }
-                    }
-                }
-                Err(e) => return Err(io_err("create", &path)(e)),
-            }
-        }
-        Err(IngestError::Locked {
-            path: root.to_owned(),
-            pid: 0,
-        })
-    }
-}
-
-impl Drop for StoreLock {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.path);
-    }
-}
-
-/// Whether a process exists (Linux: /proc; elsewhere assumed alive, so a stale lock must
-/// be removed by hand).
-fn process_exists(pid: u32) -> bool {
-    let proc = Path::new("/proc");
-    !proc.is_dir() || proc.join(pid.to_string()).exists()
+    _lock: DirLock,
 }
 
 /// A source read, checked and written to staging, waiting to be committed.
@@ -399,24 +171,30 @@ impl From<IngestError> for StageFailure {
     }
 }
 
+impl From<FormatError> for StageFailure {
+    fn from(e: FormatError) -> Self {
+        Self::Input(e.into())
+    }
+}
+
+/// A failure to write the store (not a problem of the input).
+fn store_failure(e: FormatError) -> StageFailure {
+    StageFailure::Store(e.into())
+}
+
 impl Store {
     /// Opens (creating) a store; clears work left in `.staging/` by an interrupted run
     /// and re-adds to the manifest any landed or quarantined folder it lacks.
     pub fn open(root: impl Into<PathBuf>) -> Result<Self> {
         let root = root.into();
         fs_err::create_dir_all(&root).map_err(io_err("create", &root))?;
-        let lock = StoreLock::acquire(&root)?;
+        let lock = DirLock::acquire(&root)?;
         let staging = root.join(STAGING);
         if staging.exists() {
             fs_err::remove_dir_all(&staging).map_err(io_err("remove", &staging))?;
         }
-        let mpath = root.join(MANIFEST);
-        let mut manifest = if mpath.exists() {
-            let bytes = fs_err::read(&mpath).map_err(io_err("read", &mpath))?;
-            serde_json::from_slice(&bytes).map_err(|e| IngestError::Manifest {
-                path: mpath.clone(),
-                message: e.to_string(),
-            })?
+        let mut manifest = if root.join(MANIFEST).exists() {
+            Manifest::read(&root)?
         } else {
             Manifest::default()
         };
@@ -490,7 +268,7 @@ impl Store {
     fn save_manifest(&mut self) -> Result<()> {
         self.manifest.sort();
         let json = serde_json::to_vec_pretty(&self.manifest).expect("manifest serializes");
-        write_atomic(&self.root.join(MANIFEST), &json)
+        Ok(write_atomic(&self.root.join(MANIFEST), &json)?)
     }
 
     /// Ingests `sources` (in parallel over the current rayon pool), landing valid
@@ -505,7 +283,7 @@ impl Store {
         reporter.start(sources.len());
         let staging = self.root.join(STAGING);
         fs_err::create_dir_all(&staging).map_err(io_err("create", &staging))?;
-        let mut next_index = self.scan_indices()?;
+        let mut next_index = self.scan_indices(&opts.tasks)?;
         let mut summary = IngestSummary::default();
         let mut seen: HashMap<String, PathBuf> = HashMap::new();
         // Batches keep memory bounded and commit in input order, so indices do not
@@ -533,7 +311,7 @@ impl Store {
     }
 
     /// The next free episode index of every task folder.
-    fn scan_indices(&self) -> Result<HashMap<String, usize>> {
+    fn scan_indices(&self, tasks: &TaskSet) -> Result<HashMap<String, usize>> {
         let mut next = HashMap::new();
         for e in fs_err::read_dir(&self.root)
             .map_err(io_err("list", &self.root))?
@@ -542,7 +320,7 @@ impl Store {
             let Some(task) = e.file_name().to_str().map(str::to_owned) else {
                 continue;
             };
-            if task_info(&task).is_none() || !e.path().is_dir() {
+            if !tasks.contains(&task) || !e.path().is_dir() {
                 continue;
             }
             let mut max = 0;
@@ -655,40 +433,19 @@ impl Store {
         staging: &Path,
         entry: &mut ManifestEntry,
     ) -> std::result::Result<PathBuf, StageFailure> {
-        let (mut ep, videos, notes) = match source.kind {
-            SourceKind::Mcap => {
-                let bytes = content.unwrap_or_default();
-                let t = teleop::read_episode_mcap(&source.path, &bytes)?;
-                (t.episode, Vec::new(), t.notes)
-            }
-            SourceKind::Raw => {
-                let at = Location::default().path(&source.path);
-                let name = opts
-                    .task
-                    .clone()
-                    .or_else(|| raw::task_from_path(&source.path));
-                let task = match name.as_deref().and_then(task_info) {
-                    Some(t) => t,
-                    None => {
-                        return Err(StageFailure::Input(IngestError::input(
-                            ProblemCode::UnknownTask,
-                            &at,
-                            match name {
-                                Some(n) => format!("unknown task '{n}'"),
-                                None => "the path names no task (<task>/episode_N or <task>_demo_...); pass --task".into(),
-                            },
-                        )));
-                    }
-                };
-                let r = raw::read_raw_episode(&source.path, task)?;
-                (r.episode, r.videos, r.notes)
-            }
-        };
+        let read = source.read_with(
+            &opts.tasks,
+            ReadOptions {
+                task: opts.task.as_deref(),
+                bytes: content.as_deref(),
+            },
+        )?;
+        let (mut ep, videos) = (read.episode, read.videos);
         ep.id = entry.id.clone();
         entry.task = Some(ep.task.clone());
         entry.length = ep.len();
-        entry.notes = notes;
-        let task = task_info(&ep.task).ok_or_else(|| {
+        entry.notes = read.notes;
+        let task = opts.tasks.get(&ep.task).ok_or_else(|| {
             IngestError::input(
                 ProblemCode::UnknownTask,
                 &Location::default().path(&source.path),
@@ -703,9 +460,9 @@ impl Store {
         if dir.exists() {
             fs_err::remove_dir_all(&dir)
                 .map_err(io_err("remove", &dir))
-                .map_err(StageFailure::Store)?;
+                .map_err(store_failure)?;
         }
-        raw::write_replay_zarr(&dir, &ep).map_err(StageFailure::Store)?;
+        raw::write_replay_zarr(&dir, &ep).map_err(store_failure)?;
         for v in &videos {
             let to = dir.join(v);
             if let Some(parent) = to.parent() {
@@ -732,7 +489,7 @@ impl Store {
         );
         let dir = staging.join(format!("q-{}", entry.id));
         let _ = std::fs::remove_dir_all(&dir);
-        let copied = (|| -> Result<()> {
+        let copied = (|| -> dexjoco_formats::Result<()> {
             let dest = dir.join("source");
             fs_err::create_dir_all(&dest).map_err(io_err("create", &dest))?;
             let name = source
@@ -915,149 +672,4 @@ fn hex(bytes: &[u8]) -> String {
 
 fn hex16(bytes: &[u8]) -> String {
     hex(&bytes[..8])
-}
-
-/// Writes a file atomically: a temporary file in the same folder, synced, renamed.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    use std::io::Write;
-    let dir = path.parent().unwrap_or(Path::new("."));
-    fs_err::create_dir_all(dir).map_err(io_err("create", dir))?;
-    let mut tmp =
-        tempfile::NamedTempFile::new_in(dir).map_err(io_err("create a temporary file in", dir))?;
-    tmp.write_all(bytes).map_err(io_err("write", tmp.path()))?;
-    persist_synced(tmp, path)
-}
-
-/// Syncs a fully written temporary file and renames it to `path`.
-pub(crate) fn persist_synced(tmp: tempfile::NamedTempFile, path: &Path) -> Result<()> {
-    // Temporary files are created owner-only; the finished file is an ordinary one.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(io_err("set permissions of", tmp.path()))?;
-    }
-    tmp.as_file()
-        .sync_all()
-        .map_err(io_err("sync", tmp.path()))?;
-    tmp.persist(path).map_err(|e| IngestError::Io {
-        op: "rename into",
-        path: path.to_owned(),
-        source: e.error,
-    })?;
-    Ok(())
-}
-
-/// Moves a staged folder to `to`, replacing what is there (the old copy is moved aside
-/// first, so `to` is always either the old or the new folder, whole).
-fn replace_dir(staged: &Path, to: &Path) -> Result<()> {
-    if let Some(parent) = to.parent() {
-        fs_err::create_dir_all(parent).map_err(io_err("create", parent))?;
-    }
-    if to.exists() {
-        let aside = staged.with_extension("old");
-        let _ = std::fs::remove_dir_all(&aside);
-        fs_err::rename(to, &aside).map_err(io_err("rename", to))?;
-        fs_err::rename(staged, to).map_err(io_err("rename", staged))?;
-        let _ = std::fs::remove_dir_all(&aside);
-    } else {
-        fs_err::rename(staged, to).map_err(io_err("rename", staged))?;
-    }
-    Ok(())
-}
-
-/// Copies a file or a folder tree (symlinks are followed).
-fn copy_tree(from: &Path, to: &Path) -> Result<()> {
-    if from.is_dir() {
-        fs_err::create_dir_all(to).map_err(io_err("create", to))?;
-        for e in fs_err::read_dir(from).map_err(io_err("list", from))? {
-            let e = e.map_err(io_err("list", from))?;
-            copy_tree(&e.path(), &to.join(e.file_name()))?;
-        }
-        Ok(())
-    } else {
-        fs_err::copy(from, to).map_err(io_err("copy", from))?;
-        Ok(())
-    }
-}
-
-/// Reads a landed episode back from the store (or any raw episode folder whose task
-/// the path names): the arrays as stored, no normalisation needed.
-pub fn read_stored_episode(dir: &Path) -> Result<Episode> {
-    let entry: Option<ManifestEntry> = std::fs::read(dir.join(ENTRY_FILE))
-        .ok()
-        .and_then(|b| serde_json::from_slice(&b).ok());
-    let task_name = entry
-        .as_ref()
-        .and_then(|e| e.task.clone())
-        .or_else(|| raw::task_from_path(dir));
-    let at = Location::default().path(dir);
-    let task = task_name.as_deref().and_then(task_info).ok_or_else(|| {
-        IngestError::input(
-            ProblemCode::UnknownTask,
-            &at,
-            format!("cannot tell the task of '{}'", dir.display()),
-        )
-    })?;
-    let mut ep = raw::read_raw_episode(dir, task)?.episode;
-    ep.id = entry.map_or_else(
-        || {
-            dir.file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
-        },
-        |e| e.id,
-    );
-    Ok(ep)
-}
-
-/// Landed episode folders of a store, in manifest order.
-pub fn stored_episode_dirs(store: &Path) -> Result<Vec<PathBuf>> {
-    let mpath = store.join(MANIFEST);
-    let bytes = fs_err::read(&mpath).map_err(io_err("read", &mpath))?;
-    let manifest: Manifest = serde_json::from_slice(&bytes).map_err(|e| IngestError::Manifest {
-        path: mpath.clone(),
-        message: e.to_string(),
-    })?;
-    Ok(manifest
-        .episodes
-        .iter()
-        .filter(|e| e.status == Status::Ok)
-        .map(|e| store.join(&e.path))
-        .collect())
-}
-
-/// The episode folders a stage reads from `path`: the landed episodes of an episode store
-/// (a folder with `manifest.json`), else every DexJoCo raw episode folder (one holding
-/// `replay.zarr`) below `path`, sorted.
-pub fn episode_dirs(path: &Path) -> Result<Vec<PathBuf>> {
-    if path.join(MANIFEST).is_file() {
-        return stored_episode_dirs(path);
-    }
-    fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
-        if dir.join(raw::REPLAY_ZARR).is_dir() {
-            out.push(dir.to_path_buf());
-            return Ok(());
-        }
-        for entry in fs_err::read_dir(dir).map_err(io_err("list", dir))? {
-            let p = entry.map_err(io_err("list", dir))?.path();
-            if p.is_dir() {
-                walk(&p, out)?;
-            }
-        }
-        Ok(())
-    }
-    let mut found = Vec::new();
-    walk(path, &mut found)?;
-    found.sort();
-    Ok(found)
-}
-
-/// Per-task counts of a manifest's landed episodes.
-pub fn landed_by_task(manifest: &Manifest) -> BTreeMap<String, usize> {
-    let mut m = BTreeMap::new();
-    for e in manifest.episodes.iter().filter(|e| e.status == Status::Ok) {
-        *m.entry(e.task.clone().unwrap_or_default()).or_default() += 1;
-    }
-    m
 }

@@ -6,10 +6,9 @@ use std::path::Path;
 
 use dexjoco_core::{
     ArmSetup, Episode, HAND_CTRL_RANGES, HAND_DOF, Location, POSE_DIM, PrivilegedKind,
-    TABLE_OFFSET_RANGE, TaskInfo,
+    TABLE_OFFSET_RANGE, TaskSpec,
 };
-
-use crate::error::{Problem, ProblemCode};
+use dexjoco_formats::{Problem, ProblemCode};
 
 /// Tolerances of the checks.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -87,7 +86,7 @@ impl<'a> Findings<'a> {
 /// `source` names the file or folder the episode came from.
 pub fn validate(
     ep: &Episode,
-    task: &TaskInfo,
+    task: &TaskSpec,
     source: &Path,
     opts: &ValidationOptions,
 ) -> Vec<Problem> {
@@ -103,7 +102,7 @@ pub fn validate(
     let widths = [
         (Episode::ACTION, setup.action_dim()),
         (Episode::ACTION_ROTVEC, setup.action_rotvec_dim()),
-        (Episode::STATE, task.state_dim),
+        (Episode::STATE, task.state.width),
         (Episode::TIMESTAMP, 1),
     ];
     let mut shapes_ok = true;
@@ -302,30 +301,29 @@ fn check_action(ep: &Episode, setup: ArmSetup, opts: &ValidationOptions, f: &mut
     }
 }
 
-fn check_state(ep: &Episode, task: &TaskInfo, opts: &ValidationOptions, f: &mut Findings<'_>) {
+fn check_state(ep: &Episode, task: &TaskSpec, opts: &ValidationOptions, f: &mut Findings<'_>) {
     let state = ep.array(Episode::STATE).expect("checked");
-    let layout = task.state_layout();
+    let privileged = task.privileged();
     for (i, row) in state.rows().enumerate() {
         for arm in 0..task.setup.arms() {
             let s = arm * POSE_DIM + 3;
             check_quat(&row[s..s + 4], format!("state[{s}..{}]", s + 4), i, opts, f);
         }
-        for p in task.privileged {
-            let slice = layout.get(p.name).expect("layout has every field");
+        for p in &privileged {
             match p.kind {
                 PrivilegedKind::Pose => {
-                    let s = slice.start + 3;
+                    let s = p.start + 3;
                     check_quat(&row[s..s + 4], format!("state[{s}..{}]", s + 4), i, opts, f);
                 }
                 PrivilegedKind::Position => {}
                 PrivilegedKind::TableOffset => {
-                    let dh = row[slice.start];
+                    let dh = row[p.start];
                     let (lo, hi) = TABLE_OFFSET_RANGE;
                     let tol = opts.table_offset_tolerance;
                     if dh < lo - tol || dh > hi + tol {
                         f.add(
                             ProblemCode::TableOffsetOutOfRange,
-                            format!("state[{}]", slice.start),
+                            format!("state[{}]", p.start),
                             Some(i),
                             format!("table offset dh = {dh} outside [{lo}, {hi}] m"),
                         );
@@ -339,10 +337,13 @@ fn check_state(ep: &Episode, task: &TaskInfo, opts: &ValidationOptions, f: &mut 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth;
-    use dexjoco_core::task_info;
+    use dexjoco_core::synth;
 
-    fn codes(ep: &Episode, task: &TaskInfo) -> Vec<(ProblemCode, Option<String>, Option<usize>)> {
+    fn task_info(id: &str) -> Option<&'static TaskSpec> {
+        TaskSpec::builtin(id)
+    }
+
+    fn codes(ep: &Episode, task: &TaskSpec) -> Vec<(ProblemCode, Option<String>, Option<usize>)> {
         validate(ep, task, Path::new("x"), &ValidationOptions::default())
             .into_iter()
             .map(|p| (p.code, p.field, p.frame))
@@ -351,7 +352,7 @@ mod tests {
 
     #[test]
     fn synthetic_episodes_of_every_task_are_valid() {
-        for task in dexjoco_core::TASKS {
+        for task in dexjoco_core::TaskSet::builtin().iter() {
             let ep = synth::episode(task, 50, 7);
             assert_eq!(codes(&ep, task), vec![], "{}", task.id);
         }

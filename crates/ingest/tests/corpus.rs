@@ -3,12 +3,19 @@
 
 use std::path::{Path, PathBuf};
 
-use dexjoco_core::{Episode, task_info};
-use dexjoco_ingest::teleop::{EpisodeMeta, write_episode_mcap};
-use dexjoco_ingest::{
-    IngestOptions, NoReporter, Outcome, ProblemCode, QUARANTINE, REASON_FILE, Status, Store,
-    discover, raw, read_stored_episode, synth,
-};
+use dexjoco_core::{Episode, TaskSet, TaskSpec, synth};
+use dexjoco_formats::{Status, discover, raw};
+
+fn task_info(id: &str) -> Option<&'static TaskSpec> {
+    TaskSpec::builtin(id)
+}
+
+fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<Episode> {
+    dexjoco_formats::read_episode(dir, TaskSet::builtin())
+}
+use dexjoco_formats::ProblemCode;
+use dexjoco_formats::mcap::{EpisodeMeta, write_episode_mcap};
+use dexjoco_ingest::{IngestOptions, NoReporter, Outcome, QUARANTINE, REASON_FILE, Store};
 
 fn write_raw(dir: &Path, ep: &Episode) {
     raw::write_replay_zarr(dir, ep).unwrap();
@@ -152,7 +159,7 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
 
 fn run(input: &Path, store: &Path, force: bool) -> dexjoco_ingest::IngestSummary {
     let mut s = Store::open(store).unwrap();
-    let sources = discover(&[input.to_path_buf()], store).unwrap();
+    let sources = discover(&[input.to_path_buf()], Some(store)).unwrap();
     s.ingest(
         &sources,
         &IngestOptions {
@@ -350,13 +357,16 @@ fn a_store_is_used_by_one_process_at_a_time_and_stale_locks_are_taken_over() {
     let store = tmp.path().join("store");
     let first = Store::open(&store).unwrap();
     match Store::open(&store) {
-        Err(dexjoco_ingest::IngestError::Locked { pid, .. }) => assert_eq!(pid, std::process::id()),
+        Err(dexjoco_ingest::IngestError::Format(dexjoco_formats::FormatError::Locked {
+            pid,
+            ..
+        })) => assert_eq!(pid, std::process::id()),
         other => panic!("expected Locked, got {other:?}"),
     }
     drop(first);
-    assert!(!store.join(dexjoco_ingest::LOCK_FILE).exists());
+    assert!(!store.join(dexjoco_formats::LOCK_FILE).exists());
     // A lock left by a process that has ended (a killed run) does not block.
-    std::fs::write(store.join(dexjoco_ingest::LOCK_FILE), u32::MAX.to_string()).unwrap();
+    std::fs::write(store.join(dexjoco_formats::LOCK_FILE), u32::MAX.to_string()).unwrap();
     Store::open(&store).unwrap();
 }
 
@@ -378,7 +388,7 @@ fn discovery_finds_raw_folders_and_mcap_files_and_survives_link_loops() {
     let store = root.join("store");
     std::fs::create_dir_all(&store).unwrap();
     std::fs::write(store.join("inside_the_store.mcap"), b"").unwrap();
-    let found = discover(std::slice::from_ref(&root), &store).unwrap();
+    let found = discover(std::slice::from_ref(&root), Some(&store)).unwrap();
     let names: Vec<String> = found
         .iter()
         .map(|s| s.path.strip_prefix(&root).unwrap().display().to_string())
@@ -394,7 +404,7 @@ fn discovery_finds_raw_folders_and_mcap_files_and_survives_link_loops() {
     // A replay.zarr given directly means its episode folder.
     let one = discover(
         &[root.join("a/click_mouse/episode_000000/replay.zarr")],
-        &store,
+        Some(&store),
     )
     .unwrap();
     assert_eq!(one[0].path, root.join("a/click_mouse/episode_000000"));

@@ -3,11 +3,18 @@
 
 use std::path::{Path, PathBuf};
 
-use dexjoco_core::{Episode, task_info};
-use dexjoco_ingest::teleop::{EpisodeMeta, read_episode_mcap, write_episode_mcap};
-use dexjoco_ingest::{
-    IngestOptions, NoReporter, Outcome, Status, Store, discover, read_stored_episode,
-};
+use dexjoco_core::{Episode, TaskSet, TaskSpec};
+use dexjoco_formats::{Status, discover};
+
+fn task_info(id: &str) -> Option<&'static TaskSpec> {
+    TaskSpec::builtin(id)
+}
+
+fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<Episode> {
+    dexjoco_formats::read_episode(dir, TaskSet::builtin())
+}
+use dexjoco_formats::mcap::{EpisodeMeta, read_episode_mcap, write_episode_mcap};
+use dexjoco_ingest::{IngestOptions, NoReporter, Outcome, Store};
 use dexjoco_testkit::{run_python, run_python_json};
 use serde_json::Value;
 
@@ -33,7 +40,7 @@ fn assert_bits(name: &str, got: &[f64], want: &[f64]) {
 
 fn ingest_all(inputs: &[PathBuf], store: &Path) -> dexjoco_ingest::IngestSummary {
     let mut s = Store::open(store).unwrap();
-    let sources = discover(inputs, store).unwrap();
+    let sources = discover(inputs, Some(store)).unwrap();
     s.ingest(&sources, &IngestOptions::default(), &NoReporter)
         .unwrap()
 }
@@ -250,7 +257,7 @@ fn mcap_files_written_by_python_are_ingested_bit_exact() {
     }
     // The metadata record's operator/date reach the reader.
     let bytes = std::fs::read(input.join("0_click_mouse.mcap")).unwrap();
-    let t = read_episode_mcap(Path::new("x.mcap"), &bytes).unwrap();
+    let t = read_episode_mcap(Path::new("x.mcap"), &bytes, TaskSet::builtin()).unwrap();
     assert_eq!(t.meta.operator.as_deref(), Some("fixture"));
     assert_eq!(
         t.meta.extra.get("rig").map(String::as_str),

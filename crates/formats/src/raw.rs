@@ -5,12 +5,12 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use dexjoco_core::{CameraStream, Episode, FrameArray, Location, TaskInfo};
+use dexjoco_core::{CameraStream, Episode, FrameArray, Location, TaskSet, TaskSpec};
 use serde_json::Value;
 use zarrs::array::{Array, ArrayMetadataOptions, CodecOptions};
 use zarrs::filesystem::FilesystemStore;
 
-use crate::error::{IngestError, ProblemCode, Result, io_err};
+use crate::error::{FormatError, ProblemCode, Result, io_err};
 use crate::zarr_v2::{self, Blosc};
 
 /// Name of the Zarr store inside an episode folder.
@@ -49,24 +49,24 @@ struct ArrayInfo {
 fn read_json(path: &Path, at: &Location) -> Result<Value> {
     let bytes = fs_err::read(path).map_err(|e| {
         if e.kind() == std::io::ErrorKind::NotFound {
-            IngestError::input(
+            FormatError::input(
                 ProblemCode::MissingArray,
                 at,
                 format!("'{}' is missing", path.display()),
             )
         } else {
-            IngestError::input(ProblemCode::Unreadable, at, e)
+            FormatError::input(ProblemCode::Unreadable, at, e)
         }
     })?;
     if bytes.is_empty() {
-        return Err(IngestError::input(
+        return Err(FormatError::input(
             ProblemCode::EmptyFile,
             at,
             format!("'{}' is empty", path.display()),
         ));
     }
     serde_json::from_slice(&bytes).map_err(|e| {
-        IngestError::input(
+        FormatError::input(
             ProblemCode::Corrupt,
             at,
             format!("'{}' is not valid JSON: {e}", path.display()),
@@ -77,7 +77,7 @@ fn read_json(path: &Path, at: &Location) -> Result<Value> {
 fn array_info(zarr: &Path, key: &str, at: &Location) -> Result<ArrayInfo> {
     let meta = read_json(&zarr.join(key).join(".zarray"), at)?;
     let corrupt = |what: &str| {
-        IngestError::input(
+        FormatError::input(
             ProblemCode::Corrupt,
             at,
             format!("'.zarray' has no valid {what}"),
@@ -104,7 +104,7 @@ fn array_info(zarr: &Path, key: &str, at: &Location) -> Result<ArrayInfo> {
         "<f4" | ">f4" => Dtype::F32,
         "<i8" | ">i8" => Dtype::I64,
         other => {
-            return Err(IngestError::input(
+            return Err(FormatError::input(
                 ProblemCode::WrongDtype,
                 at,
                 format!("dtype '{other}' is not float64 (or the older float32)"),
@@ -112,7 +112,7 @@ fn array_info(zarr: &Path, key: &str, at: &Location) -> Result<ArrayInfo> {
         }
     };
     if meta.get("order").and_then(Value::as_str) == Some("F") {
-        return Err(IngestError::input(
+        return Err(FormatError::input(
             ProblemCode::Corrupt,
             at,
             "Fortran-ordered chunks are not written by the recorder",
@@ -157,11 +157,11 @@ fn chunk_keys(info: &ArrayInfo, separator: &str) -> Vec<String> {
 fn open_store(zarr: &Path, at: &Location) -> Result<Arc<FilesystemStore>> {
     FilesystemStore::new(zarr)
         .map(Arc::new)
-        .map_err(|e| IngestError::input(ProblemCode::Unreadable, at, e))
+        .map_err(|e| FormatError::input(ProblemCode::Unreadable, at, e))
 }
 
-fn zarr_corrupt(at: &Location, e: impl std::fmt::Display) -> IngestError {
-    IngestError::input(ProblemCode::Corrupt, at, format!("cannot decode: {e}"))
+fn zarr_corrupt(at: &Location, e: impl std::fmt::Display) -> FormatError {
+    FormatError::input(ProblemCode::Corrupt, at, format!("cannot decode: {e}"))
 }
 
 /// Reads one array as f64 (float32 is widened exactly), checking every chunk is present.
@@ -180,7 +180,7 @@ fn read_array(
     for ck in chunk_keys(info, sep) {
         let p = zarr.join(key).join(&ck);
         if !p.is_file() {
-            return Err(IngestError::input(
+            return Err(FormatError::input(
                 ProblemCode::MissingArray,
                 at,
                 format!("chunk file '{}' is missing", p.display()),
@@ -200,7 +200,7 @@ fn read_array(
             .map(f64::from)
             .collect(),
         Dtype::I64 => {
-            return Err(IngestError::input(
+            return Err(FormatError::input(
                 ProblemCode::WrongDtype,
                 at,
                 "dtype int64 where float64 is expected",
@@ -213,7 +213,7 @@ fn read_episode_ends(store: &Arc<FilesystemStore>, zarr: &Path, at: &Location) -
     let key = "meta/episode_ends";
     let info = array_info(zarr, key, at)?;
     if info.dtype != Dtype::I64 || info.shape.len() != 1 {
-        return Err(IngestError::input(
+        return Err(FormatError::input(
             ProblemCode::WrongDtype,
             at,
             "episode_ends must be a 1-d int64 array",
@@ -226,8 +226,9 @@ fn read_episode_ends(store: &Arc<FilesystemStore>, zarr: &Path, at: &Location) -
 }
 
 /// The task of a raw folder from its path: `<task>/episode_NNNNNN/` or
-/// `<task>_demo_<k>_<date>/` (replays: `_replay_`), or any folder under a `<task>/` folder.
-pub fn task_from_path(dir: &Path) -> Option<String> {
+/// `<task>_demo_<k>_<date>/` (replays: `_replay_`), or any folder under a `<task>/` folder
+/// where `<task>` is one of `tasks`.
+pub fn task_from_path(dir: &Path, tasks: &TaskSet) -> Option<String> {
     let name = dir.file_name()?.to_str()?;
     for marker in ["_demo_", "_replay_"] {
         if let Some(i) = name.find(marker) {
@@ -237,7 +238,7 @@ pub fn task_from_path(dir: &Path) -> Option<String> {
     // `<root>/<task_id>/episode_000000` (released datasets) or any folder under a folder
     // named after a task (e.g. augment's `<task_id>/<episode>__r03`).
     let parent = dir.parent()?.file_name()?.to_str()?;
-    if name.starts_with("episode_") || dexjoco_core::task_info(parent).is_some() {
+    if name.starts_with("episode_") || tasks.contains(parent) {
         return Some(parent.to_owned());
     }
     None
@@ -248,11 +249,11 @@ pub fn task_from_path(dir: &Path) -> Option<String> {
 /// Applies the documented normalisations: float32 `state` is widened to float64; the
 /// older pick_bucket object order (food before bucket) is put in the current order;
 /// `action_rotvec` is computed when absent. Each is recorded in [`RawEpisode::notes`].
-pub fn read_raw_episode(dir: &Path, task: &TaskInfo) -> Result<RawEpisode> {
+pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
     let zarr = dir.join(REPLAY_ZARR);
     let base = Location::default().path(dir);
     if !zarr.is_dir() {
-        return Err(IngestError::input(
+        return Err(FormatError::input(
             ProblemCode::MissingArray,
             &base,
             "no replay.zarr folder",
@@ -293,7 +294,7 @@ pub fn read_raw_episode(dir: &Path, task: &TaskInfo) -> Result<RawEpisode> {
             [_] => 1,
             [_, w] if name != Episode::TIMESTAMP || *w == 1 => *w as usize,
             other => {
-                return Err(IngestError::input(
+                return Err(FormatError::input(
                     ProblemCode::WrongDimensions,
                     &at,
                     format!("shape {other:?} is not (T,) or (T, width)"),
@@ -301,7 +302,7 @@ pub fn read_raw_episode(dir: &Path, task: &TaskInfo) -> Result<RawEpisode> {
             }
         };
         if width == 0 {
-            return Err(IngestError::input(
+            return Err(FormatError::input(
                 ProblemCode::WrongDimensions,
                 &at,
                 "zero values per frame",
@@ -311,7 +312,7 @@ pub fn read_raw_episode(dir: &Path, task: &TaskInfo) -> Result<RawEpisode> {
             if name == Episode::STATE {
                 notes.push("state was float32 (older release): widened to float64".into());
             } else {
-                return Err(IngestError::input(
+                return Err(FormatError::input(
                     ProblemCode::WrongDtype,
                     &at,
                     "dtype float32 where float64 is expected (only the older `state` is float32)",
@@ -319,7 +320,7 @@ pub fn read_raw_episode(dir: &Path, task: &TaskInfo) -> Result<RawEpisode> {
             }
         }
         let values = read_array(&store, &zarr, &key, &info, &at)?;
-        let fa = FrameArray::new(width, values).map_err(IngestError::Core)?;
+        let fa = FrameArray::new(width, values).map_err(FormatError::Core)?;
         arrays.insert(name.clone(), fa);
     }
 
@@ -327,7 +328,7 @@ pub fn read_raw_episode(dir: &Path, task: &TaskInfo) -> Result<RawEpisode> {
     let at = base.clone().field("meta/episode_ends");
     let ends = read_episode_ends(&store, &zarr, &at)?;
     if ends != [frames as i64] {
-        return Err(IngestError::input(
+        return Err(FormatError::input(
             ProblemCode::EpisodeEndsMismatch,
             &at,
             format!("episode_ends {ends:?} where the arrays hold one episode of {frames} frames"),
@@ -336,8 +337,8 @@ pub fn read_raw_episode(dir: &Path, task: &TaskInfo) -> Result<RawEpisode> {
 
     let mut episode = Episode {
         id: String::new(),
-        task: task.id.to_owned(),
-        prompt: task.prompt.to_owned(),
+        task: task.id.clone(),
+        prompt: task.prompt.clone(),
         fps: dexjoco_core::DEXJOCO_FPS,
         arrays,
         cameras: Vec::new(),
@@ -387,14 +388,15 @@ fn fix_pick_bucket_order(ep: &mut Episode) -> bool {
     true
 }
 
-/// Files under `dir`, recursively, relative paths prefixed with `prefix`, sorted.
-pub(crate) fn list_files(dir: &Path, prefix: &Path) -> Result<Vec<PathBuf>> {
+/// Files under `dir`, recursively, relative paths prefixed with `prefix`, sorted (none
+/// when `dir` is not a folder).
+pub fn list_files(dir: &Path, prefix: &Path) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     if !dir.is_dir() {
         return Ok(out);
     }
     let mut entries: Vec<_> = fs_err::read_dir(dir)
-        .map_err(|e| IngestError::Io {
+        .map_err(|e| FormatError::Io {
             op: "list",
             path: dir.to_owned(),
             source: e,
@@ -435,8 +437,8 @@ fn cameras_of(videos: &[PathBuf]) -> Vec<CameraStream> {
     cams
 }
 
-fn zarr_write_err(at: &Location) -> impl Fn(String) -> IngestError + '_ {
-    move |message| IngestError::Zarr {
+fn zarr_write_err(at: &Location) -> impl Fn(String) -> FormatError + '_ {
+    move |message| FormatError::Zarr {
         at: at.clone(),
         message,
     }

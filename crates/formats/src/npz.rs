@@ -9,7 +9,7 @@ use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 use crate::error::io_err;
-use crate::{IngestError, Result};
+use crate::error::{FormatError, Result};
 
 /// The array name inside the archive.
 pub const DEPTH_KEY: &str = "depth";
@@ -74,7 +74,7 @@ impl DepthWriter {
             .compression_method(zip::CompressionMethod::Deflated)
             .compression_level(Some(1))
             .large_file(bytes > u32::MAX as usize);
-        let zip_err = |e: zip::result::ZipError| IngestError::Io {
+        let zip_err = |e: zip::result::ZipError| FormatError::Io {
             op: "write",
             path: tmp.clone(),
             source: std::io::Error::other(e),
@@ -96,7 +96,7 @@ impl DepthWriter {
     /// Appends one frame (row-major, top row first, metres).
     pub fn write_frame(&mut self, depth: &[f32]) -> Result<()> {
         if depth.len() != self.pixels || self.written == self.frames {
-            return Err(IngestError::Io {
+            return Err(FormatError::Io {
                 op: "write",
                 path: self.tmp.clone(),
                 source: std::io::Error::other(format!(
@@ -123,7 +123,7 @@ impl DepthWriter {
     /// it into place.
     pub fn finish(self) -> Result<PathBuf> {
         if self.written != self.frames {
-            return Err(IngestError::Io {
+            return Err(FormatError::Io {
                 op: "finish",
                 path: self.tmp.clone(),
                 source: std::io::Error::other(format!(
@@ -136,13 +136,13 @@ impl DepthWriter {
         let file = self
             .zip
             .finish()
-            .map_err(|e| IngestError::Io {
+            .map_err(|e| FormatError::Io {
                 op: "finish",
                 path: tmp.clone(),
                 source: std::io::Error::other(e),
             })?
             .into_inner()
-            .map_err(|e| IngestError::Io {
+            .map_err(|e| FormatError::Io {
                 op: "flush",
                 path: tmp.clone(),
                 source: e.into_error(),
@@ -155,7 +155,7 @@ impl DepthWriter {
 
 /// Reads `<camera>_depth.npz`: (frames, height, width) and the values, row-major.
 pub fn read_depth_npz(path: &Path) -> Result<((usize, usize, usize), Vec<f32>)> {
-    let bad = |what: String| IngestError::Io {
+    let bad = |what: String| FormatError::Io {
         op: "read",
         path: path.to_path_buf(),
         source: std::io::Error::new(std::io::ErrorKind::InvalidData, what),

@@ -3,10 +3,10 @@
 
 use std::collections::BTreeMap;
 
-use dexjoco_core::{
-    DEXJOCO_FPS, Episode, FrameArray, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM, PrivilegedKind,
-    TaskInfo,
-};
+use crate::episode::{Episode, FrameArray};
+use crate::layout::{DEXJOCO_FPS, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM};
+use crate::task_set::PrivilegedKind;
+use crate::task_spec::TaskSpec;
 
 fn unit_quat(a: f64, b: f64) -> [f64; 4] {
     let q = [a.cos(), 0.3 * b.sin(), 0.2 * a.sin(), 0.1 * b.cos()];
@@ -15,13 +15,12 @@ fn unit_quat(a: f64, b: f64) -> [f64; 4] {
 }
 
 /// A valid episode of `task` with `frames` frames; `seed` varies the values.
-pub fn episode(task: &TaskInfo, frames: usize, seed: u64) -> Episode {
+pub fn episode(task: &TaskSpec, frames: usize, seed: u64) -> Episode {
     let setup = task.setup;
     let s = seed as f64 * 0.7311;
     let per_arm = POSE_DIM + HAND_DOF;
     let mut action = FrameArray::zeros(frames, setup.action_dim());
-    let mut state = FrameArray::zeros(frames, task.state_dim);
-    let layout = task.state_layout();
+    let mut state = FrameArray::zeros(frames, task.state.width);
     let dh = 0.05 * ((s * 3.1).sin() * 0.5 + 0.5);
     for k in 0..frames {
         let t = k as f64 / DEXJOCO_FPS + s;
@@ -49,13 +48,12 @@ pub fn episode(task: &TaskInfo, frames: usize, seed: u64) -> Episode {
         for j in 0..setup.arms() * HAND_DOF {
             srow[hands + j] = 0.3 * (t + j as f64).sin();
         }
-        for f in task.privileged {
-            let slice = layout.get(f.name).expect("layout");
-            let v = &mut srow[slice.start..slice.start + slice.len];
+        for f in task.privileged() {
+            let v = &mut srow[f.start..f.start + f.kind.width()];
             match f.kind {
                 PrivilegedKind::Pose => {
                     v[0] = -0.3 + 0.01 * s.sin();
-                    v[1] = if f.name == "food" { 0.17 } else { -0.22 };
+                    v[1] = if f.object == "food" { 0.17 } else { -0.22 };
                     v[2] = 0.95 + dh;
                     v[3..7].copy_from_slice(&unit_quat(s, 0.0));
                 }
@@ -75,8 +73,8 @@ pub fn episode(task: &TaskInfo, frames: usize, seed: u64) -> Episode {
     );
     let mut ep = Episode {
         id: format!("synth-{seed}"),
-        task: task.id.to_owned(),
-        prompt: task.prompt.to_owned(),
+        task: task.id.clone(),
+        prompt: task.prompt.clone(),
         fps: DEXJOCO_FPS,
         arrays,
         cameras: Vec::new(),

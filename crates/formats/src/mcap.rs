@@ -10,11 +10,11 @@ use std::collections::{BTreeMap, HashMap};
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
-use dexjoco_core::{ArmSetup, Episode, FrameArray, HAND_DOF, Location, TaskInfo, task_info};
+use dexjoco_core::{ArmSetup, Episode, FrameArray, HAND_DOF, Location, TaskSet, TaskSpec};
 use mcap::records::{MessageHeader, Metadata, Record};
 use serde_json::{Value, json};
 
-use crate::error::{IngestError, ProblemCode, Result, io_err};
+use crate::error::{FormatError, ProblemCode, Result, io_err};
 
 /// Version of the schema this crate writes and reads.
 pub const SCHEMA_VERSION: &str = "1";
@@ -97,7 +97,7 @@ fn log_time(t: f64) -> u64 {
 pub fn write_episode_mcap(
     path: &Path,
     ep: &Episode,
-    task: &TaskInfo,
+    task: &TaskSpec,
     meta: &EpisodeMeta,
 ) -> Result<()> {
     let dir = path.parent().unwrap_or(Path::new("."));
@@ -105,7 +105,7 @@ pub fn write_episode_mcap(
     let tmp =
         tempfile::NamedTempFile::new_in(dir).map_err(io_err("create a temporary file in", dir))?;
     let at = Location::episode(&ep.id).path(path);
-    let mcap_err = |source| IngestError::Mcap {
+    let mcap_err = |source| FormatError::Mcap {
         at: at.clone(),
         source: Box::new(source),
     };
@@ -123,13 +123,13 @@ pub fn write_episode_mcap(
         let mut inner = w.into_inner();
         inner.flush().map_err(io_err("write", tmp.path()))?;
     }
-    crate::store::persist_synced(tmp, path)
+    crate::fs::persist_synced(tmp, path)
 }
 
 fn write_into<W: std::io::Write + std::io::Seek>(
     w: &mut mcap::Writer<W>,
     ep: &Episode,
-    task: &TaskInfo,
+    task: &TaskSpec,
     meta: &EpisodeMeta,
 ) -> mcap::McapResult<()> {
     let setup = task.setup;
@@ -182,10 +182,11 @@ fn write_into<W: std::io::Write + std::io::Seek>(
         arm_channels.push((pose, hand));
     }
     let mut sm = BTreeMap::new();
+    let layout = task.state_layout();
     sm.insert(
         "layout".to_owned(),
-        (0..task.state_dim)
-            .map(|c| task.state_layout().column_name(c))
+        (0..task.state.width)
+            .map(|c| layout.column_name(c))
             .collect::<Vec<_>>()
             .join(","),
     );
@@ -260,7 +261,7 @@ struct Msg {
     data: Vec<u8>,
 }
 
-fn mcap_problem(e: &mcap::McapError, at: &Location) -> IngestError {
+fn mcap_problem(e: &mcap::McapError, at: &Location) -> FormatError {
     use mcap::McapError as E;
     let code = match e {
         E::UnexpectedEof | E::UnexpectedEoc | E::BadFooter => ProblemCode::Truncated,
@@ -271,21 +272,22 @@ fn mcap_problem(e: &mcap::McapError, at: &Location) -> IngestError {
         ProblemCode::Truncated => format!("the MCAP file ends early ({e})"),
         _ => format!("damaged MCAP file ({e})"),
     };
-    IngestError::input(code, at, detail)
+    FormatError::input(code, at, detail)
 }
 
-/// Reads an MCAP file's bytes (`path` only names it in problems).
-pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
+/// Reads an MCAP file's bytes (`path` only names it in problems); the episode's task
+/// must be one of `tasks`.
+pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<TeleopEpisode> {
     let base = Location::default().path(path);
     if bytes.is_empty() {
-        return Err(IngestError::input(
+        return Err(FormatError::input(
             ProblemCode::EmptyFile,
             &base,
             "the file is empty",
         ));
     }
     if !bytes.starts_with(mcap::MAGIC) {
-        return Err(IngestError::input(
+        return Err(FormatError::input(
             ProblemCode::Corrupt,
             &base,
             "not an MCAP file (no MCAP magic at the start)",
@@ -320,7 +322,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     }
     let md_at = base.clone().field(format!("metadata '{EPISODE_METADATA}'"));
     let md = metadata.ok_or_else(|| {
-        IngestError::input(
+        FormatError::input(
             ProblemCode::MissingArray,
             &md_at,
             "no episode metadata record (task, fps, setup)",
@@ -328,15 +330,15 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     })?;
     let get = |k: &str| md.get(k).map(String::as_str);
     if let Some(v) = get("schema_version").filter(|v| *v != SCHEMA_VERSION) {
-        return Err(IngestError::input(
+        return Err(FormatError::input(
             ProblemCode::Corrupt,
             &md_at,
             format!("schema_version {v} is not {SCHEMA_VERSION}"),
         ));
     }
     let task_id = get("task").unwrap_or_default();
-    let task = task_info(task_id).ok_or_else(|| {
-        IngestError::input(
+    let task = tasks.get(task_id).ok_or_else(|| {
+        FormatError::input(
             ProblemCode::UnknownTask,
             &md_at.clone().field("task"),
             format!("unknown task '{task_id}'"),
@@ -348,7 +350,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
             ArmSetup::Bimanual => "bimanual",
         };
         if setup != expected {
-            return Err(IngestError::input(
+            return Err(FormatError::input(
                 ProblemCode::WrongDimensions,
                 &md_at.clone().field("setup"),
                 format!("setup '{setup}' but task {} is {expected}", task.id),
@@ -358,7 +360,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     let fps = match get("fps") {
         None => dexjoco_core::DEXJOCO_FPS,
         Some(s) => s.parse::<f64>().map_err(|_| {
-            IngestError::input(
+            FormatError::input(
                 ProblemCode::Corrupt,
                 &md_at.clone().field("fps"),
                 format!("fps '{s}' is not a number"),
@@ -370,7 +372,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     let mut topics: HashMap<String, TopicMessages> = HashMap::new();
     for (ch, mut msgs) in by_channel {
         let (topic, schema_id) = channels.get(&ch).cloned().ok_or_else(|| {
-            IngestError::input(
+            FormatError::input(
                 ProblemCode::Corrupt,
                 &base,
                 format!("messages on channel {ch}, which has no channel record"),
@@ -388,7 +390,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
 
     let parse = |topic: &str, k: usize, m: &Msg| -> Result<Value> {
         serde_json::from_slice(&m.data).map_err(|e| {
-            IngestError::input(
+            FormatError::input(
                 ProblemCode::Corrupt,
                 &base.clone().field(topic).frame(k),
                 format!("message is not valid JSON: {e}"),
@@ -397,7 +399,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     };
     let num = |v: &Value, topic: &str, k: usize, what: &str| -> Result<f64> {
         v.as_f64().ok_or_else(|| {
-            IngestError::input(
+            FormatError::input(
                 ProblemCode::Corrupt,
                 &base.clone().field(topic).frame(k),
                 format!("{what} is not a number"),
@@ -406,7 +408,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     };
     let numbers = |v: Option<&Value>, topic: &str, k: usize, what: &str| -> Result<Vec<f64>> {
         let arr = v.and_then(Value::as_array).ok_or_else(|| {
-            IngestError::input(
+            FormatError::input(
                 ProblemCode::Corrupt,
                 &base.clone().field(topic).frame(k),
                 format!("`{what}` is not an array of numbers"),
@@ -417,7 +419,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     let frame_check = |v: &Value, topic: &str, k: usize| -> Result<()> {
         match v.get("frame").and_then(Value::as_u64) {
             Some(f) if f as usize == k => Ok(()),
-            Some(f) => Err(IngestError::input(
+            Some(f) => Err(FormatError::input(
                 ProblemCode::WrongLength,
                 &base.clone().field(topic).frame(k),
                 format!("message {k} says frame {f}: a frame is missing or repeated"),
@@ -427,7 +429,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
     };
     let required = |topic: &str| -> Result<&Vec<Msg>> {
         topics.get(topic).map(|(_, m)| m).ok_or_else(|| {
-            IngestError::input(
+            FormatError::input(
                 ProblemCode::MissingArray,
                 &base.clone().field(topic),
                 "required channel is missing",
@@ -444,15 +446,15 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
         let v = parse(STATE_TOPIC, k, m)?;
         frame_check(&v, STATE_TOPIC, k)?;
         let row = numbers(v.get("values"), STATE_TOPIC, k, "values")?;
-        if row.len() != task.state_dim {
-            return Err(IngestError::input(
+        if row.len() != task.state.width {
+            return Err(FormatError::input(
                 ProblemCode::WrongDimensions,
                 &base.clone().field(STATE_TOPIC).frame(k),
                 format!(
                     "{} state values where {} has {}",
                     row.len(),
                     task.id,
-                    task.state_dim
+                    task.state.width
                 ),
             ));
         }
@@ -470,7 +472,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
         for (topic, is_pose) in [(pose_topic(arm), true), (hand_topic(arm), false)] {
             let msgs = required(&topic)?;
             if msgs.len() != frames {
-                return Err(IngestError::input(
+                return Err(FormatError::input(
                     ProblemCode::WrongLength,
                     &base.clone().field(topic.as_str()),
                     format!("{} messages where {STATE_TOPIC} has {frames}", msgs.len()),
@@ -503,7 +505,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
                     frame_check(&v, &topic, k)?;
                     let hand = numbers(v.get("position"), &topic, k, "position")?;
                     if hand.len() != HAND_DOF {
-                        return Err(IngestError::input(
+                        return Err(FormatError::input(
                             ProblemCode::WrongDimensions,
                             &base.clone().field(topic.as_str()).frame(k),
                             format!(
@@ -536,7 +538,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
             rows.push(numbers(v.get("values"), ACTION_ROTVEC_TOPIC, k, "values")?);
         }
         if rows.len() != frames {
-            return Err(IngestError::input(
+            return Err(FormatError::input(
                 ProblemCode::WrongLength,
                 &base.clone().field(ACTION_ROTVEC_TOPIC),
                 format!("{} messages where {STATE_TOPIC} has {frames}", rows.len()),
@@ -546,7 +548,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
             .iter()
             .any(|r| r.len() != task.setup.action_rotvec_dim())
         {
-            return Err(IngestError::input(
+            return Err(FormatError::input(
                 ProblemCode::WrongDimensions,
                 &base.clone().field(ACTION_ROTVEC_TOPIC),
                 format!(
@@ -587,8 +589,8 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
 
     let mut episode = Episode {
         id: get("episode_id").unwrap_or_default().to_owned(),
-        task: task.id.to_owned(),
-        prompt: get("prompt").unwrap_or(task.prompt).to_owned(),
+        task: task.id.clone(),
+        prompt: get("prompt").unwrap_or(&task.prompt).to_owned(),
         fps,
         arrays,
         cameras: Vec::new(),
@@ -628,11 +630,11 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8]) -> Result<TeleopEpisode> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth;
+    use dexjoco_core::synth;
 
     #[test]
     fn mcap_round_trip_is_bit_exact_for_awkward_values() {
-        let task = task_info("bimanual_unlock_ipad").unwrap();
+        let task = TaskSpec::builtin("bimanual_unlock_ipad").unwrap();
         let mut ep = synth::episode(task, 12, 3);
         // Values whose decimal forms are long or special: all must come back bit-identical.
         let awkward = [
@@ -659,7 +661,7 @@ mod tests {
         };
         write_episode_mcap(&path, &ep, task, &meta).unwrap();
         let bytes = std::fs::read(&path).unwrap();
-        let back = read_episode_mcap(&path, &bytes).unwrap();
+        let back = read_episode_mcap(&path, &bytes, TaskSet::builtin()).unwrap();
         assert_eq!(back.meta.operator.as_deref(), Some("op"));
         assert_eq!(back.episode.id, ep.id);
         for (name, a) in &ep.arrays {
@@ -673,22 +675,22 @@ mod tests {
 
     #[test]
     fn truncated_and_foreign_files_are_named() {
-        let task = task_info("click_mouse").unwrap();
+        let task = TaskSpec::builtin("click_mouse").unwrap();
         let ep = synth::episode(task, 30, 1);
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("ep.mcap");
         write_episode_mcap(&path, &ep, task, &EpisodeMeta::default()).unwrap();
         let bytes = std::fs::read(&path).unwrap();
         for cut in [bytes.len() - 1, bytes.len() / 2, 9] {
-            match read_episode_mcap(&path, &bytes[..cut]) {
-                Err(IngestError::Input(p)) => {
+            match read_episode_mcap(&path, &bytes[..cut], TaskSet::builtin()) {
+                Err(FormatError::Input(p)) => {
                     assert_eq!(p.code, ProblemCode::Truncated, "cut at {cut}: {p}")
                 }
                 other => panic!("cut at {cut}: {other:?}"),
             }
         }
-        match read_episode_mcap(&path, b"PK\x03\x04 a zip") {
-            Err(IngestError::Input(p)) => assert_eq!(p.code, ProblemCode::Corrupt),
+        match read_episode_mcap(&path, b"PK\x03\x04 a zip", TaskSet::builtin()) {
+            Err(FormatError::Input(p)) => assert_eq!(p.code, ProblemCode::Corrupt),
             other => panic!("{other:?}"),
         }
     }

@@ -1,0 +1,376 @@
+//! Checks of a [`TaskSpec`] beyond its types: references between nodes, the evaluation
+//! order (no cycles), widths and ranges; and the scene names a spec refers to.
+
+use std::collections::BTreeSet;
+
+use super::*;
+
+impl TaskSpec {
+    /// The node names in an order where every node comes after its inputs: scene
+    /// mechanics first, then depth-first by name.
+    pub fn evaluation_order(&self) -> Result<Vec<String>, TaskSpecError> {
+        let mut order = Vec::new();
+        let mut done = BTreeSet::new();
+        let mut visiting = BTreeSet::new();
+        // Scene mechanics first: they may move objects (the nail) that other nodes read.
+        let mechanics = self
+            .nodes
+            .iter()
+            .filter(|(_, n)| n.kind() == ConstraintKind::Mechanic);
+        let others = self
+            .nodes
+            .iter()
+            .filter(|(_, n)| n.kind() != ConstraintKind::Mechanic);
+        for (name, _) in mechanics.chain(others) {
+            self.visit(name, &mut done, &mut visiting, &mut order)?;
+        }
+        Ok(order)
+    }
+
+    fn visit(
+        &self,
+        name: &str,
+        done: &mut BTreeSet<String>,
+        visiting: &mut BTreeSet<String>,
+        order: &mut Vec<String>,
+    ) -> Result<(), TaskSpecError> {
+        if done.contains(name) {
+            return Ok(());
+        }
+        if !visiting.insert(name.to_owned()) {
+            return Err(self.invalid(format!("node '{name}' depends on itself")));
+        }
+        let node = self
+            .nodes
+            .get(name)
+            .ok_or_else(|| self.invalid(format!("unknown node '{name}'")))?;
+        for input in node.inputs() {
+            let base = input.split('.').next().unwrap_or(input);
+            self.visit(base, done, visiting, order)?;
+        }
+        visiting.remove(name);
+        done.insert(name.to_owned());
+        order.push(name.to_owned());
+        Ok(())
+    }
+
+    pub(super) fn invalid(&self, message: String) -> TaskSpecError {
+        TaskSpecError::Invalid {
+            task: self.id.clone(),
+            message,
+        }
+    }
+
+    /// Checks what the types cannot: references between nodes resolve (and outputs
+    /// exist), the graph has no cycle, the state width matches the layout, objects named
+    /// by placements and derived poses exist, ranges and counts are sensible.
+    pub fn validate(&self) -> Result<(), TaskSpecError> {
+        let check_ref = |r: &str| -> Result<(), TaskSpecError> {
+            let (base, out) = match r.split_once('.') {
+                Some((b, o)) => (b, Some(o)),
+                None => (r, None),
+            };
+            let node = self
+                .nodes
+                .get(base)
+                .ok_or_else(|| self.invalid(format!("reference to unknown node '{base}'")))?;
+            if let Some(o) = out
+                && !node.outputs().contains(&o)
+            {
+                return Err(self.invalid(format!(
+                    "node '{base}' has no output '{o}' (it has: {})",
+                    node.outputs().join(", ")
+                )));
+            }
+            Ok(())
+        };
+        for (name, node) in &self.nodes {
+            if name.contains('.') || name.is_empty() {
+                return Err(self.invalid(format!("bad node name '{name}'")));
+            }
+            for input in node.inputs() {
+                check_ref(input)?;
+            }
+            if let Node::ValueThreshold { of, .. } = node
+                && !of.contains('.')
+            {
+                return Err(self.invalid(format!(
+                    "node '{name}': value_threshold needs 'node.output', got '{of}'"
+                )));
+            }
+            self.validate_node(name, node)?;
+        }
+        check_ref(&self.success)?;
+        if let Some(f) = &self.failure {
+            check_ref(f)?;
+        }
+        self.evaluation_order()?;
+
+        let width = self.state_layout().width();
+        if width != self.state.width {
+            return Err(self.invalid(format!(
+                "state width {} does not match the layout ({width})",
+                self.state.width
+            )));
+        }
+        let objects: BTreeSet<&str> = self.state.objects.iter().map(|o| o.name.as_str()).collect();
+        if objects.len() != self.state.objects.len() {
+            return Err(self.invalid("duplicate state object names".into()));
+        }
+        for p in &self.placement {
+            if !objects.contains(p.object.as_str()) {
+                return Err(self.invalid(format!("placement of unknown object '{}'", p.object)));
+            }
+            if p.yaw_deg < 0.0 || p.axes[0] == p.axes[1] {
+                return Err(self.invalid(format!("bad placement of '{}'", p.object)));
+            }
+        }
+        for d in &self.state.derived {
+            if let Some(f) = &d.from
+                && !objects.contains(f.as_str())
+            {
+                return Err(self.invalid(format!("derived pose from unknown object '{f}'")));
+            }
+        }
+        if let Some(h) = &self.reset.hand_qpos
+            && h.len() != crate::layout::HAND_DOF
+        {
+            return Err(self.invalid(format!("reset.hand_qpos has {} values, not 16", h.len())));
+        }
+        if self.step_cap == 0 || self.cameras.is_empty() {
+            return Err(self.invalid("step_cap and cameras must not be empty".into()));
+        }
+        for d in &self.dynamics {
+            let r = match d {
+                DynamicsRandomization::MassScale { range, .. }
+                | DynamicsRandomization::FrictionlossUniform { range, .. }
+                | DynamicsRandomization::FrictionlossScale { range, .. }
+                | DynamicsRandomization::StiffnessScale { range, .. } => range,
+            };
+            if r[0] > r[1] || r[0] < 0.0 {
+                return Err(self.invalid(format!("bad dynamics range {r:?}")));
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_node(&self, name: &str, node: &Node) -> Result<(), TaskSpecError> {
+        let bad = |what: &str| Err(self.invalid(format!("node '{name}': {what}")));
+        match node {
+            Node::PointInCylinder { radius, along, .. }
+                if *radius <= 0.0 || along[0] > along[1] =>
+            {
+                bad("radius must be > 0 and along ordered")
+            }
+            Node::PointInBox { min, max, .. } if (0..3).any(|i| min[i] > max[i]) => {
+                bad("min must be <= max")
+            }
+            Node::PointInSiteBox { sites, .. } | Node::HeightAboveReset { sites, .. }
+                if sites.is_empty() =>
+            {
+                bad("needs sites")
+            }
+            Node::AxisAlignment {
+                target,
+                max_angle_deg,
+                ..
+            } if target.iter().all(|v| *v == 0.0) || !(0.0..=180.0).contains(max_angle_deg) => {
+                bad("target must be non-zero and the angle in [0, 180]")
+            }
+            Node::All { of } | Node::Any { of } if of.is_empty() => bad("needs inputs"),
+            Node::Held { steps, .. } if *steps == 0 => bad("steps must be >= 1"),
+            Node::Sequence { events } if events.is_empty() => bad("needs events"),
+            Node::NailSinking {
+                window,
+                vz_divisor,
+                min_vz,
+                ..
+            } if *window == 0 || *vz_divisor <= 0.0 || *min_vz >= 0.0 => {
+                bad("window >= 1, vz_divisor > 0 and min_vz < 0")
+            }
+            Node::Keypad {
+                buttons, password, ..
+            } if password.is_empty()
+                || password
+                    .iter()
+                    .any(|d| !buttons.iter().any(|b| b.digit == *d)) =>
+            {
+                bad("every password digit needs a button")
+            }
+            Node::HanoiTowers {
+                posts,
+                disks,
+                goal_post,
+                ..
+            } if posts.is_empty() || disks.is_empty() || *goal_post >= posts.len() => {
+                bad("needs posts, disks and a goal post among them")
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Every scene name the spec refers to, by kind (`joint`, `body`, `site`, `geom`,
+    /// `camera`, `sensor`), for checking against a scene.
+    pub fn scene_names(&self) -> Vec<(NameKind, String)> {
+        let mut out = Vec::new();
+        let mut push = |k: NameKind, n: &str| out.push((k, n.to_owned()));
+        for c in &self.cameras {
+            push(NameKind::Camera, &c.camera);
+        }
+        push(NameKind::Body, &self.table.body);
+        push(NameKind::Site, &self.table.top_site);
+        for l in &self.table.legs {
+            push(NameKind::Geom, l);
+        }
+        for j in self.reset.joint_qpos.keys() {
+            push(NameKind::Joint, j);
+        }
+        let pose = |s: &PoseSource, push: &mut dyn FnMut(NameKind, &str)| match s {
+            PoseSource::FreeJoint(n) => push(NameKind::Joint, n),
+            PoseSource::Body(n) | PoseSource::Mocap(n) | PoseSource::BodyPosition(n) => {
+                push(NameKind::Body, n)
+            }
+            PoseSource::GeomLocal(n) => push(NameKind::Geom, n),
+        };
+        for o in &self.state.objects {
+            pose(&o.source, &mut push);
+        }
+        for d in &self.state.derived {
+            pose(&d.target, &mut push);
+        }
+        for d in &self.dynamics {
+            match d {
+                DynamicsRandomization::MassScale { body, .. } => push(NameKind::Body, body),
+                DynamicsRandomization::FrictionlossUniform { joint, .. }
+                | DynamicsRandomization::FrictionlossScale { joint, .. }
+                | DynamicsRandomization::StiffnessScale { joint, .. } => {
+                    push(NameKind::Joint, joint)
+                }
+            }
+        }
+        let point = |p: &PointRef, push: &mut dyn FnMut(NameKind, &str)| match p {
+            PointRef::Sensor(n) => push(NameKind::Sensor, n),
+            PointRef::Site(n) => push(NameKind::Site, n),
+            PointRef::Body(n) => push(NameKind::Body, n),
+            PointRef::Geom(n) => push(NameKind::Geom, n),
+        };
+        let frame = |f: &FrameRef, push: &mut dyn FnMut(NameKind, &str)| match f {
+            FrameRef::Site(n) => push(NameKind::Site, n),
+            FrameRef::Body(n) => push(NameKind::Body, n),
+            FrameRef::Geom(n) => push(NameKind::Geom, n),
+        };
+        let joint = |j: &JointRef, push: &mut dyn FnMut(NameKind, &str)| match j {
+            JointRef::Sensor(n) => push(NameKind::Sensor, n),
+            JointRef::Qpos(n) => push(NameKind::Joint, n),
+        };
+        let geoms = |g: &GeomSet, push: &mut dyn FnMut(NameKind, &str)| match g {
+            GeomSet::Any => {}
+            GeomSet::Geoms(v) => v.iter().for_each(|n| push(NameKind::Geom, n)),
+            GeomSet::Subtree(b) | GeomSet::OutsideSubtree(b) => push(NameKind::Body, b),
+        };
+        for node in self.nodes.values() {
+            match node {
+                Node::PointInCylinder {
+                    point: p, center, ..
+                } => {
+                    point(p, &mut push);
+                    point(center, &mut push);
+                }
+                Node::PointInBox {
+                    point: p, origin, ..
+                } => {
+                    point(p, &mut push);
+                    frame(origin, &mut push);
+                }
+                Node::PointInSiteBox { point: p, sites } => {
+                    point(p, &mut push);
+                    sites.iter().for_each(|s| push(NameKind::Site, s));
+                }
+                Node::HeightAboveReset { sites, .. } => {
+                    sites.iter().for_each(|s| push(NameKind::Site, s))
+                }
+                Node::AboveReference {
+                    point: p,
+                    reference,
+                    ..
+                } => {
+                    point(p, &mut push);
+                    point(reference, &mut push);
+                }
+                Node::AxisAlignment { frame: f, .. } => frame(f, &mut push),
+                Node::JointThreshold { joint: j, .. }
+                | Node::JointAboveReset { joint: j, .. }
+                | Node::JointHysteresis { joint: j, .. } => joint(j, &mut push),
+                Node::Contact { a, b, .. } => {
+                    geoms(a, &mut push);
+                    geoms(b, &mut push);
+                }
+                Node::NailSinking {
+                    hammer,
+                    nail,
+                    face,
+                    nail_body,
+                    ..
+                } => {
+                    hammer
+                        .iter()
+                        .chain(nail)
+                        .chain([face])
+                        .for_each(|g| push(NameKind::Geom, g));
+                    push(NameKind::Body, nail_body);
+                }
+                Node::Keypad {
+                    buttons, fingers, ..
+                } => {
+                    buttons.iter().for_each(|b| push(NameKind::Geom, &b.geom));
+                    fingers.iter().for_each(|g| push(NameKind::Geom, g));
+                }
+                Node::HanoiTowers {
+                    base, posts, disks, ..
+                } => {
+                    push(NameKind::Body, base);
+                    posts.iter().for_each(|s| push(NameKind::Site, s));
+                    disks.iter().for_each(|d| push(NameKind::Joint, &d.joint));
+                }
+                _ => {}
+            }
+        }
+        out.sort();
+        out.dedup();
+        out
+    }
+}
+
+/// Kinds of scene names a spec refers to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum NameKind {
+    /// A joint.
+    Joint,
+    /// A body.
+    Body,
+    /// A site.
+    Site,
+    /// A geom.
+    Geom,
+    /// A camera.
+    Camera,
+    /// A sensor.
+    Sensor,
+    /// An actuator.
+    Actuator,
+}
+
+impl NameKind {
+    /// Lower-case name, e.g. `geom`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Joint => "joint",
+            Self::Body => "body",
+            Self::Site => "site",
+            Self::Geom => "geom",
+            Self::Camera => "camera",
+            Self::Sensor => "sensor",
+            Self::Actuator => "actuator",
+        }
+    }
+}

@@ -1,0 +1,204 @@
+//! Tests of task specs: the shipped files, the schema, the checks.
+
+use super::*;
+use crate::task_set::{BUILTIN_SPEC_FILES, TaskSet};
+use std::path::PathBuf;
+
+fn schemas_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../schemas")
+}
+
+/// The 11 DexJoCo tasks with their state widths (dexjoco-raw-format.md).
+const TASKS: [(&str, usize); 11] = [
+    ("bimanual_assembly", 61),
+    ("bimanual_hanoi", 50),
+    ("bimanual_microwave_cook", 61),
+    ("bimanual_photograph", 61),
+    ("bimanual_unlock_ipad", 61),
+    ("click_mouse", 31),
+    ("fold_glasses", 38),
+    ("hammer_nail", 38),
+    ("pick_bucket", 38),
+    ("pinch_tongs", 31),
+    ("water_plant", 38),
+];
+
+#[test]
+fn the_embedded_specs_are_the_folder() {
+    let from_dir = TaskSpec::load_dir(&schemas_dir().join("tasks")).unwrap();
+    let embedded: Vec<TaskSpec> = TaskSet::builtin().iter().cloned().collect();
+    assert_eq!(embedded, from_dir);
+    assert_eq!(TaskSpec::builtin("click_mouse").unwrap(), &from_dir[5]);
+    assert!(TaskSpec::builtin("no_such_task").is_none());
+    // A folder of specs replaces built-in ones by id and adds new ones.
+    let tmp = tempfile::tempdir().unwrap();
+    let mut text = BUILTIN_SPEC_FILES[5]
+        .1
+        .replace("prompt = \"", "prompt = \"Changed. ");
+    std::fs::write(tmp.path().join("click_mouse.toml"), &text).unwrap();
+    text = text.replace("id = \"click_mouse\"", "id = \"my_click\"");
+    std::fs::write(tmp.path().join("my_click.toml"), &text).unwrap();
+    let all: Vec<TaskSpec> = TaskSet::with_dir(Some(tmp.path()))
+        .unwrap()
+        .iter()
+        .cloned()
+        .collect();
+    assert_eq!(all.len(), 12);
+    let mine = all.iter().find(|s| s.id == "click_mouse").unwrap();
+    assert!(mine.prompt.starts_with("Changed. "), "{}", mine.prompt);
+    assert!(all.iter().any(|s| s.id == "my_click"));
+    let builtin: Vec<TaskSpec> = TaskSet::with_dir(None).unwrap().iter().cloned().collect();
+    assert_eq!(builtin, from_dir);
+}
+
+#[test]
+fn every_task_spec_loads_and_validates() {
+    let specs = TaskSpec::load_dir(&schemas_dir().join("tasks")).unwrap();
+    let ids: Vec<_> = specs
+        .iter()
+        .map(|s| (s.id.as_str(), s.state.width))
+        .collect();
+    assert_eq!(ids, TASKS);
+    for s in &specs {
+        let order = s.evaluation_order().unwrap();
+        assert_eq!(order.len(), s.nodes.len(), "{}", s.id);
+        // Inputs come before the nodes that read them.
+        for (i, name) in order.iter().enumerate() {
+            for input in s.nodes[name].inputs() {
+                let base = input.split('.').next().unwrap();
+                let j = order.iter().position(|n| n == base).unwrap();
+                assert!(j < i, "{}: {base} after {name}", s.id);
+            }
+        }
+        assert!(!s.scene_names().is_empty());
+        // The four constraint kinds and mechanics appear as primitives, never as code.
+        let cap = if s.setup == ArmSetup::Bimanual {
+            46
+        } else {
+            23
+        };
+        assert_eq!(s.setup.proprio_dim(), cap);
+    }
+    // Some fixed facts.
+    let mouse = specs.iter().find(|s| s.id == "click_mouse").unwrap();
+    assert_eq!(mouse.step_cap, 1200);
+    assert_eq!(mouse.state_layout().get("mouse.pose").unwrap().start, 23);
+    let hanoi = specs.iter().find(|s| s.id == "bimanual_hanoi").unwrap();
+    assert_eq!(hanoi.state_layout().get("dh").unwrap().start, 49);
+}
+
+/// The committed JSON Schema is exactly the one generated from the serde types, so
+/// schema and reader agree. Regenerate with `DEXJOCO_UPDATE_SCHEMA=1 cargo test`.
+#[test]
+fn json_schema_matches_the_types() {
+    // Keys sorted, whatever serde_json's `preserve_order` feature (which other crates
+    // of the workspace turn on) makes of map order.
+    fn sorted(v: &serde_json::Value) -> serde_json::Value {
+        match v {
+            serde_json::Value::Object(m) => {
+                let mut keys: Vec<&String> = m.keys().collect();
+                keys.sort();
+                serde_json::Value::Object(
+                    keys.into_iter()
+                        .map(|k| (k.clone(), sorted(&m[k])))
+                        .collect(),
+                )
+            }
+            serde_json::Value::Array(a) => serde_json::Value::Array(a.iter().map(sorted).collect()),
+            other => other.clone(),
+        }
+    }
+    let path = schemas_dir().join("task-spec.schema.json");
+    let generated = sorted(&TaskSpec::json_schema());
+    if std::env::var_os("DEXJOCO_UPDATE_SCHEMA").is_some() {
+        std::fs::write(
+            &path,
+            serde_json::to_string_pretty(&generated).unwrap() + "\n",
+        )
+        .unwrap();
+    }
+    let committed: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap_or_default())
+            .unwrap_or_default();
+    assert!(
+        committed == generated,
+        "{} is stale: run DEXJOCO_UPDATE_SCHEMA=1 cargo test -p dexjoco-core",
+        path.display()
+    );
+    // Every spec, as JSON, uses only properties the schema declares at the top level.
+    let schema = TaskSpec::json_schema();
+    let props = schema["properties"].as_object().unwrap();
+    for s in TaskSpec::load_dir(&schemas_dir().join("tasks")).unwrap() {
+        let v = serde_json::to_value(&s).unwrap();
+        for k in v.as_object().unwrap().keys() {
+            assert!(props.contains_key(k), "{}: {k} not in the schema", s.id);
+        }
+        for r in schema["required"].as_array().unwrap() {
+            assert!(
+                v.get(r.as_str().unwrap()).is_some(),
+                "{}: {r} missing",
+                s.id
+            );
+        }
+        // Round trip: what we write reads back the same.
+        let back: TaskSpec = serde_json::from_value(v).unwrap();
+        assert_eq!(back, s);
+    }
+}
+
+fn minimal(extra: &str) -> String {
+    format!(
+        r#"
+id = "t"
+name = "T"
+setup = "single_arm"
+scene = "s.xml"
+prompt = "p"
+step_cap = 10
+success = "done"
+cameras = [{{ key = "front", camera = "front" }}]
+[state]
+width = 24
+objects = []
+{extra}
+"#
+    )
+}
+
+#[test]
+fn unknown_keys_and_bad_references_are_refused() {
+    let ok = minimal(
+        "[nodes.done]\nkind = \"all\"\nof = [\"x\"]\n[nodes.x]\nkind = \"not\"\nof = \"done2\"\n[nodes.done2]\nkind = \"latch\"\nset = \"x\"\n",
+    );
+    // x -> done2 -> x is a cycle.
+    let e = TaskSpec::from_toml_str(&ok, "t").unwrap_err().to_string();
+    assert!(e.contains("depends on itself"), "{e}");
+
+    let typo = minimal("[nodes.done]\nkind = \"held\"\nof = \"done\"\nstep = 3\n");
+    let e = TaskSpec::from_toml_str(&typo, "t").unwrap_err().to_string();
+    assert!(e.contains("step"), "{e}");
+
+    let unknown = minimal("[nodes.done]\nkind = \"not\"\nof = \"nothing\"\n");
+    let e = TaskSpec::from_toml_str(&unknown, "t")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("unknown node 'nothing'"), "{e}");
+
+    let port = minimal(
+        "[nodes.a]\nkind = \"held\"\nof = \"b\"\nsteps = 2\n[nodes.b]\nkind = \"not\"\nof = \"a.depth\"\n[nodes.done]\nkind = \"not\"\nof = \"a\"\n",
+    );
+    let e = TaskSpec::from_toml_str(&port, "t").unwrap_err().to_string();
+    assert!(e.contains("no output 'depth'"), "{e}");
+
+    let width = minimal("[nodes.done]\nkind = \"joint_threshold\"\njoint = { qpos = \"j\" }\nop = \"gt\"\nvalue = 1.0\n")
+        .replace("width = 24", "width = 23");
+    let e = TaskSpec::from_toml_str(&width, "t")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("state width"), "{e}");
+
+    let top = minimal(
+        "[nodes.done]\nkind = \"any\"\nof = [\"e\"]\n[nodes.e]\nkind = \"joint_threshold\"\njoint = { qpos = \"j\" }\nop = \"gt\"\nvalue = 1.0\n",
+    ) + "\n[extra]\nx = 1\n";
+    assert!(TaskSpec::from_toml_str(&top, "t").is_err());
+}

@@ -1,0 +1,312 @@
+//! Finding and reading episodes: the one rule every command uses (`ingest`, `augment`,
+//! `convert`, `stats --dataset`, `export`).
+//!
+//! An input path is, checked in this order:
+//!
+//! 1. a file: an MCAP teleop log (one episode), whatever its extension;
+//! 2. a folder named `replay.zarr`: its parent, a DexJoCo raw episode folder;
+//! 3. a folder holding `replay.zarr`: one DexJoCo raw episode folder;
+//! 4. a folder holding `manifest.json` (an episode store made by `ingest`): its landed
+//!    episodes, in manifest order (its quarantine is not read);
+//! 5. any other folder: searched recursively, entries in name order, by rules 3-4 for
+//!    folders and `*.mcap` (any case) for files. Folders whose name starts with `.` (work
+//!    in progress such as `.staging/` or `.dropped/`) are not entered, linked folders are
+//!    followed once, and the `exclude` folder (an output being written) is never entered.
+//!
+//! The same path found twice is read once. Reading an episode takes its task from, in
+//! order: the caller's override, the episode folder's store entry
+//! (`.dexjoco-ingest.json`), its path ([`raw::task_from_path`]); an MCAP log names its
+//! task in its metadata. Its id is the store entry's id, else the folder name; for MCAP,
+//! the recorded id, else the file stem.
+
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+
+use dexjoco_core::{Episode, Location, TaskSet};
+
+use crate::error::{FormatError, ProblemCode, Result, io_err};
+use crate::manifest::{MANIFEST, Manifest, ManifestEntry, SourceKind};
+use crate::raw::{self, REPLAY_ZARR};
+
+/// One episode to read: a raw episode folder or an MCAP file.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct Source {
+    /// The file or folder.
+    pub path: PathBuf,
+    /// Its kind.
+    pub kind: SourceKind,
+}
+
+/// An episode read from a [`Source`], with what reading it noted.
+#[derive(Debug, Clone)]
+pub struct ReadEpisode {
+    /// The episode.
+    pub episode: Episode,
+    /// Files under the raw folder's `videos/`, relative to it (none for MCAP).
+    pub videos: Vec<PathBuf>,
+    /// Normalisations applied and things not carried over.
+    pub notes: Vec<String>,
+}
+
+/// How to read a source beyond the default rule.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ReadOptions<'a> {
+    /// The task of raw folders, whatever their path or entry says (`ingest --task`).
+    pub task: Option<&'a str>,
+    /// The MCAP file's bytes, when the caller has already read them.
+    pub bytes: Option<&'a [u8]>,
+}
+
+/// The sources under every input (see the module documentation for the rule), in input
+/// order, each path once. The first input that cannot be listed fails the call.
+pub fn discover(inputs: &[PathBuf], exclude: Option<&Path>) -> Result<Vec<Source>> {
+    let mut out = Vec::new();
+    for input in inputs {
+        out.extend(discover_input(input, exclude)?);
+    }
+    let mut seen = HashSet::new();
+    out.retain(|s| seen.insert(s.path.clone()));
+    Ok(out)
+}
+
+/// The sources under one input path.
+pub fn discover_input(input: &Path, exclude: Option<&Path>) -> Result<Vec<Source>> {
+    let meta = fs_err::metadata(input).map_err(io_err("read", input))?;
+    if !meta.is_dir() {
+        return Ok(vec![Source {
+            path: input.to_owned(),
+            kind: SourceKind::Mcap,
+        }]);
+    }
+    if input.file_name().is_some_and(|n| n == REPLAY_ZARR) {
+        let parent = input
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
+        return Ok(vec![raw_source(parent)]);
+    }
+    let exclude = exclude.and_then(|e| e.canonicalize().ok());
+    let mut out = Vec::new();
+    walk(input, exclude.as_deref(), &mut HashSet::new(), &mut out)?;
+    Ok(out)
+}
+
+fn raw_source(path: PathBuf) -> Source {
+    Source {
+        path,
+        kind: SourceKind::Raw,
+    }
+}
+
+fn walk(
+    dir: &Path,
+    exclude: Option<&Path>,
+    visited: &mut HashSet<PathBuf>,
+    out: &mut Vec<Source>,
+) -> Result<()> {
+    let real = dir.canonicalize().map_err(io_err("resolve", dir))?;
+    if exclude == Some(real.as_path()) || !visited.insert(real) {
+        return Ok(());
+    }
+    if dir.join(REPLAY_ZARR).is_dir() {
+        out.push(raw_source(dir.to_owned()));
+        return Ok(());
+    }
+    if dir.join(MANIFEST).is_file() {
+        let manifest = Manifest::read(dir)?;
+        out.extend(manifest.landed_dirs(dir).into_iter().map(raw_source));
+        return Ok(());
+    }
+    let mut entries: Vec<_> = fs_err::read_dir(dir)
+        .map_err(io_err("list", dir))?
+        .collect::<std::io::Result<_>>()
+        .map_err(io_err("list", dir))?;
+    entries.sort_by_key(fs_err::DirEntry::file_name);
+    for e in entries {
+        let p = e.path();
+        let hidden = e.file_name().to_string_lossy().starts_with('.');
+        if p.is_dir() {
+            if !hidden {
+                walk(&p, exclude, visited, out)?;
+            }
+        } else if p
+            .extension()
+            .is_some_and(|x| x.eq_ignore_ascii_case("mcap"))
+        {
+            out.push(Source {
+                path: p,
+                kind: SourceKind::Mcap,
+            });
+        }
+    }
+    Ok(())
+}
+
+impl Source {
+    /// The source at `path`: a raw episode folder when it is a folder, else an MCAP file.
+    pub fn at(path: impl Into<PathBuf>) -> Self {
+        let path = path.into();
+        let kind = if path.is_dir() {
+            SourceKind::Raw
+        } else {
+            SourceKind::Mcap
+        };
+        Self { path, kind }
+    }
+
+    /// Reads the episode by the default rule (tasks from `tasks`).
+    pub fn read(&self, tasks: &TaskSet) -> Result<ReadEpisode> {
+        self.read_with(tasks, ReadOptions::default())
+    }
+
+    /// Reads the episode; `options` can fix the task of raw folders and hand over an MCAP
+    /// file's bytes.
+    pub fn read_with(&self, tasks: &TaskSet, options: ReadOptions<'_>) -> Result<ReadEpisode> {
+        match self.kind {
+            SourceKind::Mcap => {
+                let owned;
+                let bytes = match options.bytes {
+                    Some(b) => b,
+                    None => {
+                        owned = fs_err::read(&self.path).map_err(io_err("read", &self.path))?;
+                        &owned
+                    }
+                };
+                let t = crate::mcap::read_episode_mcap(&self.path, bytes, tasks)?;
+                let mut episode = t.episode;
+                if episode.id.is_empty() {
+                    episode.id = file_name(&self.path, true);
+                }
+                Ok(ReadEpisode {
+                    episode,
+                    videos: Vec::new(),
+                    notes: t.notes,
+                })
+            }
+            SourceKind::Raw => {
+                let dir = &self.path;
+                let entry = ManifestEntry::of_episode_dir(dir);
+                let name = options
+                    .task
+                    .map(str::to_owned)
+                    .or_else(|| entry.as_ref().and_then(|e| e.task.clone()))
+                    .or_else(|| raw::task_from_path(dir, tasks));
+                let at = Location::default().path(dir);
+                let task = match name.as_deref() {
+                    Some(n) => tasks.get(n).ok_or_else(|| {
+                        FormatError::input(
+                            ProblemCode::UnknownTask,
+                            &at,
+                            format!("unknown task '{n}' (known: {})", tasks.ids().join(", ")),
+                        )
+                    })?,
+                    None => {
+                        return Err(FormatError::input(
+                            ProblemCode::UnknownTask,
+                            &at,
+                            format!(
+                                "cannot tell the task of '{}': the path names none \
+                                 (<task>/episode_N or <task>_demo_...); pass --task",
+                                dir.display()
+                            ),
+                        ));
+                    }
+                };
+                let r = raw::read_raw_episode(dir, task)?;
+                let mut episode = r.episode;
+                episode.id = entry.map_or_else(|| file_name(dir, false), |e| e.id);
+                Ok(ReadEpisode {
+                    episode,
+                    videos: r.videos,
+                    notes: r.notes,
+                })
+            }
+        }
+    }
+}
+
+fn file_name(path: &Path, stem: bool) -> String {
+    let name = if stem {
+        path.file_stem()
+    } else {
+        path.file_name()
+    };
+    name.map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+}
+
+/// Reads the one episode at `path` (a raw episode folder or an MCAP file) by the default
+/// rule.
+pub fn read_episode(path: &Path, tasks: &TaskSet) -> Result<Episode> {
+    Ok(Source::at(path).read(tasks)?.episode)
+}
+
+/// Reads every episode under `inputs` by the default rule: (source, result) pairs in
+/// discovery order, so one bad episode never hides the others.
+pub fn read_all(inputs: &[PathBuf], tasks: &TaskSet) -> Result<Vec<(Source, Result<ReadEpisode>)>> {
+    Ok(discover(inputs, None)?
+        .into_iter()
+        .map(|s| {
+            let r = s.read(tasks);
+            (s, r)
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn touch_raw(dir: &Path) {
+        std::fs::create_dir_all(dir.join(REPLAY_ZARR)).unwrap();
+    }
+
+    #[test]
+    fn one_rule_for_folders_stores_and_files() {
+        let tmp = tempfile::tempdir().unwrap();
+        let root = tmp.path();
+        touch_raw(&root.join("b/click_mouse/episode_000001"));
+        touch_raw(&root.join("b/click_mouse/episode_000000"));
+        touch_raw(&root.join("b/.staging/click_mouse/episode_000002"));
+        std::fs::write(root.join("a.MCAP"), b"x").unwrap();
+        std::fs::write(root.join("notes.txt"), b"x").unwrap();
+        // A store: only its landed episodes (not the quarantined copy) are read.
+        let store = root.join("c");
+        touch_raw(&store.join("quarantine/q1/source/x"));
+        touch_raw(&store.join("pinch_tongs/episode_000000"));
+        let mut m = Manifest::default();
+        m.upsert(ManifestEntry {
+            id: "0123".into(),
+            task: Some("pinch_tongs".into()),
+            source: "s".into(),
+            source_kind: SourceKind::Raw,
+            source_hash: String::new(),
+            length: 1,
+            status: crate::manifest::Status::Ok,
+            path: "pinch_tongs/episode_000000".into(),
+            problems: Vec::new(),
+            notes: Vec::new(),
+        });
+        std::fs::write(store.join(MANIFEST), serde_json::to_vec(&m).unwrap()).unwrap();
+        let found = discover(&[root.to_owned(), root.join("a.MCAP")], None).unwrap();
+        let rel: Vec<_> = found
+            .iter()
+            .map(|s| (s.path.strip_prefix(root).unwrap().to_owned(), s.kind))
+            .collect();
+        assert_eq!(
+            rel,
+            [
+                (PathBuf::from("a.MCAP"), SourceKind::Mcap),
+                ("b/click_mouse/episode_000000".into(), SourceKind::Raw),
+                ("b/click_mouse/episode_000001".into(), SourceKind::Raw),
+                ("c/pinch_tongs/episode_000000".into(), SourceKind::Raw),
+            ]
+        );
+        // A replay.zarr given directly is its episode folder; an excluded folder is skipped.
+        let direct =
+            discover_input(&root.join("b/click_mouse/episode_000000/replay.zarr"), None).unwrap();
+        assert_eq!(direct[0].path, root.join("b/click_mouse/episode_000000"));
+        let excl = discover(&[root.to_owned()], Some(&root.join("b"))).unwrap();
+        assert_eq!(excl.len(), 2, "{excl:?}");
+        assert!(discover(&[root.join("missing")], None).is_err());
+    }
+}

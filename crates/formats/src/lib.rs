@@ -1,0 +1,33 @@
+//! Every on-disk format of dexjoco-data, and the file-system primitives its writers use.
+//! Stage crates (`ingest`, `augment`, `convert`, `stats`) read and write files only
+//! through this crate, so "where is the MCAP reader" has one answer:
+//!
+//! - [`episodes`]: **the** episode discovery and reader every command uses (raw
+//!   folders, episode stores, MCAP files, in folders or given directly; one rule).
+//! - [`raw`]: the DexJoCo raw layout (`replay.zarr` + `videos/`), read and written with
+//!   `zarrs` exactly as the reference recorder (zarr-python 2) lays it out.
+//! - [`zarr_v2`]: Zarr v2 metadata and groups as zarr-python 2 writes them (the raw layout
+//!   and convert's Diffusion Policy replay buffer).
+//! - [`mcap`]: our MCAP schema for teleop episodes (`schemas/mcap-teleop.md`).
+//! - [`npz`]: numpy `.npz` depth archives (`videos/<camera>_depth.npz`), streamed.
+//! - [`manifest`]: the episode store's `manifest.json` and per-episode entries.
+//! - [`fs`]: atomic file writes, whole-folder replacement, tree copies; [`lock`]: one
+//!   writer per output folder.
+//! - [`error`]: [`FormatError`] and the [`Problem`] records (code, file, episode, field,
+//!   frame) that manifests and reports keep.
+
+pub mod episodes;
+pub mod error;
+pub mod fs;
+pub mod lock;
+pub mod manifest;
+pub mod mcap;
+pub mod npz;
+pub mod raw;
+pub mod zarr_v2;
+
+pub use episodes::{ReadEpisode, ReadOptions, Source, discover, discover_input, read_episode};
+pub use error::{FormatError, Problem, ProblemCode, Result};
+pub use fs::write_atomic;
+pub use lock::{DirLock, LOCK_FILE};
+pub use manifest::{ENTRY_FILE, MANIFEST, Manifest, ManifestEntry, SourceKind, Status};
