@@ -39,7 +39,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 continue;
             }
             let dir = out.join(task).join(format!("episode_{written:06}"));
-            dexjoco_ingest::raw::write_replay_zarr(&dir, &ep)?;
+            dexjoco_formats::raw::write_replay_zarr(&dir, &ep)?;
             println!(
                 "{}: {} steps, success at step {:?}",
                 dir.display(),

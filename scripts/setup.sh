@@ -4,7 +4,8 @@
 #   2. MuJoCo 3.17.0's shared library, taken from the `mujoco==3.17.0` wheel on PyPI
 #      into .deps/mujoco/lib (git-ignored);
 #   3. with --python: the cached Python venv of the real readers used by the tests
-#      (outside the repo, under ${XDG_CACHE_HOME:-~/.cache}/dexjoco-data/).
+#      (outside the repo, under ${XDG_CACHE_HOME:-~/.cache}/dexjoco-data/), and Debian's
+#      slurm-wlm and munge for the Slurm test (its daemons are not started).
 # Idempotent: a second run only checks. Source it or run it; it prints what it does.
 set -euo pipefail
 
@@ -19,7 +20,7 @@ want_python=0
 for arg in "$@"; do
   case "$arg" in
     --python) want_python=1 ;;
-    -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,10p' "$0"; exit 0 ;;
     *) echo "setup.sh: unknown argument $arg" >&2; exit 2 ;;
   esac
 done
@@ -68,6 +69,30 @@ fi
 
 if ((${#missing[@]})); then
   apt_install "${missing[@]}"
+fi
+
+# --- Slurm and MUNGE (tests only) ----------------------------------------------------
+# The Slurm test runs its own throwaway cluster (scripts/slurm/local-cluster.sh), so the
+# packages' own services must not start: while they are installed, a policy-rc.d forbids
+# service starts (unless the machine already has one, as Docker images do).
+if ((want_python)); then
+  slurm_missing=()
+  for p in slurm-wlm munge; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || slurm_missing+=("$p")
+  done
+  if ((${#slurm_missing[@]})); then
+    policy=/usr/sbin/policy-rc.d as_root=()
+    [ "$(id -u)" = 0 ] || as_root=(sudo -n)
+    if [ ! -e "$policy" ] && "${as_root[@]}" true 2>/dev/null; then
+      trap '"${as_root[@]}" rm -f "$policy"' EXIT
+      printf '#!/bin/sh\nexit 101\n' | "${as_root[@]}" tee "$policy" >/dev/null
+      "${as_root[@]}" chmod 755 "$policy"
+      apt_install "${slurm_missing[@]}"
+      "${as_root[@]}" rm -f "$policy"; trap - EXIT
+    else
+      apt_install "${slurm_missing[@]}"
+    fi
+  fi
 fi
 
 # --- 2. MuJoCo shared library from the PyPI wheel -----------------------------------

@@ -5,6 +5,7 @@ mod cli;
 mod commands;
 mod exit;
 mod progress;
+mod settings;
 
 use std::process::ExitCode;
 
@@ -16,29 +17,34 @@ use crate::exit::{CliError, ExitStatus};
 fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging(cli.global.verbose, cli.global.quiet);
-    if let Some(jobs) = cli.global.jobs {
-        // Worker pools (rayon) size themselves from this; results never depend on it.
-        if let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(jobs)
-            .build_global()
-        {
-            tracing::warn!("cannot size the worker pool to {jobs}: {e}");
-        }
-    }
+    init_worker_pool(cli.global.jobs);
     let result = match cli.command {
         Command::Doctor(args) => commands::doctor::run(&cli.global, &args),
         Command::Render(args) => commands::render::run(&cli.global, &args),
         Command::Bench(cmd) => commands::bench::run(&cli.global, &cmd),
-        Command::Ingest(args) => commands::ingest::run(&cli.global, &args),
-        Command::Export(args) => commands::export::run(&cli.global, &args),
-        Command::Augment(args) => commands::augment::run(&cli.global, &args),
-        Command::Cameras(args) => commands::cameras::run(&cli.global, &args),
-        Command::Convert(args) => commands::convert::run(&cli.global, &args),
-        Command::Stats(args) => commands::stats::run(&cli.global, &args),
+        Command::Ingest(args) => commands::ingest::run(&cli.global, args),
+        Command::Export(args) => commands::export::run(&cli.global, args),
+        Command::Augment(args) => commands::augment::run(&cli.global, args),
+        Command::Cameras(args) => commands::cameras::run(&cli.global, args),
+        Command::Convert(args) => commands::convert::run(&cli.global, args),
+        Command::Stats(args) => commands::stats::run(&cli.global, args),
     };
     match result {
         Ok(status) => status.into(),
         Err(err) => report(&err).into(),
+    }
+}
+
+/// The one worker pool of the process (rayon's global pool): `--jobs` threads (default:
+/// all cores) named `worker-N`. Every stage's parallel work runs on it; results never
+/// depend on its size.
+fn init_worker_pool(jobs: Option<usize>) {
+    let mut b = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("worker-{i}"));
+    if let Some(j) = jobs {
+        b = b.num_threads(j);
+    }
+    if let Err(e) = b.build_global() {
+        tracing::warn!("cannot start the worker pool: {e}");
     }
 }
 

@@ -394,7 +394,7 @@ fn convert_input(dir: &Path) -> PathBuf {
         ep.compute_action_rotvec(ArmSetup::SingleArm).unwrap();
         let d = input.join("click_mouse").join(format!("episode_{e:06}"));
         std::fs::create_dir_all(d.join("videos")).unwrap();
-        dexjoco_ingest::raw::write_replay_zarr(&d, &ep).unwrap();
+        dexjoco_formats::raw::write_replay_zarr(&d, &ep).unwrap();
         let spec = dexjoco_video::VideoSpec {
             width: 64,
             height: 64,

@@ -115,10 +115,10 @@ fn dataset_statistics_of_raw_episode_folders_leave_out_unreadable_ones() {
         ("click_mouse", 60, 1),
         ("bimanual_hanoi", 50, 0),
     ] {
-        let info = dexjoco_core::task_info(task).unwrap();
-        let ep = dexjoco_ingest::synth::episode(info, frames, 7 + k as u64);
+        let info = dexjoco_core::TaskSpec::builtin(task).unwrap();
+        let ep = dexjoco_core::synth::episode(info, frames, 7 + k as u64);
         let dir = data.join(task).join(format!("episode_{k:06}"));
-        dexjoco_ingest::raw::write_replay_zarr(&dir, &ep).unwrap();
+        dexjoco_formats::raw::write_replay_zarr(&dir, &ep).unwrap();
     }
     let out = stats(
         work.path(),

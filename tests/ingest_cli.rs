@@ -5,8 +5,19 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use dexjoco_core::{TASKS, task_info};
-use dexjoco_ingest::{Manifest, Status, raw, read_stored_episode, synth};
+use dexjoco_core::{TaskSet, TaskSpec, synth};
+use dexjoco_formats::{Manifest, Status, raw};
+
+/// The 11 tasks in the paper's order.
+fn tasks() -> Vec<&'static TaskSpec> {
+    let mut t: Vec<_> = TaskSet::builtin().iter().collect();
+    t.sort_by_key(|s| s.paper_order);
+    t
+}
+
+fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<dexjoco_core::Episode> {
+    dexjoco_formats::read_episode(dir, TaskSet::builtin())
+}
 
 fn cli() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
@@ -22,9 +33,10 @@ fn manifest(store: &Path) -> Manifest {
 
 fn write_inputs(root: &Path, n: usize, frames: usize) {
     for i in 0..n {
-        let task = &TASKS[i % TASKS.len()];
+        let tasks = tasks();
+        let task = tasks[i % tasks.len()];
         let ep = synth::episode(task, frames, i as u64);
-        raw::write_replay_zarr(&root.join(task.id).join(format!("episode_{i:06}")), &ep).unwrap();
+        raw::write_replay_zarr(&root.join(&task.id).join(format!("episode_{i:06}")), &ep).unwrap();
     }
 }
 
@@ -112,7 +124,7 @@ fn an_ingest_killed_midway_completes_on_rerun_without_duplicates_or_half_episode
     // Kill it as soon as the first episode has landed (or staging has begun).
     let t0 = Instant::now();
     loop {
-        let landed = store.join(TASKS[0].id).join("episode_000000").exists();
+        let landed = store.join(&tasks()[0].id).join("episode_000000").exists();
         if landed {
             break;
         }
@@ -131,8 +143,8 @@ fn an_ingest_killed_midway_completes_on_rerun_without_duplicates_or_half_episode
     // What the killed run left: only whole episodes (each folder has its entry file and
     // reads back completely).
     let mut landed_before = 0;
-    for task in TASKS {
-        let Ok(rd) = std::fs::read_dir(store.join(task.id)) else {
+    for task in tasks() {
+        let Ok(rd) = std::fs::read_dir(store.join(&task.id)) else {
             continue;
         };
         for e in rd.flatten() {
@@ -168,8 +180,8 @@ fn an_ingest_killed_midway_completes_on_rerun_without_duplicates_or_half_episode
     ids.dedup();
     assert_eq!(ids.len(), n, "no duplicate ids");
     let mut folders = 0;
-    for task in TASKS {
-        for e in std::fs::read_dir(store.join(task.id)).unwrap().flatten() {
+    for task in tasks() {
+        for e in std::fs::read_dir(store.join(&task.id)).unwrap().flatten() {
             read_stored_episode(&e.path()).unwrap();
             folders += 1;
         }
@@ -215,9 +227,9 @@ fn export_writes_mcap_that_python_reads() {
     for f in &files {
         let py = dexjoco_testkit::run_python_json("read_mcap.py", &[f]);
         let task = py["metadata"]["dexjoco.episode"]["task"].as_str().unwrap();
-        let info = task_info(task).unwrap();
+        let info = TaskSpec::builtin(task).unwrap();
         assert_eq!(py["counts"]["/state"], 15);
-        assert_eq!(py["state"][0].as_array().unwrap().len(), info.state_dim);
+        assert_eq!(py["state"][0].as_array().unwrap().len(), info.state.width);
     }
 }
 

@@ -31,35 +31,42 @@ usage() { sed -n '2,22p' "$0" >&2; exit 2; }
 
 # --- processes --------------------------------------------------------------------------
 
-# True when PID is a live (not zombie) process started by this script for $DIR: its
-# environment carries ENV_TAG=$DIR, or it is munged/slurmctld/slurmd/slurmstepd with a
-# file under $DIR on its command line. (A recycled pid never passes.)
+# The environment and the command line of process $1 (one entry a line / space-separated);
+# empty for kernel threads, processes of other users, processes that just exited.
+proc_env() { { tr '\0' '\n' <"/proc/$1/environ"; } 2>/dev/null || true; }
+proc_cmd() { { tr '\0' ' ' <"/proc/$1/cmdline"; } 2>/dev/null || true; }
+
+# True when PID is a live (not zombie) process of this cluster: one this script started
+# for $DIR (its environment carries ENV_TAG=$DIR, or it is munged/slurmctld/slurmd with a
+# file under $DIR on its command line), or a process of one of the cluster's jobs (its
+# environment has SLURM_CONF=$DIR/slurm.conf and a SLURM_JOB_ID). A recycled pid fails.
 ours() {
-  local pid=$1 state cmd
+  local pid=$1 state env cmd
   [[ "$pid" =~ ^[0-9]+$ ]] && [ -r "/proc/$pid/stat" ] || return 1
   state="$(sed -E 's/^.*\) ([A-Za-z]).*$/\1/' "/proc/$pid/stat" 2>/dev/null)" || return 1
   [ "$state" != Z ] && [ "$state" != X ] || return 1
-  if tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qxF "$ENV_TAG=$DIR"; then
+  env="$(proc_env "$pid")"
+  if grep -qxF "$ENV_TAG=$DIR" <<<"$env"; then return 0; fi
+  if grep -qxF "SLURM_CONF=$DIR/slurm.conf" <<<"$env" && grep -q '^SLURM_JOB_ID=' <<<"$env"; then
     return 0
   fi
-  cmd="$(tr '\0' ' ' <"/proc/$pid/cmdline" 2>/dev/null)" || return 1
+  cmd="$(proc_cmd "$pid")"
   [[ "${cmd%% *}" =~ (^|/)(munged|slurmctld|slurmd|slurmstepd)$ && "$cmd" == *" "*"$DIR/"* ]]
 }
 
-# Every live process this script started for $DIR, and their job processes: the daemons
-# and slurmscriptd/slurmstepd (they inherit ENV_TAG), and the batch jobs' processes (their
-# environment names this cluster's SLURM_CONF and has a SLURM_JOB_ID).
+# Every live process of this cluster (see ours) other than the pid-file ones that could
+# only be found by their command line: slurmscriptd and slurmstepd (they inherit ENV_TAG)
+# and the jobs' processes. One grep over all environments, then ours on the candidates.
 strays() {
-  local p pid env
-  for p in /proc/[0-9]*; do
-    pid=${p#/proc/}
-    if [ "$pid" = "$$" ] || [ "$pid" = "$BASHPID" ]; then continue; fi
-    if ours "$pid"; then echo "$pid"; continue; fi
-    env="$(tr '\0' '\n' <"$p/environ" 2>/dev/null)" || continue
-    if grep -qxF "SLURM_CONF=$DIR/slurm.conf" <<<"$env" && grep -q '^SLURM_JOB_ID=' <<<"$env"; then
-      echo "$pid"
-    fi
-  done
+  local pid
+  {
+    # (grep fails on kernel threads' and vanished processes' files: not an error here)
+    grep -lzxF -- "$ENV_TAG=$DIR" /proc/[0-9]*/environ || true
+    grep -lzxF -- "SLURM_CONF=$DIR/slurm.conf" /proc/[0-9]*/environ || true
+  } 2>/dev/null | sed -nE 's#^/proc/([0-9]+)/environ$#\1#p' | sort -un |
+    while read -r pid; do
+      if [ "$pid" != "$$" ] && [ "$pid" != "$BASHPID" ] && ours "$pid"; then echo "$pid"; fi
+    done
 }
 
 # Sends SIGTERM to the given pids that are ours, waits up to $2 seconds for them to go,
@@ -75,7 +82,7 @@ terminate() {
     ((${#left[@]})) || return 0
     sleep 0.1
   done
-  log "still running after ${2}s, sending SIGKILL: ${left[*]}"
+  log "still running ${2}s after SIGTERM, sending SIGKILL: ${left[*]}"
   kill -KILL "${left[@]}" 2>/dev/null || true
   for ((i = 0; i < 50; i++)); do
     left=()
@@ -84,6 +91,18 @@ terminate() {
     sleep 0.1
   done
   die "could not stop processes ${left[*]}"
+}
+
+# Waits up to 3 s for the given pids to vanish from /proc (not even zombies left, so that
+# `pgrep` right after stop shows nothing; their parent, init, reaps them).
+wait_reaped() {
+  local pid i alive
+  for ((i = 0; i < 30; i++)); do
+    alive=0
+    for pid in $1; do [ -e "/proc/$pid" ] && alive=1; done
+    ((alive)) || return 0
+    sleep 0.1
+  done
 }
 
 pidfile_pid() { if [ -f "$1" ]; then tr -dc '0-9' <"$1"; fi; }
@@ -117,9 +136,13 @@ stop_cluster() {
   fi
   # The Slurm daemons, then MUNGE (the Slurm daemons talk to it while shutting down),
   # then anything left over (job steps, job processes of a crashed slurmd).
+  local before rest
+  before="$(strays)"
   terminate "$ctld $slurmd" 15
   terminate "$munged" 10
-  terminate "$(strays)" 5
+  rest="$(strays)"
+  terminate "$rest" 5
+  wait_reaped "$ctld $slurmd $munged $before $rest"
   rm -rf "$DIR"
 }
 
@@ -199,6 +222,9 @@ MailProg=/bin/true
 ReturnToService=2
 # Cancelled jobs get SIGKILL 5 s after SIGTERM (default 30 s), for a quick stop.
 KillWait=5
+# Start a waiting job (the next shard, the finalize job) about 1 s after a job ends
+# rather than 2 s (the default batch_sched_delay is 3 s).
+SchedulerParameters=batch_sched_delay=0
 NodeName=$node NodeAddr=127.0.0.1 NodeHostname=$node $(node_hardware) State=UNKNOWN
 PartitionName=local Nodes=$node Default=YES MaxTime=INFINITE State=UP
 EOF
@@ -208,30 +234,35 @@ EOF
 # ENV_TAG=$DIR in their environment and stdio away from the caller's pipes.
 launch() {
   local sock=$DIR/munge/munge.socket i
-  env "$ENV_TAG=$DIR" munged --socket="$sock" --key-file="$DIR/munge/munge.key" \
-    --pid-file="$DIR/munge/munged.pid" --log-file="$DIR/log/munged.log" \
-    --seed-file="$DIR/munge/munged.seed" </dev/null >>"$DIR/log/munged.out" 2>&1 ||
-    return 1
+  if ! ours "$(pidfile_pid "$DIR/munge/munged.pid")"; then # (kept on a retry)
+    env "$ENV_TAG=$DIR" munged --socket="$sock" --key-file="$DIR/munge/munge.key" \
+      --pid-file="$DIR/munge/munged.pid" --log-file="$DIR/log/munged.log" \
+      --seed-file="$DIR/munge/munged.seed" </dev/null >>"$DIR/log/munged.out" 2>&1 ||
+      { log "munged failed to start"; return 1; }
+  fi
   for ((i = 0; i < 50; i++)); do
     munge -S "$sock" -n 2>/dev/null | unmunge -S "$sock" >/dev/null 2>&1 && break
     sleep 0.1
   done
   env "$ENV_TAG=$DIR" SLURM_CONF="$DIR/slurm.conf" slurmctld -f "$DIR/slurm.conf" \
-    </dev/null >>"$DIR/log/slurmctld.out" 2>&1 || return 1
+    </dev/null >>"$DIR/log/slurmctld.out" 2>&1 || { log "slurmctld failed to start"; return 1; }
   env "$ENV_TAG=$DIR" SLURM_CONF="$DIR/slurm.conf" slurmd -f "$DIR/slurm.conf" \
-    </dev/null >>"$DIR/log/slurmd.out" 2>&1 || return 1
+    </dev/null >>"$DIR/log/slurmd.out" 2>&1 || { log "slurmd failed to start"; return 1; }
 }
 
 # Waits until sinfo shows the node idle; false after the timeout or when a daemon died.
 wait_idle() {
-  local node=$1 deadline state f
+  local node=$1 deadline state="" f
   deadline=$((SECONDS + ${LOCAL_SLURM_TIMEOUT:-30}))
   while ((SECONDS < deadline)); do
-    state="$(SLURM_CONF="$DIR/slurm.conf" timeout 5 sinfo -h -n "$node" -o %t 2>/dev/null || true)"
-    [ "$state" = idle ] && return 0
     for f in run/slurmctld.pid run/slurmd.pid munge/munged.pid; do
-      [ -f "$DIR/$f" ] && ! ours "$(pidfile_pid "$DIR/$f")" && { log "${f##*/} died"; return 1; }
+      if [ -f "$DIR/$f" ] && ! ours "$(pidfile_pid "$DIR/$f")"; then
+        log "${f#*/} is there but its daemon died"
+        return 1
+      fi
     done
+    state="$(SLURM_CONF="$DIR/slurm.conf" timeout 3 sinfo -h -n "$node" -o %t 2>/dev/null || true)"
+    [ "$state" = idle ] && return 0
     sleep 0.2
   done
   log "node $node not idle after ${LOCAL_SLURM_TIMEOUT:-30}s (state: ${state:-no answer})"
@@ -277,7 +308,7 @@ start_cluster() {
   (umask 077 && head -c 1024 /dev/urandom >"$DIR/munge/munge.key")
   chmod 0400 "$DIR/munge/munge.key"
 
-  local node t0=$SECONDS attempt ports
+  local node t0=$SECONDS attempt ports f
   node="$(hostname -s)"
   for attempt in 1 2 3; do
     read -r -a ports <<<"$(free_ports 2)"
@@ -288,11 +319,16 @@ start_cluster() {
       cat "$DIR/env"
       return 0
     fi
-    if ((attempt < 3)) && grep -qs 'Address already in use' "$DIR"/log/slurm*.log; then
+    if ((attempt < 3)) &&
+      grep -qs 'Address already in use' "$DIR/log/slurmctld.log" "$DIR/log/slurmd.log"; then
       log "port taken meanwhile; retrying with other ports"
-      terminate "$(pidfile_pid "$DIR/run/slurmctld.pid") $(pidfile_pid "$DIR/run/slurmd.pid")" 10
+      # (slurmd lingers on SIGTERM without a controller: no need to wait long for it)
+      terminate "$(pidfile_pid "$DIR/run/slurmctld.pid") $(pidfile_pid "$DIR/run/slurmd.pid")" 2
       terminate "$(strays | grep -vx "$(pidfile_pid "$DIR/munge/munged.pid")" || true)" 5
-      rm -rf "$DIR"/state/* "$DIR"/spool/* "$DIR"/run/* "$DIR"/log/slurm*
+      for f in "$DIR"/log/slurm{ctld,d}.{log,out}; do
+        if [ -e "$f" ]; then mv "$f" "$f.attempt$attempt"; fi
+      done
+      rm -rf "$DIR"/state/* "$DIR"/spool/* "$DIR"/run/*
       continue
     fi
     break

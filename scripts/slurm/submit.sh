@@ -8,10 +8,11 @@
 #   scripts/slurm/submit.sh [OPTIONS] N ARGS...
 #     e.g. scripts/slurm/submit.sh --wait 4 demo.json --out aug/ --replays 10
 #
-#   --wait          wait until the finalize job has ended (polling scontrol; sbatch's own
-#                   --wait polls every 2, 8, 32 s, which is slow for short jobs); exit 0
-#                   only if every shard and the finalize job completed with exit code 0,
-#                   else print the jobs' states and exit 1. Ctrl-C cancels both jobs.
+#   --wait          wait until the finalize job and every shard have ended (polling
+#                   scontrol: sbatch's own --wait polls after 2, 8, 32 s, slow for short
+#                   jobs, and exits 0 for a finalize job cancelled for a failed shard);
+#                   exit 0 only if every shard and the finalize job completed with exit
+#                   code 0, else print the jobs' states and exit 1. Ctrl-C cancels both.
 #   --logs DIR      write the jobs' stdout/stderr to DIR/augment-ARRAYID_TASK.log and
 #                   DIR/finalize-JOBID.log (default: sbatch's, slurm-*.out in the current
 #                   folder).
@@ -26,7 +27,7 @@ set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 SCRIPT="$HERE/augment.sbatch"
 log() { printf '[submit] %s\n' "$*" >&2; }
-usage() { sed -n '2,25p' "$0" >&2; exit 2; }
+usage() { sed -n '2,24p' "$0" >&2; exit 2; }
 
 wait_=0 logs="" extra=()
 while (($#)); do
@@ -82,14 +83,22 @@ states() {
 count_ok() { grep -E 'JobState=COMPLETED( |$)' | grep -cE 'ExitCode=0:0( |$)' || true; }
 terminal='JobState=(COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|OUT_OF_MEMORY|PREEMPTED|BOOT_FAIL|DEADLINE)( |$)'
 
+misses=0
 while :; do
   s="$(states "$final")"
-  [ -n "$s" ] || { log "finalize job $final is no longer known to Slurm"; exit 1; }
-  grep -qE "$terminal" <<<"$s" && break
+  if [ -z "$s" ]; then # slurmctld busy or restarting, or the job record is gone
+    ((++misses < 10)) || { log "Slurm no longer answers about finalize job $final"; exit 1; }
+  else
+    misses=0
+    grep -qE "$terminal" <<<"$s" && break
+  fi
   sleep "${SUBMIT_POLL_SECONDS:-1}"
 done
 
-shards="$(states "$array")"
+# The finalize job ends early when a shard fails; the other shards may still run.
+while shards="$(states "$array")" && [ -n "$shards" ] && grep -qvE "$terminal" <<<"$shards"; do
+  sleep "${SUBMIT_POLL_SECONDS:-1}"
+done
 ok=1
 [ "$(count_ok <<<"$s")" = 1 ] || ok=0
 [ "$(count_ok <<<"$shards")" = "$n" ] || ok=0

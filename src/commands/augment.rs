@@ -4,11 +4,12 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use dexjoco_augment::{AugmentConfig, augment};
-use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
+use dexjoco_augment::augment;
 
 use crate::cli::{AugmentArgs, GlobalArgs};
 use crate::exit::{CliError, ExitStatus};
+use crate::progress::Bar;
+use crate::settings::AugmentSettings;
 
 const DEMOS: &str = "datasets/demos";
 
@@ -31,60 +32,14 @@ pub(crate) fn sample_data() -> anyhow::Result<PathBuf> {
 }
 
 /// Runs `augment`.
-pub fn run(global: &GlobalArgs, args: &AugmentArgs) -> anyhow::Result<ExitStatus> {
-    if args.size == 0 || !args.size.is_multiple_of(2) {
-        return Err(CliError {
-            message: format!(
-                "--size {} must be even and positive (H.264 yuv420p)",
-                args.size
-            ),
-            hint: Some("use 640 (the reference) or 224".into()),
-            status: ExitStatus::Usage,
-        }
-        .into());
-    }
-    let inputs = if args.inputs.is_empty() {
-        vec![sample_data()?]
-    } else {
-        args.inputs.clone()
-    };
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| global.work_dir.join("augment"));
-    let config = AugmentConfig {
-        inputs,
-        out: out.clone(),
-        replays: args.replays,
-        tasks_dir: args.tasks_dir.clone(),
-        seed: global.seed,
-        scene: SceneSource::from_option(args.scene_dir.clone()),
-        camera_pool: args.camera_pool.clone(),
-        cameras: args.cameras.clone(),
-        settings: RenderSettings {
-            width: args.size,
-            height: args.size,
-            quality: RenderQuality::from_name(args.quality.name())
-                .expect("every QualityArg is a preset"),
-            depth: false,
-        },
-        keep_failed: args.keep_failed,
-        max_frames: args.max_frames,
-        resimulate_per_replay: false,
-        contact_sheet: true,
-        depth: args.depth,
-        dynamics: args.dynamics,
-    };
-    let bar = crate::progress::bar(0, "augment", global.quiet);
+pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus> {
+    let AugmentSettings { config } = AugmentSettings::resolve(args, global, sample_data)?;
+    let out = config.out.clone();
+    let bar = Bar::new("augment", global.quiet);
     let started = std::time::Instant::now();
-    let report = super::ingest::with_pool(global, || {
-        augment(&config, &|done, total| {
-            bar.set_length(total as u64);
-            bar.set_position(done as u64);
-        })
-    })?
-    .with_context(|| format!("augmenting into {}", out.display()))?;
-    bar.finish_and_clear();
+    let report =
+        augment(&config, &bar).with_context(|| format!("augmenting into {}", out.display()))?;
+    bar.finish();
     let failed = report.failed_episodes();
     let ok = report.episodes.len() - failed;
     println!(

@@ -143,22 +143,25 @@ struct IngestRow {
 /// Generates `episodes` valid episodes (tasks cycling through all 11) as DexJoCo raw
 /// folders and as MCAP files, then times `ingest` of each set into an empty store.
 fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitStatus> {
-    use dexjoco_ingest::{IngestOptions, Outcome, Store, discover, raw, synth, teleop};
+    use dexjoco_core::{TaskSet, synth};
+    use dexjoco_formats::{discover, mcap, raw};
+    use dexjoco_ingest::{IngestOptions, Outcome, Store};
 
     let tmp = tempfile::tempdir()?;
     let raw_in = tmp.path().join("raw");
     let mcap_in = tmp.path().join("mcap");
     let pb = crate::progress::bar(args.episodes as u64, "generate", global.quiet);
     for i in 0..args.episodes {
-        let task = &dexjoco_core::TASKS[i % dexjoco_core::TASKS.len()];
+        let tasks = TaskSet::builtin();
+        let task = tasks.iter().nth(i % tasks.len()).expect("in range");
         let ep = synth::episode(task, args.frames, i as u64);
-        let dir = raw_in.join(task.id).join(format!("episode_{i:06}"));
+        let dir = raw_in.join(&task.id).join(format!("episode_{i:06}"));
         raw::write_replay_zarr(&dir, &ep)?;
-        teleop::write_episode_mcap(
+        mcap::write_episode_mcap(
             &mcap_in.join(format!("{}_{i:06}.mcap", task.id)),
             &ep,
             task,
-            &teleop::EpisodeMeta::default(),
+            &mcap::EpisodeMeta::default(),
         )?;
         pb.inc(1);
     }
@@ -171,13 +174,10 @@ fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitSta
     ] {
         let store_dir = tmp.path().join(format!("store-{}", rows.len()));
         let mut store = Store::open(&store_dir)?;
-        let sources = discover(std::slice::from_ref(input), &store_dir)?;
-        let pb = crate::progress::bar(sources.len() as u64, "ingest", global.quiet);
-        let reporter = super::ingest::BarReporter(pb.clone());
-        let summary = super::ingest::with_pool(global, || {
-            store.ingest(&sources, &IngestOptions::default(), &reporter)
-        })??;
-        pb.finish_and_clear();
+        let sources = discover(std::slice::from_ref(input), Some(&store_dir))?;
+        let bar = crate::progress::Bar::new("ingest", global.quiet);
+        let summary = store.ingest(&sources, &IngestOptions::default(), &bar)?;
+        bar.finish();
         let landed = summary.count(Outcome::Landed);
         anyhow::ensure!(
             landed == args.episodes,

@@ -37,7 +37,7 @@ fn timed(config: &AugmentConfig, threads: usize) -> anyhow::Result<(AugmentRepor
     let _ = std::fs::remove_dir_all(&config.out);
     let t = Instant::now();
     let report = pool
-        .install(|| augment(config, &|_, _| {}))
+        .install(|| augment(config, &dexjoco_core::NoProgress))
         .with_context(|| format!("augmenting into {}", config.out.display()))?;
     let seconds = t.elapsed().as_secs_f64();
     let _ = std::fs::remove_dir_all(&config.out);
@@ -151,7 +151,7 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
     let out = global.work_dir.join("bench");
     fs_err::create_dir_all(&out)?;
     let json = out.join("augment.json");
-    dexjoco_ingest::write_atomic(
+    dexjoco_formats::write_atomic(
         &json,
         serde_json::to_string_pretty(&serde_json::json!({
             "device": device,

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::Context;
-use dexjoco_core::TASKS;
+use dexjoco_core::TaskSpec;
 use serde::Serialize;
 
 use crate::cli::{BenchConvertArgs, GlobalArgs};
@@ -24,14 +24,11 @@ struct Run {
 /// Writes `episodes` click_mouse raw episode folders with a `front` H.264 camera (one
 /// video encoded, copied into every episode: generation stays quick).
 fn generate(dir: &Path, episodes: usize, frames: usize, size: u32) -> anyhow::Result<()> {
-    let task = TASKS
-        .iter()
-        .find(|t| t.id == "click_mouse")
-        .context("click_mouse task")?;
+    let task = TaskSpec::builtin("click_mouse").context("click_mouse task")?;
     for i in 0..episodes {
-        let ep = dexjoco_ingest::synth::episode(task, frames, i as u64);
-        let d = dir.join(task.id).join(format!("episode_{i:06}"));
-        dexjoco_ingest::raw::write_replay_zarr(&d, &ep)?;
+        let ep = dexjoco_core::synth::episode(task, frames, i as u64);
+        let d = dir.join(&task.id).join(format!("episode_{i:06}"));
+        dexjoco_formats::raw::write_replay_zarr(&d, &ep)?;
         let spec = dexjoco_video::VideoSpec {
             width: size,
             height: size,
@@ -40,7 +37,7 @@ fn generate(dir: &Path, episodes: usize, frames: usize, size: u32) -> anyhow::Re
         };
         fs_err::create_dir_all(d.join("videos"))?;
         if i > 0 {
-            let first = dir.join(task.id).join("episode_000000/videos/front.mp4");
+            let first = dir.join(&task.id).join("episode_000000/videos/front.mp4");
             fs_err::copy(first, d.join("videos/front.mp4"))?;
             continue;
         }

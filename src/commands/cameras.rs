@@ -2,61 +2,35 @@
 //! paper's way (uniform on a sphere, least occluded kept).
 
 use anyhow::Context;
-use dexjoco_augment::{PoolOptions, build_pool};
+use dexjoco_augment::build_pool;
 use dexjoco_core::TaskSpec;
-use dexjoco_sim::{
-    EnvOptions, RenderQuality, RenderSettings, Renderer, SceneSource, TaskEnv, load_task_scene,
-};
+use dexjoco_sim::{EnvOptions, RenderQuality, RenderSettings, Renderer, TaskEnv, load_task_scene};
 
 use crate::cli::{CamerasArgs, GlobalArgs};
 use crate::exit::{CliError, ExitStatus};
+use crate::settings::CamerasSettings;
 
 /// Runs `cameras`.
-pub fn run(global: &GlobalArgs, args: &CamerasArgs) -> anyhow::Result<ExitStatus> {
-    let spec = TaskSpec::builtin(&args.task).ok_or_else(|| CliError {
-        message: format!("unknown task '{}'", args.task),
-        hint: Some(format!(
-            "tasks: {}",
-            dexjoco_core::TASKS
-                .iter()
-                .map(|t| t.id)
-                .collect::<Vec<_>>()
-                .join(", ")
-        )),
-        status: ExitStatus::Usage,
-    })?;
-    let source = SceneSource::from_option(args.scene_dir.clone());
-    let scene = load_task_scene(&source, &spec)
+pub fn run(global: &GlobalArgs, args: CamerasArgs) -> anyhow::Result<ExitStatus> {
+    let CamerasSettings {
+        task,
+        scene,
+        options,
+        out,
+        preview,
+    } = CamerasSettings::resolve(args, global)?;
+    let spec = TaskSpec::builtin(&task).expect("resolve checked the task");
+    let scene = load_task_scene(&scene, spec)
         .with_context(|| format!("loading the scene of '{}'", spec.id))?;
-    let mut options = PoolOptions::for_setup(spec.setup);
-    options.count = args.count;
-    options.candidates = args.candidates;
-    options.seed = global.seed;
-    if let Some(d) = args.distance {
-        options.distance = d;
-    }
-    if let Some(e) = &args.elevation {
-        options.elevation = (e[0], e[1]);
-    }
-    if let Some(a) = &args.azimuth {
-        options.azimuth = (a[0], a[1]);
-    }
     let bar = crate::progress::bar(0, "scoring poses", global.quiet);
     bar.set_message(format!("{} candidates", options.candidates));
-    let built = build_pool(&scene, &spec, &options).map_err(|e| CliError {
+    let built = build_pool(&scene, spec, &options).map_err(|e| CliError {
         message: e.to_string(),
         hint: None,
         status: ExitStatus::Usage,
     })?;
     bar.finish_and_clear();
-
-    let out = args.out.clone().unwrap_or_else(|| {
-        global
-            .work_dir
-            .join("cameras")
-            .join(format!("{}.json", spec.id))
-    });
-    dexjoco_ingest::write_atomic(&out, built.to_json().as_bytes())
+    dexjoco_formats::write_atomic(&out, built.to_json().as_bytes())
         .with_context(|| format!("writing {}", out.display()))?;
 
     let stats = |v: &mut dyn Iterator<Item = f64>| {
@@ -96,8 +70,8 @@ pub fn run(global: &GlobalArgs, args: &CamerasArgs) -> anyhow::Result<ExitStatus
     println!();
     println!("pool: {}", out.display());
 
-    if args.preview {
-        let mut env = TaskEnv::new(&scene, &spec, EnvOptions::default())?;
+    if preview {
+        let mut env = TaskEnv::new(&scene, spec, EnvOptions::default())?;
         let mut r = Renderer::new(
             &scene.model,
             RenderSettings {

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use dexjoco_core::TaskSpec;
+use dexjoco_core::{TaskSet, TaskSpec};
 use dexjoco_sim::mujoco_rs::prelude::MjData;
 use dexjoco_sim::{
     CameraView, EnvOptions, Frame, RenderQuality, RenderSettings, Renderer, SceneSource, TaskEnv,
@@ -197,10 +197,14 @@ pub fn contact_sheet(frames: &[Frame], path: &PathBuf) -> anyhow::Result<()> {
 /// The task specs: the built-in ones, with those in `--tasks-dir` replacing or adding.
 fn task_specs(args: &RenderArgs) -> anyhow::Result<Vec<TaskSpec>> {
     let dir = args.tasks_dir.as_deref();
-    TaskSpec::builtin_and(dir).with_context(|| match dir {
-        Some(d) => format!("cannot read the task specs in '{}'", d.display()),
-        None => "the built-in task specs".into(),
-    })
+    Ok(TaskSet::with_dir(dir)
+        .with_context(|| match dir {
+            Some(d) => format!("cannot read the task specs in '{}'", d.display()),
+            None => "the built-in task specs".into(),
+        })?
+        .iter()
+        .cloned()
+        .collect())
 }
 
 fn render_settings(args: &RenderArgs) -> RenderSettings {

@@ -3,10 +3,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use dexjoco_stats::{LanguageInput, LanguageOptions, LanguageReport, LogBase, SuccessTable};
+use dexjoco_stats::{LanguageInput, LanguageReport, SuccessTable};
 
-use crate::cli::{GlobalArgs, JsBaseArg, StatsArgs};
+use crate::cli::{GlobalArgs, StatsArgs};
 use crate::exit::{CliError, ExitStatus};
+use crate::settings::StatsSettings;
 
 /// Where the example inputs live in the repository.
 const EXAMPLES: &str = "datasets/examples";
@@ -37,44 +38,20 @@ fn example_input(name: &str) -> anyhow::Result<PathBuf> {
         })
 }
 
-fn usage(message: String, hint: &str) -> anyhow::Error {
-    CliError {
-        message,
-        hint: Some(hint.into()),
-        status: ExitStatus::Usage,
-    }
-    .into()
-}
-
 /// Runs `stats`.
-pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> {
-    if args.language_eval.is_none() && args.success_table.is_none() && args.dataset.is_none() {
-        return Err(usage(
-            "nothing to do: say which statistics to make".into(),
-            "`dexjoco-data stats --language-eval` or `--success-table` (each on the shipped example input \
-             without a path), or `--dataset` (the ingest store)",
-        ));
-    }
-    if !(args.alpha > 0.0 && args.alpha < 1.0) {
-        return Err(usage(
-            format!("--alpha {} is not in (0, 1)", args.alpha),
-            "for example --alpha 0.01",
-        ));
-    }
-    if !(0.0..=1.0).contains(&args.nmi_weak) {
-        return Err(usage(
-            format!("--nmi-weak {} is not in [0, 1]", args.nmi_weak),
-            "for example --nmi-weak 0.1",
-        ));
-    }
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| global.work_dir.join("stats"));
+pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
+    let StatsSettings {
+        language_eval,
+        success_table,
+        dataset,
+        out,
+        language,
+        json: as_json,
+    } = StatsSettings::resolve(args, global)?;
     let mut json = serde_json::Map::new();
     let mut summaries = Vec::new();
 
-    if let Some(input) = &args.language_eval {
+    if let Some(input) = &language_eval {
         let path = match input {
             Some(p) => p.clone(),
             None => example_input("language-eval")?,
@@ -90,15 +67,7 @@ pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> 
         for w in &input.warnings {
             tracing::warn!("{w}");
         }
-        let options = LanguageOptions {
-            alpha: args.alpha,
-            nmi_weak: args.nmi_weak,
-            js_base: match args.js_base {
-                JsBaseArg::Two => LogBase::Two,
-                JsBaseArg::E => LogBase::E,
-            },
-        };
-        let report = LanguageReport::analyze(&input, options);
+        let report = LanguageReport::analyze(&input, language);
         let dir = out.join("language-eval");
         let files = report
             .write(&dir)
@@ -111,7 +80,7 @@ pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> 
         ));
     }
 
-    if let Some(input) = &args.success_table {
+    if let Some(input) = &success_table {
         let path = match input {
             Some(p) => p.clone(),
             None => example_input("success-table")?,
@@ -152,11 +121,8 @@ pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> 
     }
 
     let mut status = ExitStatus::Success;
-    if let Some(input) = &args.dataset {
-        let path = input
-            .clone()
-            .unwrap_or_else(|| global.work_dir.join("ingest"));
-        let (stats, unreadable) = dataset_stats(&path, global.quiet)?;
+    if let Some(path) = &dataset {
+        let (stats, unreadable) = dataset_stats(path, global.quiet)?;
         if unreadable > 0 {
             status = ExitStatus::Partial;
         }
@@ -172,10 +138,10 @@ pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> 
             stats.to_markdown()
         ));
         // An augment output folder: its report's replay success rates.
-        if let Some(replays) = dexjoco_stats::ReplayStats::read(&path)? {
+        if let Some(replays) = dexjoco_stats::ReplayStats::read(path)? {
             let md = replays.to_markdown();
-            dexjoco_ingest::write_atomic(&dir.join("replay_success.md"), md.as_bytes())?;
-            dexjoco_ingest::write_atomic(
+            dexjoco_formats::write_atomic(&dir.join("replay_success.md"), md.as_bytes())?;
+            dexjoco_formats::write_atomic(
                 &dir.join("replay_success.json"),
                 serde_json::to_string_pretty(&replays)?.as_bytes(),
             )?;
@@ -188,7 +154,7 @@ pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> 
         }
     }
 
-    if args.json {
+    if as_json {
         println!(
             "{}",
             serde_json::to_string_pretty(&serde_json::Value::Object(json))?
@@ -205,8 +171,8 @@ pub fn run(global: &GlobalArgs, args: &StatsArgs) -> anyhow::Result<ExitStatus> 
 /// others.
 fn dataset_stats(path: &Path, quiet: bool) -> anyhow::Result<(dexjoco_stats::DatasetStats, usize)> {
     use rayon::prelude::*;
-    let dirs = dexjoco_ingest::episode_dirs(path)?;
-    if dirs.is_empty() {
+    let sources = dexjoco_formats::discover(&[path.to_path_buf()], None)?;
+    if sources.is_empty() {
         return Err(CliError {
             message: format!("no episodes in '{}'", path.display()),
             hint: Some(
@@ -218,11 +184,12 @@ fn dataset_stats(path: &Path, quiet: bool) -> anyhow::Result<(dexjoco_stats::Dat
         }
         .into());
     }
-    let pb = crate::progress::bar(dirs.len() as u64, "read", quiet);
-    let read: Vec<_> = dirs
+    let pb = crate::progress::bar(sources.len() as u64, "read", quiet);
+    let tasks = dexjoco_core::TaskSet::builtin();
+    let read: Vec<_> = sources
         .par_iter()
-        .map(|d| {
-            let r = dexjoco_ingest::read_stored_episode(d);
+        .map(|s| {
+            let r = s.read(tasks).map(|r| r.episode);
             pb.inc(1);
             r
         })

@@ -214,8 +214,8 @@ pub fn build_pool(
     if options.distance.is_nan() || options.distance <= 0.0 {
         return Err(bad(format!("distance {} must be > 0", options.distance)));
     }
-    let mut env =
-        TaskEnv::new(scene, spec, EnvOptions::default()).map_err(crate::run::sim_err(&spec.id))?;
+    let mut env = TaskEnv::new(scene, spec, EnvOptions::default())
+        .map_err(crate::error::sim_err(&spec.id))?;
     let model = scene.model.clone();
     let roots = target_bodies(&model, spec);
     if roots.is_empty() {

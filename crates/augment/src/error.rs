@@ -5,9 +5,9 @@ use std::path::PathBuf;
 /// What can go wrong while augmenting.
 #[derive(Debug, thiserror::Error)]
 pub enum AugmentError {
-    /// Reading an input episode failed.
+    /// Reading or writing a file through `dexjoco-formats` failed.
     #[error(transparent)]
-    Ingest(#[from] dexjoco_ingest::IngestError),
+    Format(#[from] dexjoco_formats::FormatError),
     /// Simulation or rendering failed.
     #[error("episode '{episode}': {source}")]
     Sim {
@@ -56,6 +56,24 @@ pub(crate) fn io_err(
     move |source| AugmentError::Io {
         action,
         path,
+        source,
+    }
+}
+
+/// Maps a simulation error with the episode it concerns.
+pub(crate) fn sim_err(episode: &str) -> impl FnOnce(dexjoco_sim::SimError) -> AugmentError + '_ {
+    move |source| AugmentError::Sim {
+        episode: episode.into(),
+        source,
+    }
+}
+
+/// Maps a video error with the episode it concerns.
+pub(crate) fn video_err(
+    episode: &str,
+) -> impl FnOnce(dexjoco_video::VideoError) -> AugmentError + '_ {
+    move |source| AugmentError::Video {
+        episode: episode.into(),
         source,
     }
 }

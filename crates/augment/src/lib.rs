@@ -8,19 +8,25 @@
 //! own seed derived from (global seed, episode id, replay index).
 
 mod camera_pool;
+mod config;
 mod dynamics;
 mod error;
+mod inputs;
+mod physics;
 mod randomize;
+mod render;
+mod report;
 mod run;
+mod staging;
 
 pub use camera_pool::{BuiltPool, PoolOptions, ScoredPose, build_pool, occlusion};
+pub use config::{AugmentConfig, REPORT_JSON, REPORT_MD, THIRD_PERSON, replay_name};
 pub use dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, read_dynamics, sample_dynamics};
 pub use error::AugmentError;
+pub use inputs::SkippedInput;
 pub use randomize::{
     CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,
     replay_seed,
 };
-pub use run::{
-    AugmentConfig, AugmentReport, EpisodeOutcome, REPORT_JSON, REPORT_MD, ReplayRecord,
-    SkippedInput, THIRD_PERSON, augment, replay_name,
-};
+pub use report::{AugmentReport, EpisodeOutcome, ReplayRecord};
+pub use run::augment;

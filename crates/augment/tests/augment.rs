@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use dexjoco_augment::{AugmentConfig, AugmentReport, augment};
+use dexjoco_core::NoProgress;
 use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
 
 fn demos() -> PathBuf {
@@ -42,7 +43,7 @@ fn run(c: &AugmentConfig, threads: usize) -> AugmentReport {
         .num_threads(threads)
         .build()
         .unwrap()
-        .install(|| augment(c, &|_, _| {}))
+        .install(|| augment(c, &NoProgress))
         .unwrap()
 }
 
@@ -122,8 +123,8 @@ fn replays_read_back_as_raw_episodes_with_the_recorded_actions() {
     c.contact_sheet = true;
     let report = run(&c, 1);
     let dir = out.path().join("click_mouse/episode_000001__r00");
-    let ep = dexjoco_ingest::read_stored_episode(&dir).unwrap();
-    let src = dexjoco_ingest::read_stored_episode(&input).unwrap();
+    let ep = read_stored_episode(&dir).unwrap();
+    let src = read_stored_episode(&input).unwrap();
     assert_eq!(ep.len(), 8);
     let (a, s) = (ep.array("action").unwrap(), src.array("action").unwrap());
     for k in 0..8 {
@@ -180,16 +181,15 @@ fn depth_streams_to_npz_that_numpy_loads_and_equals_a_direct_render() {
     assert!(lo > 0.2 && hi < 20.0 && lo < hi, "depth range {lo}..{hi}");
 
     // The archive equals the depth of the same frames rendered directly.
-    let ((t, h, w), values) = dexjoco_ingest::depth::read_depth_npz(&npz).unwrap();
+    let ((t, h, w), values) = dexjoco_formats::npz::read_depth_npz(&npz).unwrap();
     assert_eq!((t, h, w), (6, 64, 64));
     assert_eq!(
         got["centre_last"].as_f64().unwrap() as f32,
         values[5 * 64 * 64 + 32 * 64 + 32]
     );
     let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
-    let scene = dexjoco_sim::load_task_scene(&SceneSource::BuiltIn, &spec).unwrap();
-    let ep =
-        dexjoco_ingest::read_stored_episode(&demos().join("click_mouse/episode_000000")).unwrap();
+    let scene = dexjoco_sim::load_task_scene(&SceneSource::BuiltIn, spec).unwrap();
+    let ep = read_stored_episode(&demos().join("click_mouse/episode_000000")).unwrap();
     let state0 = ep
         .array(dexjoco_core::Episode::STATE)
         .unwrap()
@@ -197,7 +197,7 @@ fn depth_streams_to_npz_that_numpy_loads_and_equals_a_direct_render() {
         .to_vec();
     let mut env = dexjoco_sim::TaskEnv::from_initial_state(
         &scene,
-        &spec,
+        spec,
         &state0,
         dexjoco_sim::EnvOptions::default(),
     )
@@ -221,7 +221,7 @@ fn depth_streams_to_npz_that_numpy_loads_and_equals_a_direct_render() {
         env.step(actions.row(k)).unwrap();
     }
     // The raw reader attaches the depth stream to its camera.
-    let replay = dexjoco_ingest::read_stored_episode(&dir).unwrap();
+    let replay = read_stored_episode(&dir).unwrap();
     let front = replay.cameras.iter().find(|c| c.name == "front").unwrap();
     assert_eq!(
         front.depth.as_deref(),
@@ -237,7 +237,7 @@ fn a_recording_on_the_reference_scene_replays_to_success_with_scene_dir() {
     let xmls = dexjoco_testkit::upstream_dir().join("xmls");
     let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
     let source = SceneSource::Dir(xmls.clone());
-    let scene = dexjoco_sim::load_task_scene(&source, &spec).unwrap();
+    let scene = dexjoco_sim::load_task_scene(&source, spec).unwrap();
     let mut x = 0x9e37_79b9_7f4a_7c15_u64;
     let mut uniform = move || {
         x ^= x << 13;
@@ -245,11 +245,11 @@ fn a_recording_on_the_reference_scene_replays_to_success_with_scene_dir() {
         x ^= x << 17;
         (x >> 11) as f64 / (1u64 << 53) as f64
     };
-    let s0 = dexjoco_sim::TaskEnv::sample_initial_state(&scene, &spec, &mut uniform).unwrap();
-    let ep = dexjoco_sim::scripted::click_mouse_demo(&scene, &spec, &s0, "episode_000000").unwrap();
+    let s0 = dexjoco_sim::TaskEnv::sample_initial_state(&scene, spec, &mut uniform).unwrap();
+    let ep = dexjoco_sim::scripted::click_mouse_demo(&scene, spec, &s0, "episode_000000").unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let raw_dir = tmp.path().join("recorded/click_mouse/episode_000000");
-    dexjoco_ingest::raw::write_replay_zarr(&raw_dir, &ep).unwrap();
+    dexjoco_formats::raw::write_replay_zarr(&raw_dir, &ep).unwrap();
 
     let out = tmp.path().join("aug");
     let mut c = config(vec![tmp.path().join("recorded")], &out);
@@ -278,8 +278,8 @@ fn dynamics_are_drawn_in_the_spec_ranges_per_replay_and_change_the_physics() {
     use dexjoco_core::DynamicsRandomization as D;
     let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
     assert!(!spec.dynamics.is_empty());
-    let scene = dexjoco_sim::load_task_scene(&SceneSource::BuiltIn, &spec).unwrap();
-    let original = dexjoco_augment::read_dynamics(&spec, &scene.model).unwrap();
+    let scene = dexjoco_sim::load_task_scene(&SceneSource::BuiltIn, spec).unwrap();
+    let original = dexjoco_augment::read_dynamics(spec, &scene.model).unwrap();
     let ranges: Vec<(bool, [f64; 2])> = spec
         .dynamics
         .iter()
@@ -292,7 +292,7 @@ fn dynamics_are_drawn_in_the_spec_ranges_per_replay_and_change_the_physics() {
         .collect();
     let mut draws = Vec::new();
     for seed in 0..20 {
-        let v = dexjoco_augment::sample_dynamics(&spec, &scene.model, seed).unwrap();
+        let v = dexjoco_augment::sample_dynamics(spec, &scene.model, seed).unwrap();
         for ((d, &(scale, r)), o) in v.iter().zip(&ranges).zip(&original) {
             assert_eq!(d.original, *o);
             let (lo, hi) = if scale {
@@ -302,14 +302,14 @@ fn dynamics_are_drawn_in_the_spec_ranges_per_replay_and_change_the_physics() {
             };
             assert!(d.value >= lo && d.value <= hi, "{d:?} outside [{lo}, {hi}]");
         }
-        let m = dexjoco_augment::apply_dynamics(&spec, &scene.model, &v).unwrap();
-        let applied = dexjoco_augment::read_dynamics(&spec, &m).unwrap();
+        let m = dexjoco_augment::apply_dynamics(spec, &scene.model, &v).unwrap();
+        let applied = dexjoco_augment::read_dynamics(spec, &m).unwrap();
         assert_eq!(applied, v.iter().map(|d| d.value).collect::<Vec<_>>());
         draws.push(v);
     }
     // The scene's model is untouched, and the draws differ.
     assert_eq!(
-        dexjoco_augment::read_dynamics(&spec, &scene.model).unwrap(),
+        dexjoco_augment::read_dynamics(spec, &scene.model).unwrap(),
         original
     );
     assert!(draws.windows(2).all(|w| w[0] != w[1]));
@@ -339,10 +339,8 @@ fn dynamics_are_drawn_in_the_spec_ranges_per_replay_and_change_the_physics() {
     );
     // The state written is the replay's own simulation.
     let rec = &one.replays[0];
-    let ep =
-        dexjoco_ingest::read_stored_episode(&tmp.path().join("dyn1/click_mouse").join(&rec.name))
-            .unwrap();
-    let src = dexjoco_ingest::read_stored_episode(&inputs[0]).unwrap();
+    let ep = read_stored_episode(&tmp.path().join("dyn1/click_mouse").join(&rec.name)).unwrap();
+    let src = read_stored_episode(&inputs[0]).unwrap();
     let (a, b) = (
         ep.array(dexjoco_core::Episode::STATE).unwrap(),
         src.array(dexjoco_core::Episode::STATE).unwrap(),
@@ -437,7 +435,7 @@ fn a_bad_input_is_skipped_and_named_while_the_rest_is_replayed() {
 
     // Nothing replayable at all: an error with the first reason.
     let c = config(vec![junk.clone()], &tmp.path().join("none"));
-    let err = augment(&c, &|_, _| {}).unwrap_err().to_string();
+    let err = augment(&c, &NoProgress).unwrap_err().to_string();
     assert!(
         err.contains("none of the 1 input(s)") && err.contains("junk.mcap"),
         "{err}"
@@ -503,7 +501,7 @@ fn replays_failing_under_their_dynamics_draw_are_recorded_once_and_kept_on_reque
     // Another seed into the same folder is refused, naming a replay folder.
     let mut other = c.clone();
     other.seed = 8;
-    let err = augment(&other, &|_, _| {}).unwrap_err().to_string();
+    let err = augment(&other, &NoProgress).unwrap_err().to_string();
     assert!(
         err.contains("another --seed") && err.contains("episode_000000__r"),
         "{err}"
@@ -526,4 +524,8 @@ fn replays_failing_under_their_dynamics_draw_are_recorded_once_and_kept_on_reque
                 .exists()
         );
     }
+}
+
+fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<dexjoco_core::Episode> {
+    dexjoco_formats::read_episode(dir, dexjoco_core::TaskSet::builtin())
 }

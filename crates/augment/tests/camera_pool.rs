@@ -9,7 +9,7 @@ use dexjoco_sim::{EnvOptions, SceneSource, TaskEnv, load_task_scene, name_id};
 #[test]
 fn pools_are_on_the_band_deterministic_and_keep_the_least_occluded() {
     let spec = TaskSpec::builtin("click_mouse").unwrap();
-    let scene = load_task_scene(&SceneSource::BuiltIn, &spec).unwrap();
+    let scene = load_task_scene(&SceneSource::BuiltIn, spec).unwrap();
     let options = PoolOptions {
         count: 20,
         candidates: 300,
@@ -18,7 +18,7 @@ fn pools_are_on_the_band_deterministic_and_keep_the_least_occluded() {
         azimuth: (-150.0, 150.0),
         seed: 3,
     };
-    let a = build_pool(&scene, &spec, &options).unwrap();
+    let a = build_pool(&scene, spec, &options).unwrap();
     assert_eq!(a.kept.len(), 20);
     assert_eq!(a.candidates.len(), 300);
     assert!(a.targets > 0 && !a.target_bodies.is_empty());
@@ -61,8 +61,8 @@ fn pools_are_on_the_band_deterministic_and_keep_the_least_occluded() {
     );
 
     // Same seed, same pool; another seed, another pool.
-    assert_eq!(build_pool(&scene, &spec, &options).unwrap(), a);
-    let other = build_pool(&scene, &spec, &PoolOptions { seed: 4, ..options }).unwrap();
+    assert_eq!(build_pool(&scene, spec, &options).unwrap(), a);
+    let other = build_pool(&scene, spec, &PoolOptions { seed: 4, ..options }).unwrap();
     assert_ne!(other.kept, a.kept);
 
     // The written file is a pool augment reads.
@@ -75,7 +75,7 @@ fn pools_are_on_the_band_deterministic_and_keep_the_least_occluded() {
     // Bad options are refused with a message.
     let e = build_pool(
         &scene,
-        &spec,
+        spec,
         &PoolOptions {
             count: 400,
             ..options
@@ -88,9 +88,9 @@ fn pools_are_on_the_band_deterministic_and_keep_the_least_occluded() {
 #[test]
 fn occlusion_sees_the_table_between_the_camera_and_the_mouse() {
     let spec = TaskSpec::builtin("click_mouse").unwrap();
-    let scene = load_task_scene(&SceneSource::BuiltIn, &spec).unwrap();
-    let s0 = TaskEnv::default_initial_state(&scene, &spec).unwrap();
-    let mut env = TaskEnv::from_initial_state(&scene, &spec, &s0, EnvOptions::default()).unwrap();
+    let scene = load_task_scene(&SceneSource::BuiltIn, spec).unwrap();
+    let s0 = TaskEnv::default_initial_state(&scene, spec).unwrap();
+    let mut env = TaskEnv::from_initial_state(&scene, spec, &s0, EnvOptions::default()).unwrap();
     let m = scene.model.clone();
     let joint = name_id(&m, NameKind::Joint, "mouse_root").unwrap();
     let body = m.jnt_bodyid()[joint] as usize;

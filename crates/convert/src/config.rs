@@ -105,69 +105,21 @@ impl Default for Selection {
     }
 }
 
-/// The DexJoCo tasks' language instructions, as the reference converter's
-/// `language_instructions.yaml` gives them.
-pub const DEXJOCO_INSTRUCTIONS: [(&str, &str); 11] = [
-    (
-        "bimanual_assembly",
-        "Grasp the tray with the left hand and the peg with the right hand, then insert the peg into the hole.",
-    ),
-    (
-        "bimanual_hanoi",
-        "Execute the final two moves of the three-level Tower of Hanoi: move the medium disk from the middle peg to the right peg with the right hand, then move the small disk from the left peg to the right peg with the left hand.",
-    ),
-    (
-        "bimanual_microwave_cook",
-        "Open the microwave door, place the food inside the microwave, close the door, and press the start button.",
-    ),
-    (
-        "bimanual_photograph",
-        "Grasp the camera with the left hand, align it with the logo, and press the shutter button with the right hand.",
-    ),
-    (
-        "bimanual_unlock_ipad",
-        "Grasp the iPad and enter the password 123 to unlock the device.",
-    ),
-    (
-        "click_mouse",
-        "Move the mouse to the purple mouse pad and click the left mouse button.",
-    ),
-    (
-        "fold_glasses",
-        "Fold the glasses and place them into the case.",
-    ),
-    (
-        "hammer_nail",
-        "Use the hammer to drive the nail into the wooden board.",
-    ),
-    (
-        "pick_bucket",
-        "Place the boxed food into the bucket and then lift the bucket.",
-    ),
-    (
-        "pinch_tongs",
-        "Grasp the tongs and perform three consecutive open-close motions.",
-    ),
-    (
-        "water_plant",
-        "Grasp the watering can and apply water to the plant.",
-    ),
-];
-
 impl Selection {
     /// The selection for a task.
     pub fn for_task(&self, task: &str) -> &TaskSelection {
         self.tasks.get(task).unwrap_or(&self.default)
     }
 
-    /// The instruction of a task: the config's, else the built-in DexJoCo one, else the
-    /// episode's prompt, else the task id.
+    /// The instruction of a task: the config's, else the prompt of the task's built-in
+    /// spec (`schemas/tasks/`, the reference converter's `language_instructions.yaml`
+    /// text), else the episode's prompt, else the task id.
     pub fn instruction(&self, task: &str, prompt: &str) -> String {
         if let Some(s) = self.instructions.get(task) {
             return s.clone();
         }
-        if let Some((_, s)) = DEXJOCO_INSTRUCTIONS.iter().find(|(t, _)| *t == task) {
-            return (*s).to_owned();
+        if let Some(spec) = dexjoco_core::TaskSpec::builtin(task) {
+            return spec.prompt.clone();
         }
         if prompt.trim().is_empty() {
             task.to_owned()

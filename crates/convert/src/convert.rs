@@ -3,6 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
+use dexjoco_core::Progress;
+use dexjoco_formats::openpi::NormStats;
 use rayon::prelude::*;
 
 use crate::config::Selection;
@@ -10,7 +12,6 @@ use crate::diffusion_policy::ZarrWriter;
 use crate::error::ConvertError;
 use crate::lerobot_v3::{V3Options, V3Writer};
 use crate::lerobot_v21::V21Writer;
-use crate::openpi::NormStats;
 use crate::prepare::{InputEpisode, PreparedEpisode, VideoLayout, VideoOptions, prepare};
 
 /// Output dataset formats.
@@ -99,20 +100,6 @@ pub struct ConvertOptions {
     pub batch: usize,
 }
 
-/// Progress reports of a conversion (the CLI draws them; libraries never print).
-pub trait Reporter: Sync {
-    /// An episode was written (or left out, with `excluded`).
-    fn episode(&self, _id: &str, _excluded: bool) {}
-    /// An episode could not be converted and is left out.
-    fn failed(&self, _id: &str, _reason: &str) {}
-}
-
-/// A reporter that reports nothing.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Silent;
-
-impl Reporter for Silent {}
-
 /// What a conversion did.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Summary {
@@ -143,11 +130,6 @@ pub struct FailedEpisode {
     pub reason: String,
 }
 
-/// True when `dir` exists and has any entry.
-pub fn is_non_empty_dir(dir: &Path) -> bool {
-    std::fs::read_dir(dir).is_ok_and(|mut d| d.next().is_some())
-}
-
 /// Converts episodes (read lazily from `inputs`, in dataset order) into a dataset at `out`.
 ///
 /// The dataset is written into a temporary folder beside `out` and renamed into place
@@ -157,12 +139,12 @@ pub fn convert<I>(
     inputs: I,
     out: &Path,
     options: &ConvertOptions,
-    reporter: &dyn Reporter,
+    progress: &dyn Progress,
 ) -> Result<Summary, ConvertError>
 where
     I: IntoIterator<Item = Result<InputEpisode, ConvertError>>,
 {
-    if out.is_file() || (is_non_empty_dir(out) && !options.overwrite) {
+    if out.is_file() || (dexjoco_formats::fs::is_non_empty_dir(out) && !options.overwrite) {
         return Err(ConvertError::OutputNotEmpty(out.to_path_buf()));
     }
     let parent = match out.parent() {
@@ -178,13 +160,10 @@ where
         fs_err::remove_dir_all(&tmp)?;
     }
     fs_err::create_dir_all(&tmp)?;
-    let result = run(inputs, &tmp, options, reporter);
+    let result = run(inputs, &tmp, options, progress);
     match result {
         Ok(mut summary) => {
-            if out.exists() {
-                fs_err::remove_dir_all(out)?;
-            }
-            fs_err::rename(&tmp, out)?;
+            dexjoco_formats::fs::replace_dir(&tmp, out)?;
             summary.out = out.to_path_buf();
             Ok(summary)
         }
@@ -254,16 +233,17 @@ fn layout_leader(prepared: &[Result<PreparedEpisode, ConvertError>]) -> Option<&
 /// be read just before the k-th readable one, `(k, 1)` for the k-th readable one.
 type Failures = Vec<((usize, u8), FailedEpisode)>;
 
-/// Records an episode left out, and tells the reporter.
+/// Records an episode left out, and tells the progress.
 fn fail(
     failures: &mut Failures,
     key: (usize, u8),
-    reporter: &dyn Reporter,
+    progress: &dyn Progress,
     episode: String,
     e: &ConvertError,
 ) {
     tracing::warn!(%episode, "left out: {e}");
-    reporter.failed(&episode, &e.to_string());
+    progress.note(&format!("LEFT OUT {episode}: {e}"));
+    progress.advance(1, &episode);
     failures.push((
         key,
         FailedEpisode {
@@ -277,7 +257,7 @@ fn run<I>(
     inputs: I,
     root: &Path,
     options: &ConvertOptions,
-    reporter: &dyn Reporter,
+    progress: &dyn Progress,
 ) -> Result<Summary, ConvertError>
 where
     I: IntoIterator<Item = Result<InputEpisode, ConvertError>>,
@@ -313,12 +293,13 @@ where
                         ConvertError::Input { path, .. } => path.display().to_string(),
                         _ => String::from("?"),
                     };
-                    fail(&mut failures, (ordinal, 0), reporter, source, &e);
+                    fail(&mut failures, (ordinal, 0), progress, source, &e);
                     continue;
                 }
             };
             if options.selection.bad_episodes.contains(&item.episode.id) {
-                reporter.episode(&item.episode.id, true);
+                progress.note(&format!("left out {} (bad-episodes list)", item.episode.id));
+                progress.advance(1, &item.episode.id);
                 summary.excluded.push(item.episode.id);
                 continue;
             }
@@ -347,7 +328,7 @@ where
                     fail(
                         &mut failures,
                         (*i, 1),
-                        reporter,
+                        progress,
                         input.episode.id.clone(),
                         &e,
                     );
@@ -357,7 +338,7 @@ where
             if let Some(w) = writer.as_ref()
                 && let Err(e) = w.check_compatible(&p)
             {
-                fail(&mut failures, (*i, 1), reporter, p.id.clone(), &e);
+                fail(&mut failures, (*i, 1), progress, p.id.clone(), &e);
                 continue;
             }
             let id = p.id.clone();
@@ -374,7 +355,7 @@ where
             }
             let w = writer.as_mut().expect("made from the first batch");
             w.write_episode(p)?;
-            reporter.episode(&id, false);
+            progress.advance(1, &id);
         }
     }
     failures.sort_by_key(|(k, _)| *k);

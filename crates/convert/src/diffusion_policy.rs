@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use dexjoco_core::Location;
-use dexjoco_ingest::zarr_v2::{self, Blosc};
+use dexjoco_formats::zarr_v2::{self, Blosc};
 use dexjoco_video::VideoReader;
 use serde_json::json;
 use zarrs::array::{Array, ArrayMetadata, ArrayMetadataOptions, CodecOptions};

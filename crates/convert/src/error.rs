@@ -67,6 +67,9 @@ pub enum ConvertError {
     /// A file system operation failed (the message names the path).
     #[error(transparent)]
     Io(#[from] std::io::Error),
+    /// Reading or writing a file through `dexjoco-formats` failed.
+    #[error(transparent)]
+    Format(#[from] dexjoco_formats::FormatError),
 }
 
 impl ConvertError {

@@ -18,7 +18,8 @@
 //!   images decoded into uint8 (T, H, W, 3), optionally the videos beside it.
 //! - [`merge`]: several tasks in one dataset (task table from the instructions);
 //!   one-arm episodes laid into the right-arm slots of the two-arm layout.
-//! - [`NormStats`]: openpi's `norm_stats.json` (`--norm-stats`).
+//! - openpi's `norm_stats.json` (`--norm-stats`), through the one implementation in
+//!   [`dexjoco_formats::openpi`].
 
 mod config;
 mod convert;
@@ -27,25 +28,18 @@ mod error;
 mod lerobot_v21;
 mod lerobot_v3;
 pub mod merge;
-mod openpi;
 mod parquet_io;
 mod prepare;
 pub mod stats;
 
-pub use config::{
-    ActionSource, ColumnSlice, DEXJOCO_INSTRUCTIONS, Selection, TaskSelection, first_moving_frame,
-};
-pub use convert::{
-    ConvertOptions, FailedEpisode, OutputFormat, Reporter, Silent, Summary, convert,
-    is_non_empty_dir,
-};
+pub use config::{ActionSource, ColumnSlice, Selection, TaskSelection, first_moving_frame};
+pub use convert::{ConvertOptions, FailedEpisode, OutputFormat, Summary, convert};
 pub use diffusion_policy::{REPLAY_BUFFER, ZarrWriter};
 pub use error::ConvertError;
 pub use lerobot_v3::{
     CHUNKS_SIZE, DEFAULT_DATA_FILE_MB, DEFAULT_VIDEO_FILE_MB, V3Options, V3Writer,
 };
 pub use lerobot_v21::V21Writer;
-pub use openpi::{NormStats, RunningStats};
 pub use prepare::{
     InputEpisode, PreparedEpisode, VideoCodec, VideoLayout, VideoOptions, VideoPart, prepare,
 };

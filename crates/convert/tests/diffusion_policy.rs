@@ -11,8 +11,9 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::{colour, fixture, selection};
-use dexjoco_convert::{ConvertOptions, OutputFormat, Silent, VideoOptions, convert};
+use dexjoco_convert::{ConvertOptions, OutputFormat, VideoOptions, convert};
 use dexjoco_core::Episode;
+use dexjoco_core::NoProgress;
 use serde_json::Value;
 
 /// The pinned commit of real-stanford/diffusion_policy.
@@ -71,7 +72,7 @@ fn replay_buffer_opens_in_diffusion_policy_with_source_values() {
         fx.inputs.iter().cloned().map(Ok),
         &out,
         &options(true),
-        &Silent,
+        &NoProgress,
     )
     .unwrap();
     assert_eq!((summary.episodes, summary.frames), (3, 32));
@@ -181,7 +182,7 @@ fn frames_only_store_without_videos_and_camera_names_checked() {
     let out = out_dir.path().join("dp");
     let mut opts = options(false);
     opts.norm_stats = None;
-    convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &Silent).unwrap();
+    convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &NoProgress).unwrap();
     assert!(out.join("replay_buffer.zarr/data/front/.zarray").is_file());
     assert!(!out.join("videos").exists());
     assert!(!out.join("norm_stats.json").exists());
@@ -197,7 +198,7 @@ fn frames_only_store_without_videos_and_camera_names_checked() {
         fx.inputs.iter().cloned().map(Ok),
         &out_dir.path().join("dp2"),
         &opts,
-        &Silent,
+        &NoProgress,
     )
     .unwrap_err()
     .to_string();

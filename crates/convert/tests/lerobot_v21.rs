@@ -5,7 +5,8 @@
 mod common;
 
 use common::{check_items, fixture, load, selection};
-use dexjoco_convert::{ConvertOptions, OutputFormat, Silent, VideoCodec, VideoOptions, convert};
+use dexjoco_convert::{ConvertOptions, OutputFormat, VideoCodec, VideoOptions, convert};
+use dexjoco_core::NoProgress;
 use serde_json::Value;
 
 fn read_json(p: &std::path::Path) -> Value {
@@ -28,7 +29,7 @@ fn v21_converts_with_lerobots_script_and_loads() {
         batch: 2,
         ..ConvertOptions::default()
     };
-    let s = convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &Silent).unwrap();
+    let s = convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &NoProgress).unwrap();
     assert_eq!((s.episodes, s.frames), (3, 32));
     assert_eq!((s.videos_copied, s.videos_encoded), (0, 6));
 

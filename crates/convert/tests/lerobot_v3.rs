@@ -5,7 +5,8 @@
 mod common;
 
 use common::{check_items, fixture, load, selection};
-use dexjoco_convert::{ConvertError, ConvertOptions, Silent, VideoCodec, VideoOptions, convert};
+use dexjoco_convert::{ConvertError, ConvertOptions, VideoCodec, VideoOptions, convert};
+use dexjoco_core::NoProgress;
 use serde_json::Value;
 
 fn options(video: VideoOptions) -> ConvertOptions {
@@ -26,7 +27,7 @@ fn stream_copied_h264_loads_in_lerobot_with_pyav_and_torchcodec() {
         fx.inputs.iter().cloned().map(Ok),
         &out,
         &options(VideoOptions::default()),
-        &Silent,
+        &NoProgress,
     )
     .unwrap();
     assert_eq!(
@@ -86,7 +87,7 @@ fn reencoded_av1_loads_in_lerobot() {
         fx.inputs.iter().cloned().map(Ok),
         &out,
         &options(video),
-        &Silent,
+        &NoProgress,
     )
     .unwrap();
     assert_eq!((summary.videos_copied, summary.videos_encoded), (0, 6));
@@ -106,7 +107,7 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("keep.txt"), "x").unwrap();
     let opts = options(VideoOptions::default());
-    let err = convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &Silent).unwrap_err();
+    let err = convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &NoProgress).unwrap_err();
     assert!(err.to_string().contains("not empty"), "{err}");
     assert!(out.join("keep.txt").exists());
 
@@ -120,7 +121,7 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
         overwrite: true,
         ..opts
     };
-    let err = convert(bad.into_iter().map(Ok), &out, &opts, &Silent)
+    let err = convert(bad.into_iter().map(Ok), &out, &opts, &NoProgress)
         .unwrap_err()
         .to_string();
     assert!(
@@ -144,7 +145,7 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
             path: unreadable.clone(),
             message: "replay.zarr is missing".into(),
         })));
-    let s = convert(inputs, &out, &opts, &Silent).unwrap();
+    let s = convert(inputs, &out, &opts, &NoProgress).unwrap();
     assert_eq!(s.episodes, 2);
     let failed: Vec<_> = s.failed.iter().map(|f| f.episode.clone()).collect();
     assert_eq!(
@@ -171,7 +172,7 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
             batch,
             ..opts.clone()
         };
-        let s = convert(bad.iter().cloned().map(Ok), &dir, &opts, &Silent).unwrap();
+        let s = convert(bad.iter().cloned().map(Ok), &dir, &opts, &NoProgress).unwrap();
         assert_eq!(s.episodes, 2);
         let failed: Vec<_> = s.failed.iter().map(|f| f.episode.as_str()).collect();
         assert_eq!(failed, ["episode_000000"]);
@@ -184,7 +185,7 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
     // Overwrite, with a bad-episodes list.
     let mut opts = opts;
     opts.selection.bad_episodes.insert("episode_000001".into());
-    let s = convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &Silent).unwrap();
+    let s = convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &NoProgress).unwrap();
     assert_eq!(
         (s.episodes, s.excluded.clone()),
         (2, vec!["episode_000001".to_owned()])
@@ -202,7 +203,7 @@ fn size_caps_split_data_and_video_files_and_lerobot_follows() {
     // Caps below one episode: every episode opens new files.
     opts.v3.data_file_mb = 1e-9;
     opts.v3.video_file_mb = 1e-9;
-    convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &Silent).unwrap();
+    convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &NoProgress).unwrap();
     for f in 0..3 {
         assert!(
             out.join(format!("data/chunk-000/file-{f:03}.parquet"))

@@ -9,8 +9,9 @@ use std::path::PathBuf;
 
 use common::{fixture, load, write_video};
 use dexjoco_convert::{
-    ConvertOptions, InputEpisode, Selection, Silent, TaskSelection, VideoOptions, convert,
+    ConvertOptions, InputEpisode, Selection, TaskSelection, VideoOptions, convert,
 };
+use dexjoco_core::NoProgress;
 use dexjoco_core::{ArmSetup, CameraStream, Episode, FrameArray};
 
 fn bimanual_episode(dir: &std::path::Path) -> InputEpisode {
@@ -107,7 +108,7 @@ fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
         video: VideoOptions::default(),
         ..ConvertOptions::default()
     };
-    let s = convert(inputs.iter().cloned().map(Ok), &out, &opts, &Silent).unwrap();
+    let s = convert(inputs.iter().cloned().map(Ok), &out, &opts, &NoProgress).unwrap();
     assert_eq!((s.episodes, s.frames), (4, 40));
     let info: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("meta/info.json")).unwrap())
@@ -187,7 +188,7 @@ fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
         inputs.into_iter().map(Ok),
         &out_dir.path().join("x"),
         &opts,
-        &Silent,
+        &NoProgress,
     )
     .unwrap();
     assert_eq!(s.episodes, 3);

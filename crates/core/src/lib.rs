@@ -8,6 +8,7 @@
 mod episode;
 mod error;
 mod layout;
+mod progress;
 mod rotation;
 pub mod synth;
 mod task_set;
@@ -19,6 +20,7 @@ pub use layout::{
     ArmSetup, ArrayLayout, DEXJOCO_FPS, FieldSlice, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM,
     ROTVEC_POSE_DIM, TABLE_OFFSET_RANGE,
 };
+pub use progress::{NoProgress, Progress};
 pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};
 pub use task_set::{BUILTIN_SPEC_FILES, PrivilegedField, PrivilegedKind, TaskSet};
 pub use task_spec::{

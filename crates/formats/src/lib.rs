@@ -10,6 +10,8 @@
 //!   and convert's Diffusion Policy replay buffer).
 //! - [`mcap`]: our MCAP schema for teleop episodes (`schemas/mcap-teleop.md`).
 //! - [`npz`]: numpy `.npz` depth archives (`videos/<camera>_depth.npz`), streamed.
+//! - [`openpi`]: openpi's `norm_stats.json`, the one implementation of normalization
+//!   statistics (convert and stats both use it).
 //! - [`manifest`]: the episode store's `manifest.json` and per-episode entries.
 //! - [`fs`]: atomic file writes, whole-folder replacement, tree copies; [`lock`]: one
 //!   writer per output folder.
@@ -23,6 +25,7 @@ pub mod lock;
 pub mod manifest;
 pub mod mcap;
 pub mod npz;
+pub mod openpi;
 pub mod raw;
 pub mod zarr_v2;
 

@@ -16,7 +16,6 @@ mod validate;
 
 pub use error::{IngestError, Result};
 pub use store::{
-    IngestOptions, IngestSummary, NoReporter, Outcome, QUARANTINE, REASON_FILE, Reporter, STAGING,
-    SourceReport, Store,
+    IngestOptions, IngestSummary, Outcome, QUARANTINE, REASON_FILE, STAGING, SourceReport, Store,
 };
 pub use validate::{ValidationOptions, validate};

@@ -23,7 +23,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use dexjoco_core::{Location, TaskSet};
+use dexjoco_core::{Location, Progress, TaskSet};
 use dexjoco_formats::episodes::{ReadOptions, Source};
 use dexjoco_formats::error::io_err;
 use dexjoco_formats::fs::{copy_tree, replace_dir, write_atomic};
@@ -124,20 +124,6 @@ impl IngestSummary {
         self.count(Outcome::Quarantined)
     }
 }
-
-/// Progress callbacks of a long stage; the CLI draws them, libraries never do.
-pub trait Reporter: Sync {
-    /// The run will process `total` sources.
-    fn start(&self, _total: usize) {}
-    /// One source is done (called from worker threads).
-    fn source_done(&self, _source: &Path) {}
-}
-
-/// A reporter that reports nothing.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct NoReporter;
-
-impl Reporter for NoReporter {}
 
 /// A store of episodes in the DexJoCo raw layout with its manifest.
 #[derive(Debug)]
@@ -277,10 +263,10 @@ impl Store {
         &mut self,
         sources: &[Source],
         opts: &IngestOptions,
-        reporter: &dyn Reporter,
+        progress: &dyn Progress,
     ) -> Result<IngestSummary> {
         let t0 = Instant::now();
-        reporter.start(sources.len());
+        progress.start(sources.len() as u64);
         let staging = self.root.join(STAGING);
         fs_err::create_dir_all(&staging).map_err(io_err("create", &staging))?;
         let mut next_index = self.scan_indices(&opts.tasks)?;
@@ -294,7 +280,7 @@ impl Store {
                 .par_iter()
                 .map(|s| {
                     let p = self.prepare(s, opts, &staging);
-                    reporter.source_done(&s.path);
+                    progress.advance(1, &s.path.display().to_string());
                     p
                 })
                 .collect();

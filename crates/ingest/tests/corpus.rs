@@ -15,7 +15,7 @@ fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<Episode> {
 }
 use dexjoco_formats::ProblemCode;
 use dexjoco_formats::mcap::{EpisodeMeta, write_episode_mcap};
-use dexjoco_ingest::{IngestOptions, NoReporter, Outcome, QUARANTINE, REASON_FILE, Store};
+use dexjoco_ingest::{IngestOptions, Outcome, QUARANTINE, REASON_FILE, Store};
 
 fn write_raw(dir: &Path, ep: &Episode) {
     raw::write_replay_zarr(dir, ep).unwrap();
@@ -166,7 +166,7 @@ fn run(input: &Path, store: &Path, force: bool) -> dexjoco_ingest::IngestSummary
             force,
             ..IngestOptions::default()
         },
-        &NoReporter,
+        &dexjoco_core::NoProgress,
     )
     .unwrap()
 }

@@ -14,7 +14,7 @@ fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<Episode> {
     dexjoco_formats::read_episode(dir, TaskSet::builtin())
 }
 use dexjoco_formats::mcap::{EpisodeMeta, read_episode_mcap, write_episode_mcap};
-use dexjoco_ingest::{IngestOptions, NoReporter, Outcome, Store};
+use dexjoco_ingest::{IngestOptions, Outcome, Store};
 use dexjoco_testkit::{run_python, run_python_json};
 use serde_json::Value;
 
@@ -41,8 +41,12 @@ fn assert_bits(name: &str, got: &[f64], want: &[f64]) {
 fn ingest_all(inputs: &[PathBuf], store: &Path) -> dexjoco_ingest::IngestSummary {
     let mut s = Store::open(store).unwrap();
     let sources = discover(inputs, Some(store)).unwrap();
-    s.ingest(&sources, &IngestOptions::default(), &NoReporter)
-        .unwrap()
+    s.ingest(
+        &sources,
+        &IngestOptions::default(),
+        &dexjoco_core::NoProgress,
+    )
+    .unwrap()
 }
 
 fn landed_episode(store: &Path, summary: &dexjoco_ingest::IngestSummary, i: usize) -> Episode {

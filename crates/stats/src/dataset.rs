@@ -6,6 +6,8 @@ use std::collections::BTreeMap;
 use dexjoco_core::{ArmSetup, Episode};
 use serde::{Deserialize, Serialize};
 
+use dexjoco_formats::openpi::{RunningStats, norm_stats_document};
+
 use crate::error::StatsError;
 use crate::measures::mean_std;
 
@@ -171,6 +173,23 @@ fn array_stats(episodes: &[&Episode], name: &str, setup: Option<ArmSetup>) -> Op
     Some(s)
 }
 
+/// openpi's normalization statistics of `names` over `episodes`, fed episode by episode
+/// (the one implementation, [`dexjoco_formats::openpi`]).
+fn norm_stats<'a>(
+    episodes: &[&Episode],
+    names: impl Iterator<Item = &'a str>,
+) -> serde_json::Value {
+    let mut arrays = BTreeMap::new();
+    for name in names {
+        let mut running = RunningStats::default();
+        for a in episodes.iter().filter_map(|e| e.array(name)) {
+            running.update(a.as_slice(), a.width());
+        }
+        arrays.insert(name.to_owned(), running);
+    }
+    norm_stats_document(&arrays)
+}
+
 /// Statistics of one task's episodes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TaskStats {
@@ -184,6 +203,10 @@ pub struct TaskStats {
     pub lengths: LengthStats,
     /// Per-dimension statistics per array (every array but `timestamp`).
     pub arrays: BTreeMap<String, ArrayStats>,
+    /// openpi's `norm_stats.json` document of the same arrays (written beside, not into,
+    /// `dataset_stats.json`).
+    #[serde(skip)]
+    pub norm_stats: serde_json::Value,
 }
 
 /// Statistics of a dataset.
@@ -205,6 +228,9 @@ pub struct DatasetStats {
     /// Arrays left out of the dataset-wide statistics because their width differs
     /// between tasks (e.g. `state`, whose privileged part is per task).
     pub mixed_width_arrays: Vec<String>,
+    /// openpi's `norm_stats.json` document of the dataset-wide arrays.
+    #[serde(skip)]
+    pub norm_stats: serde_json::Value,
 }
 
 impl DatasetStats {
@@ -269,6 +295,7 @@ impl DatasetStats {
                     .keys()
                     .filter_map(|name| Some(((*name).to_string(), array_stats(eps, name, setup)?)))
                     .collect(),
+                norm_stats: norm_stats(eps, task_widths.keys().copied()),
             });
         }
         let all: Vec<&Episode> = episodes.iter().collect();
@@ -285,6 +312,7 @@ impl DatasetStats {
                 None => mixed_width_arrays.push((*name).to_string()),
             }
         }
+        let norm_stats = norm_stats(&all, arrays.keys().map(String::as_str));
         let mut fps: Vec<f64> = episodes.iter().map(|e| e.fps).collect();
         fps.sort_by(f64::total_cmp);
         fps.dedup();
@@ -296,27 +324,8 @@ impl DatasetStats {
             tasks,
             arrays,
             mixed_width_arrays,
+            norm_stats,
         })
-    }
-
-    /// openpi's `norm_stats.json` for a set of arrays: `{"norm_stats": {key: {"mean",
-    /// "std", "q01", "q99"}}}`, with `action` under openpi's key `actions`.
-    pub fn norm_stats_json(arrays: &BTreeMap<String, ArrayStats>) -> serde_json::Value {
-        let stats: serde_json::Map<String, serde_json::Value> = arrays
-            .iter()
-            .map(|(name, s)| {
-                let key = if name == Episode::ACTION {
-                    "actions"
-                } else {
-                    name.as_str()
-                };
-                (
-                    key.to_string(),
-                    serde_json::json!({"mean": s.mean, "std": s.std, "q01": s.q01, "q99": s.q99}),
-                )
-            })
-            .collect();
-        serde_json::json!({ "norm_stats": stats })
     }
 
     /// A short Markdown summary: totals, per-task counts and lengths.

@@ -36,6 +36,4 @@ pub use language::{
 };
 pub use measures::{ChiSquare, LogBase, MeanStd};
 pub use replays::{AUGMENT_REPORT, ReplayStats, TaskReplays};
-pub use success::{
-    AverageCell, SuccessCell, SuccessTable, TASK_NAMES, latex_escape, regime_name, task_name,
-};
+pub use success::{AverageCell, SuccessCell, SuccessTable, latex_escape, regime_name, task_name};

@@ -288,13 +288,13 @@ impl DatasetStats {
         fs_err::write(&p, self.to_markdown())?;
         files.push(p);
         let p = dir.join("norm_stats.json");
-        write_json(&p, &Self::norm_stats_json(&self.arrays))?;
+        write_json(&p, &self.norm_stats)?;
         files.push(p);
         let per_task = dir.join("norm_stats");
         fs_err::create_dir_all(&per_task)?;
         for t in &self.tasks {
             let p = per_task.join(format!("{}.json", t.task));
-            write_json(&p, &Self::norm_stats_json(&t.arrays))?;
+            write_json(&p, &t.norm_stats)?;
             files.push(p);
         }
         let (png, svg) = (

@@ -5,30 +5,17 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use dexjoco_core::TaskSpec;
 use serde::{Deserialize, Serialize};
 
 use crate::error::StatsError;
 use crate::evaltree::{DEFAULT_REGIME, find_runs};
 use crate::measures::{MeanStd, mean_std};
 
-/// The DexJoCo tasks in the paper's table order, with their names there.
-pub const TASK_NAMES: [(&str, &str); 11] = [
-    ("hammer_nail", "Hammer Nail"),
-    ("click_mouse", "Click Mouse"),
-    ("pick_bucket", "Pick Bucket"),
-    ("pinch_tongs", "Pinch Tongs"),
-    ("fold_glasses", "Fold Glasses"),
-    ("water_plant", "Water Plant"),
-    ("bimanual_unlock_ipad", "Unlock iPad /B"),
-    ("bimanual_hanoi", "Hanoi /B"),
-    ("bimanual_assembly", "Assembly /B"),
-    ("bimanual_microwave_cook", "Microwave /B"),
-    ("bimanual_photograph", "Photograph /B"),
-];
-
-/// The display name of a task: the paper's for DexJoCo tasks, else the id in title case.
+/// The display name of a task: its spec's (the paper's) for DexJoCo tasks, else the id
+/// in title case.
 pub fn task_name(task: &str) -> String {
-    TASK_NAMES.iter().find(|(id, _)| *id == task).map_or_else(
+    TaskSpec::builtin(task).map_or_else(
         || {
             task.split('_')
                 .filter(|w| !w.is_empty())
@@ -40,8 +27,16 @@ pub fn task_name(task: &str) -> String {
                 .collect::<Vec<_>>()
                 .join(" ")
         },
-        |(_, name)| (*name).to_string(),
+        |spec| spec.name.clone(),
     )
+}
+
+/// Where a task goes in tables: its spec's place in the paper's tables, unknown tasks
+/// after the DexJoCo ones.
+fn table_position(task: &str) -> u32 {
+    TaskSpec::builtin(task)
+        .and_then(|s| s.paper_order)
+        .unwrap_or(u32::MAX)
 }
 
 /// The display name of a regime: `rand_full` -> `rand-full`.
@@ -183,15 +178,7 @@ impl SuccessTable {
             .collect::<BTreeSet<_>>()
             .into_iter()
             .collect();
-        tasks.sort_by_key(|t| {
-            (
-                TASK_NAMES
-                    .iter()
-                    .position(|(id, _)| id == t)
-                    .unwrap_or(usize::MAX),
-                t.clone(),
-            )
-        });
+        tasks.sort_by_key(|t| (table_position(t), t.clone()));
 
         let cells: Vec<SuccessCell> = rates
             .into_iter()

@@ -310,7 +310,7 @@ fn norm_stats_match_numpy() {
         }
     }
     // Per-task norm stats use openpi's key for actions.
-    let json = DatasetStats::norm_stats_json(&stats.tasks[0].arrays);
+    let json = &stats.tasks[0].norm_stats;
     assert!(json["norm_stats"]["actions"]["q99"].is_array());
     assert!(json["norm_stats"]["state"]["std"].is_array());
 }

@@ -1,4 +1,6 @@
-//! openpi normalization statistics (`norm_stats.json`), computed as openpi's
+//! openpi normalization statistics (`norm_stats.json`): the one implementation of
+//! normalization statistics in dexjoco-data (`convert --norm-stats` over the converted
+//! training columns, `stats --dataset` over the source arrays), computed as openpi's
 //! `RunningStats` (`openpi/shared/normalize.py`) computes them, in f64 on the values
 //! as stored (float32):
 //!
@@ -12,11 +14,12 @@
 //! - `actions` over action chunks as openpi's data loader makes them: for every frame
 //!   `t` the rows `t..t+horizon`, the last frame repeated past the episode's end.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde_json::{Value, json};
 
-use crate::error::ConvertError;
+use crate::error::{FormatError, ProblemCode, Result};
 
 /// openpi's histogram bins.
 const BINS: usize = 5000;
@@ -193,23 +196,49 @@ impl NormStats {
         self.actions.update(&rows, width);
     }
 
-    /// Writes `norm_stats.json` (indent 2, as openpi's pydantic writer) into `dir`.
-    pub fn write(&self, dir: &Path) -> Result<(), ConvertError> {
-        let path = dir.join("norm_stats.json");
-        let (Some(state), Some(actions)) = (self.state.statistics(), self.actions.statistics())
-        else {
-            return Err(ConvertError::Input {
-                path,
-                message: "openpi's normalization statistics need at least two frames".into(),
-            });
-        };
-        let doc = json!({"norm_stats": {"state": state, "actions": actions}});
-        let mut text = serde_json::to_string_pretty(&doc).map_err(|e| ConvertError::Input {
-            path: path.clone(),
-            message: e.to_string(),
-        })?;
-        text.push('\n');
-        fs_err::write(&path, text)?;
-        Ok(())
+    /// The `norm_stats.json` document: `{"norm_stats": {"state", "actions"}}`; `None`
+    /// under two frames (openpi refuses those).
+    pub fn document(&self) -> Option<Value> {
+        let (state, actions) = (self.state.statistics()?, self.actions.statistics()?);
+        Some(json!({"norm_stats": {"state": state, "actions": actions}}))
     }
+
+    /// Writes `norm_stats.json` (indent 2, as openpi's pydantic writer) into `dir`.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        let path = dir.join(NORM_STATS);
+        let doc = self.document().ok_or_else(|| {
+            FormatError::input(
+                ProblemCode::WrongLength,
+                &dexjoco_core::Location::default().path(&path),
+                "openpi's normalization statistics need at least two frames",
+            )
+        })?;
+        write_document(&path, &doc)
+    }
+}
+
+/// File name of openpi's normalization statistics.
+pub const NORM_STATS: &str = "norm_stats.json";
+
+/// The openpi key of an array: `actions` for `action`, else the array name.
+pub fn openpi_key(array: &str) -> &str {
+    if array == "action" { "actions" } else { array }
+}
+
+/// The `norm_stats.json` document of named arrays' running statistics (keys as
+/// [`openpi_key`]); arrays with under two values are left out.
+pub fn norm_stats_document(arrays: &BTreeMap<String, RunningStats>) -> Value {
+    let stats: serde_json::Map<String, Value> = arrays
+        .iter()
+        .filter_map(|(name, s)| Some((openpi_key(name).to_owned(), s.statistics()?)))
+        .collect();
+    json!({ "norm_stats": stats })
+}
+
+/// Writes a `norm_stats.json` document (indent 2 and a final newline, as openpi's pydantic
+/// writer), atomically.
+pub fn write_document(path: &Path, doc: &Value) -> Result<()> {
+    let mut text = serde_json::to_string_pretty(doc).expect("JSON values serialize");
+    text.push('\n');
+    crate::fs::write_atomic(path, text.as_bytes())
 }

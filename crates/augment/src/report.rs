@@ -1,0 +1,241 @@
+//! The augment report: per episode (success, first success, deviation, replays kept),
+//! per replay (sample, success, videos, dynamics), skipped inputs; written as
+//! `augment_report.json` and `augment_report.md`, with a contact sheet of the replays.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use dexjoco_sim::RenderSettings;
+use serde::{Deserialize, Serialize};
+
+use crate::config::{PREVIEWS, REPORT_JSON, REPORT_MD};
+use crate::dynamics::DynamicsValue;
+use crate::error::{AugmentError, io_err};
+use crate::inputs::SkippedInput;
+use crate::randomize::VisualSample;
+
+/// One replay in the report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReplayRecord {
+    /// Folder name, `<episode>__rNN`.
+    pub name: String,
+    /// Task id.
+    pub task: String,
+    /// Source episode id.
+    pub episode: String,
+    /// Replay index.
+    pub replay: usize,
+    /// The sampled randomization (incl. the seed).
+    pub sample: VisualSample,
+    /// Whether the task succeeded on some step.
+    pub success: bool,
+    /// First successful step.
+    pub first_success: Option<usize>,
+    /// Steps replayed (= frames).
+    pub steps: usize,
+    /// Largest |replayed state - recorded state| over frames and columns.
+    pub max_state_deviation: f64,
+    /// Where that largest deviation is: (frame, column).
+    pub deviation_at: Option<(usize, usize)>,
+    /// Videos written, relative to the replay folder.
+    pub videos: Vec<String>,
+    /// Depth files written (`videos/<camera>_depth.npz`), relative to the replay folder.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub depth: Vec<String>,
+    /// The dynamics drawn for this replay (`--dynamics`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dynamics: Option<Vec<DynamicsValue>>,
+}
+
+/// The result of replaying one source episode (physics only).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeOutcome {
+    /// Task id.
+    pub task: String,
+    /// Episode id.
+    pub episode: String,
+    /// Source folder or file.
+    pub source: String,
+    /// Success on some step.
+    pub success: bool,
+    /// First successful step.
+    pub first_success: Option<usize>,
+    /// Steps replayed.
+    pub steps: usize,
+    /// Largest deviation of the replayed state from the recording.
+    pub max_state_deviation: f64,
+    /// Replays kept for this episode (done now or earlier).
+    pub replays_kept: usize,
+}
+
+/// The augment report (`augment_report.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AugmentReport {
+    /// Global seed.
+    pub seed: u64,
+    /// Replays asked per episode.
+    pub replays_per_episode: usize,
+    /// Render settings.
+    pub settings: RenderSettings,
+    /// Camera pool per setup used.
+    pub camera_pools: BTreeMap<String, String>,
+    /// Table looks per task (names).
+    pub table_library: BTreeMap<String, Vec<String>>,
+    /// Per source episode.
+    pub episodes: Vec<EpisodeOutcome>,
+    /// Per replay, sorted by folder.
+    pub replays: Vec<ReplayRecord>,
+    /// Replays that failed under `--dynamics` and were not kept (no folder), in the same
+    /// order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub dropped: Vec<ReplayRecord>,
+    /// Inputs that could not be replayed: those unreadable, of an unknown task or missing
+    /// a field, in input order, then those the simulator rejected, by task and episode.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub skipped: Vec<SkippedInput>,
+    /// Replays rendered by this run (the rest were already there).
+    pub rendered_now: usize,
+}
+
+impl AugmentReport {
+    /// Episodes whose replay did not succeed.
+    pub fn failed_episodes(&self) -> usize {
+        self.episodes.iter().filter(|e| !e.success).count()
+    }
+}
+
+/// The success cell of a replay that has its folder.
+fn kept_label(r: &ReplayRecord) -> &'static str {
+    if r.success { "yes" } else { "FAILED (kept)" }
+}
+
+pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> {
+    let json = serde_json::to_vec_pretty(report).expect("serializable");
+    dexjoco_formats::write_atomic(&out.join(REPORT_JSON), &json)?;
+    let mut md = String::new();
+    md.push_str("# Augment report\n\n");
+    md.push_str(&format!(
+        "Seed {}, {} replays per episode, {}x{}, {} render samples. Rendered by this run: {}.\n\n",
+        report.seed,
+        report.replays_per_episode,
+        report.settings.width,
+        report.settings.height,
+        report.settings.quality.samples,
+        report.rendered_now
+    ));
+    md.push_str("| task | episode | replay success | first success | steps | max state deviation | replays kept |\n|---|---|---|---|---|---|---|\n");
+    for e in &report.episodes {
+        md.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {:e} | {} |\n",
+            e.task,
+            e.episode,
+            if e.success { "yes" } else { "NO" },
+            e.first_success.map_or("-".into(), |k| k.to_string()),
+            e.steps,
+            e.max_state_deviation,
+            e.replays_kept
+        ));
+    }
+    if !report.skipped.is_empty() {
+        md.push_str(&format!(
+            "\n**Skipped inputs ({}):**\n\n",
+            report.skipped.len()
+        ));
+        for k in &report.skipped {
+            md.push_str(&format!("- `{}`: {}\n", k.source, k.reason));
+        }
+    }
+    md.push_str("\n| replay | seed | camera (az, el, d) | table | headlight ambient | success |\n|---|---|---|---|---|---|\n");
+    for r in &report.replays {
+        let c = &r.sample.camera;
+        let a = r.sample.headlight_ambient;
+        md.push_str(&format!(
+            "| {}/{} | {} | #{} ({:.1}, {:.2}, {:.2}) | {} | ({:.2}, {:.2}, {:.2}) | {} |\n",
+            r.task,
+            r.name,
+            r.sample.seed,
+            r.sample.camera_index,
+            c.azimuth,
+            c.elevation,
+            c.distance,
+            r.sample.table,
+            a[0],
+            a[1],
+            a[2],
+            kept_label(r)
+        ));
+    }
+    if report
+        .replays
+        .iter()
+        .chain(&report.dropped)
+        .any(|r| r.dynamics.is_some())
+    {
+        md.push_str(&format!(
+            "\n## Dynamics (`--dynamics`)\n\n{} replay(s) kept, {} failed under their draw and dropped (rerun with `--keep-failed` to keep them).\n\n",
+            report.replays.len(),
+            report.dropped.len()
+        ));
+        md.push_str("| replay | success | max state deviation | drawn values (original -> used) |\n|---|---|---:|---|\n");
+        let mut rows: Vec<(&ReplayRecord, &str)> = report
+            .replays
+            .iter()
+            .map(|r| (r, kept_label(r)))
+            .chain(report.dropped.iter().map(|r| (r, "FAILED (dropped)")))
+            .collect();
+        rows.sort_by(|(a, _), (b, _)| (&a.task, &a.name).cmp(&(&b.task, &b.name)));
+        for (r, label) in rows {
+            let values = r.dynamics.as_deref().unwrap_or_default();
+            let cells: Vec<String> = values
+                .iter()
+                .map(|v| {
+                    format!(
+                        "{} {}: {:.4} -> {:.4}",
+                        v.kind, v.target, v.original, v.value
+                    )
+                })
+                .collect();
+            md.push_str(&format!(
+                "| {}/{} | {} | {:.3e} | {} |\n",
+                r.task,
+                r.name,
+                label,
+                r.max_state_deviation,
+                cells.join("; ")
+            ));
+        }
+    }
+    dexjoco_formats::write_atomic(&out.join(REPORT_MD), md.as_bytes())?;
+    Ok(())
+}
+
+/// A grid of the first frame of every replay's third-person view (`contact_sheet.png`).
+pub(crate) fn contact_sheet(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> {
+    let dir = out.join(PREVIEWS);
+    let mut tiles = Vec::new();
+    for r in &report.replays {
+        let p = dir.join(format!("{}__{}.png", r.task, r.name));
+        if let Ok(img) = image::open(&p) {
+            tiles.push(img.to_rgb8());
+        }
+    }
+    if tiles.is_empty() {
+        return Ok(());
+    }
+    let tile = 160u32;
+    let cols = report.replays_per_episode.clamp(1, 10) as u32;
+    let rows = (tiles.len() as u32).div_ceil(cols);
+    let mut sheet = image::RgbImage::new(cols * tile, rows * tile);
+    for (i, t) in tiles.iter().enumerate() {
+        let small = image::imageops::resize(t, tile, tile, image::imageops::FilterType::Triangle);
+        let (x, y) = ((i as u32 % cols) * tile, (i as u32 / cols) * tile);
+        image::imageops::replace(&mut sheet, &small, i64::from(x), i64::from(y));
+    }
+    let path = out.join("contact_sheet.png");
+    let tmp = out.join(".contact_sheet.tmp.png");
+    sheet
+        .save_with_format(&tmp, image::ImageFormat::Png)
+        .map_err(|e| AugmentError::Input(format!("cannot write '{}': {e}", tmp.display())))?;
+    fs_err::rename(&tmp, &path).map_err(io_err("rename", &tmp))?;
+    Ok(())
+}

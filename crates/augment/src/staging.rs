@@ -1,0 +1,139 @@
+//! Replay folders on disk: a replay is written whole under `.staging/` and renamed into
+//! `<task>/<episode>__rNN/`; a replay dropped under `--dynamics` keeps only its record in
+//! `.dropped/`; what an earlier run left is read back to resume.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use dexjoco_core::{CameraStream, Episode, FrameArray};
+use dexjoco_formats::fs::sync_tree;
+use dexjoco_formats::raw;
+
+use crate::config::{DROPPED, PREVIEWS, RECORD, STAGING, THIRD_PERSON};
+use crate::error::{AugmentError, io_err, sim_err};
+use crate::inputs::Source;
+use crate::report::ReplayRecord;
+
+/// What became of one replay: its folder was written, or it failed under `--dynamics`
+/// and only its record was kept (`.dropped/`).
+pub(crate) enum Outcome {
+    Kept(ReplayRecord),
+    Dropped(ReplayRecord),
+}
+
+/// The staging folder of a replay (renamed into place when complete).
+pub(crate) fn staging_dir(out: &Path, task: &str, name: &str) -> PathBuf {
+    out.join(STAGING).join(format!("{task}__{name}"))
+}
+
+/// Where the record of a replay dropped under `--dynamics` lives.
+pub(crate) fn dropped_path(out: &Path, task: &str, name: &str) -> PathBuf {
+    out.join(DROPPED).join(task).join(format!("{name}.json"))
+}
+
+/// The record of a replay folder, if it is complete.
+pub(crate) fn read_record(dir: &Path) -> Option<ReplayRecord> {
+    read_record_file(&dir.join(RECORD))
+}
+
+/// A replay record file, if it is there and readable.
+pub(crate) fn read_record_file(path: &Path) -> Option<ReplayRecord> {
+    let bytes = fs_err::read(path).ok()?;
+    serde_json::from_slice(&bytes).ok()
+}
+
+/// Keeps only the record of a replay that failed under its dynamics draw.
+pub(crate) fn write_dropped(out: &Path, record: &ReplayRecord) -> Result<(), AugmentError> {
+    let path = dropped_path(out, &record.task, &record.name);
+    dexjoco_formats::write_atomic(
+        &path,
+        &serde_json::to_vec_pretty(record).expect("serializable"),
+    )?;
+    Ok(())
+}
+
+/// The episode a replay folder holds: the source's actions (and timestamps) for the
+/// replayed frames, the replayed states, and the cameras written.
+pub(crate) fn replay_episode(
+    src: &Source,
+    name: &str,
+    states: &FrameArray,
+    cameras: &[String],
+    depth: bool,
+) -> Result<Episode, AugmentError> {
+    let id = &src.episode.id;
+    let n = states.len();
+    let mut ep = Episode {
+        id: format!("{}__{name}", src.spec.id),
+        task: src.spec.id.clone(),
+        prompt: src.episode.prompt.clone(),
+        fps: src.episode.fps,
+        arrays: BTreeMap::new(),
+        cameras: cameras
+            .iter()
+            .map(|c| CameraStream {
+                depth: depth.then(|| PathBuf::from(format!("{}/{c}_depth.npz", raw::VIDEOS))),
+                name: c.clone(),
+                video: Some(PathBuf::from(format!("{}/{c}.mp4", raw::VIDEOS))),
+            })
+            .collect(),
+    };
+    let take = |name: &str| -> Option<FrameArray> {
+        let a = src.episode.array(name)?;
+        let rows: Vec<&[f64]> = (0..n).map(|k| a.row(k)).collect();
+        FrameArray::from_rows(&rows).ok()
+    };
+    ep.arrays.insert(
+        Episode::ACTION.into(),
+        take(Episode::ACTION).expect("checked"),
+    );
+    ep.arrays.insert(Episode::STATE.into(), states.clone());
+    let ts =
+        take(Episode::TIMESTAMP).unwrap_or_else(|| Episode::regular_timestamps(n, src.episode.fps));
+    ep.arrays.insert(Episode::TIMESTAMP.into(), ts);
+    ep.compute_action_rotvec(src.spec.setup)
+        .map_err(|e| AugmentError::Input(format!("episode '{id}': {e}")))?;
+    Ok(ep)
+}
+
+/// Completes a staged replay (its videos already finished in `staging/videos/`): writes
+/// `replay.zarr`, the preview and the record, syncs, and renames the folder into
+/// `<out>/<task>/<name>`.
+pub(crate) fn commit_replay(
+    out: &Path,
+    staging: &Path,
+    ep: &Episode,
+    record: &ReplayRecord,
+    preview: Option<&dexjoco_sim::Frame>,
+) -> Result<(), AugmentError> {
+    let (task, name) = (&record.task, &record.name);
+    raw::write_replay_zarr(staging, ep)?;
+    if let Some(frame) = preview {
+        let dir = out.join(PREVIEWS);
+        fs_err::create_dir_all(&dir).map_err(io_err("create", &dir))?;
+        let path = dir.join(format!("{task}__{name}.png"));
+        let tmp = dir.join(format!(".{task}__{name}.tmp.png"));
+        frame.save_png(&tmp).map_err(sim_err(&record.episode))?;
+        fs_err::rename(&tmp, &path).map_err(io_err("rename", &tmp))?;
+    }
+    let json = serde_json::to_vec_pretty(record).expect("serializable");
+    let rec_path = staging.join(RECORD);
+    fs_err::write(&rec_path, json).map_err(io_err("write", &rec_path))?;
+    sync_tree(staging);
+    let final_dir = out.join(task).join(name);
+    let parent = final_dir.parent().expect("has parent");
+    fs_err::create_dir_all(parent).map_err(io_err("create", parent))?;
+    fs_err::rename(staging, &final_dir).map_err(io_err("rename", staging))?;
+    // A replay dropped by an earlier run without --keep-failed is now kept.
+    let _ = fs_err::remove_file(dropped_path(out, task, name));
+    tracing::debug!(replay = %final_dir.display(), "replay written");
+    Ok(())
+}
+
+/// The cameras of a replay, in video order: the randomized third-person view, then the
+/// fixed scene cameras.
+pub(crate) fn replay_cameras(fixed: &[String]) -> Vec<String> {
+    std::iter::once(THIRD_PERSON.to_owned())
+        .chain(fixed.iter().cloned())
+        .collect()
+}

@@ -1,0 +1,128 @@
+//! Every clap definition of the `dexjoco-data` command line: this file holds the
+//! top level (global options, subcommands, shared value types); `stages` the pipeline
+//! commands (ingest, export, augment, cameras, convert, stats); `tools` doctor, render
+//! and bench. Commands turn these into settings in `crate::settings`.
+
+mod stages;
+mod tools;
+
+pub use stages::*;
+pub use tools::*;
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+const AFTER_HELP: &str = "\
+Examples:
+  dexjoco-data doctor                         # check MuJoCo, EGL rendering, ffmpeg, Python readers
+  dexjoco-data render                         # render the built-in tabletop scene's cameras
+  dexjoco-data render scene.xml --camera front --depth
+  dexjoco-data bench render --frames 20       # rendering frames/s per quality preset
+  dexjoco-data ingest recordings/             # validate and store MCAP logs and raw folders
+  dexjoco-data export --to mcap               # stored episodes -> MCAP teleop logs
+  dexjoco-data augment --replays 10           # randomized replays of the sample demos
+  dexjoco-data convert                        # augment output -> LeRobot v3.0
+  dexjoco-data stats --language-eval
+
+Stages chain through the work folder (default ./dexjoco-work, one subfolder per stage),
+so `augment`, `convert` and `stats` need no paths; every path can be overridden.
+
+Exit codes:
+  0  success
+  1  the command failed (bad input, missing file, rendering unavailable...)
+  2  usage error (unknown flag, bad value)
+  3  finished, but some episodes were rejected (see the report)
+  4  this subcommand is not available in this version yet";
+
+/// Data pipeline for DexJoCo dexterous-manipulation demonstrations: ingest teleop
+/// episodes, replay them in MuJoCo under randomization, convert to LeRobot / Diffusion
+/// Policy datasets, and analyse results.
+#[derive(Debug, Parser)]
+#[command(name = "dexjoco-data", version, after_help = AFTER_HELP, propagate_version = true)]
+pub struct Cli {
+    /// Options every subcommand takes.
+    #[command(flatten)]
+    pub global: GlobalArgs,
+    /// The subcommand.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Options shared by every subcommand.
+#[derive(Debug, Args)]
+pub struct GlobalArgs {
+    /// More log output (-v: debug, -vv: trace). Logs go to stderr.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count, conflicts_with = "quiet")]
+    pub verbose: u8,
+    /// Only errors; no progress bars.
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(short, long, global = true, env = "DEXJOCO_JOBS",
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    pub jobs: Option<usize>,
+    /// Seed of every random choice; the same seed and inputs give identical outputs.
+    #[arg(long, global = true, env = "DEXJOCO_SEED", default_value_t = 0)]
+    pub seed: u64,
+    /// Work folder: each stage writes its own subfolder (ingest/, augment/, convert/,
+    /// stats/, render/, bench/) and reads the previous stage's.
+    #[arg(
+        long,
+        global = true,
+        env = "DEXJOCO_WORK_DIR",
+        default_value = "dexjoco-work"
+    )]
+    pub work_dir: PathBuf,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Report what this machine has: MuJoCo, the EGL device (GPU or software), ffmpeg
+    /// encoders and the Python readers.
+    Doctor(DoctorArgs),
+    /// Render PNGs of an MJCF scene's cameras (RGB, optional depth) and a contact sheet.
+    Render(RenderArgs),
+    /// Measure performance (rendering frames/s per quality preset and resolution).
+    #[command(subcommand)]
+    Bench(BenchCommand),
+    /// Read raw teleop episodes (MCAP logs, DexJoCo raw folders), validate and store them.
+    Ingest(IngestArgs),
+    /// Write stored episodes in another container (MCAP teleop logs).
+    Export(ExportArgs),
+    /// Replay each episode under sampled camera/light/texture randomization; keep successes.
+    Augment(AugmentArgs),
+    /// Build a third-person camera pose pool for a task: sample poses on a sphere, keep the
+    /// least occluded (the DexJoCo paper's way); `augment --camera-pool` reads it.
+    Cameras(CamerasArgs),
+    /// Convert episodes to LeRobot v3.0 / v2.1 or a Diffusion Policy Zarr replay buffer.
+    Convert(ConvertArgs),
+    /// Dataset statistics, success tables and the language-generalization analysis.
+    Stats(StatsArgs),
+}
+
+/// Rendering quality presets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum QualityArg {
+    /// 8x multisampling, shadows, reflections, skybox: as the DexJoCo reference renders.
+    Paper,
+    /// As paper, without multisampling.
+    NoMsaa,
+    /// Without multisampling and shadows.
+    NoMsaaNoShadows,
+    /// No multisampling, shadows, reflections or skybox: several times faster on a CPU.
+    Fast,
+}
+
+impl QualityArg {
+    /// The preset's name in `RenderQuality::PRESETS`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::NoMsaa => "no-msaa",
+            Self::NoMsaaNoShadows => "no-msaa-no-shadows",
+            Self::Fast => "fast",
+        }
+    }
+}

@@ -1,0 +1,200 @@
+//! Arguments of the tools around the pipeline: doctor, render, bench.
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand};
+
+use super::QualityArg;
+
+/// `doctor` options.
+#[derive(Debug, Args)]
+pub struct DoctorArgs {
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `render` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data render
+  dexjoco-data render ../shared/dexjoco-upstream/xmls/arena_arm_hand_plant.xml --quality paper
+  dexjoco-data render scene.xml --camera front --camera left --depth --size 224
+  dexjoco-data render scene.xml --steps 500 --out frames/
+  dexjoco-data render --video --steps 1000 --camera front    # 2 s clip, 30 fps, H.264
+  dexjoco-data render --task click_mouse                       # built-in scene, the task's cameras
+  dexjoco-data render --task click_mouse --scene-dir ../shared/dexjoco-upstream/xmls
+  dexjoco-data render --task all --size 320    # sheet: every built-in scene next to the reference")]
+pub struct RenderArgs {
+    /// MJCF scene file (default: the built-in tabletop scene).
+    pub scene: Option<PathBuf>,
+    /// Camera to render (repeatable; default: every camera of the scene, or a free view
+    /// when it has none).
+    #[arg(short, long = "camera")]
+    pub cameras: Vec<String>,
+    /// Image width and height in pixels (square); see --width/--height for others.
+    #[arg(long, default_value_t = 640)]
+    pub size: u32,
+    /// Image width (overrides --size).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height (overrides --size).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Quality preset.
+    #[arg(long, value_enum, default_value_t = QualityArg::Paper)]
+    pub quality: QualityArg,
+    /// Also write depth (16-bit PNG preview, near = dark) and report its range in metres.
+    #[arg(long)]
+    pub depth: bool,
+    /// Simulate this many physics steps from the initial state before rendering (with
+    /// --video: the length of the clip; default 1000 steps = 2 s).
+    #[arg(long, default_value_t = 0)]
+    pub steps: usize,
+    /// Write an H.264 video per camera (through ffmpeg) of the simulation over --steps,
+    /// instead of still images.
+    #[arg(long)]
+    pub video: bool,
+    /// Frames per second of --video (one frame per 1/fps of simulated time).
+    #[arg(long, default_value_t = 30)]
+    pub fps: u32,
+    /// Output folder (default: <work-dir>/render).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+    /// Render a task's scene at its reset (robot at home) from the task's cameras; `all`:
+    /// every task, its built-in scene next to the reference scene (when found) from the
+    /// same camera, on one contact sheet.
+    #[arg(long, conflicts_with = "scene")]
+    pub task: Option<String>,
+    /// With --task: a scene pack folder (e.g. the DexJoCo reference `xmls/`) instead of
+    /// the built-in scenes; with --task all: the reference scenes to compare with
+    /// (default: ../shared/dexjoco-upstream/xmls when present).
+    #[arg(long, requires = "task")]
+    pub scene_dir: Option<PathBuf>,
+    /// With --task: a folder of task specs (`<task_id>.toml`) that replace the built-in
+    /// ones of the same id or add tasks.
+    #[arg(long, requires = "task")]
+    pub tasks_dir: Option<PathBuf>,
+}
+
+/// `bench` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Frames/s of offscreen rendering per scene, resolution and quality preset.
+    Render(BenchRenderArgs),
+    /// Episodes/s and MB/s of `ingest` on generated raw folders and MCAP files.
+    Ingest(BenchIngestArgs),
+    /// `convert` against lerobot's own dataset writer on the same episodes, and our
+    /// peak memory for few vs many short episodes.
+    Convert(BenchConvertArgs),
+    /// `augment` (physics once per episode, parallel) against the reference approach
+    /// (re-simulate and render every replay in one process), per resolution and preset.
+    Augment(BenchAugmentArgs),
+}
+
+/// `bench augment` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data bench augment
+  dexjoco-data bench augment --replays 10 --max-frames 300 --size 640 --preset paper
+  dexjoco-data bench augment --jobs 16 datasets/demos
+
+Each configuration runs three ways on the same episodes and seed:
+  reference  re-simulate and render every replay, one after another, one thread
+             (what the DexJoCo replay script does)
+  ours x1    simulate each episode once, render every replay from it, one thread
+  ours xN    the same with N worker threads (--jobs, default: all cores)
+Outputs are written to a temporary folder and removed; the table goes to stdout and
+<work-dir>/bench/augment.json.")]
+pub struct BenchAugmentArgs {
+    /// Episodes to replay (default: the sample demos in datasets/demos).
+    pub inputs: Vec<PathBuf>,
+    /// Replays per episode.
+    #[arg(long, default_value_t = 2)]
+    pub replays: usize,
+    /// Only the first N frames of each episode (keeps the benchmark short).
+    #[arg(long, default_value_t = 60)]
+    pub max_frames: usize,
+    /// Image sizes (square), comma-separated.
+    #[arg(long = "size", value_delimiter = ',', default_values_t = [224, 640])]
+    pub sizes: Vec<u32>,
+    /// Quality presets, comma-separated.
+    #[arg(long = "preset", value_enum, value_delimiter = ',',
+          default_values_t = [QualityArg::Fast, QualityArg::Paper])]
+    pub presets: Vec<QualityArg>,
+    /// Skip the one-thread run of our approach.
+    #[arg(long)]
+    pub no_single_thread: bool,
+}
+
+/// `bench convert` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data bench convert
+  dexjoco-data bench convert --episodes 50 --frames 120 --memory-episodes 100,1000
+
+Needs the test venv (`scripts/setup.sh --python`, or DEXJOCO_PYTHON) for lerobot's writer
+and /usr/bin/time for peak memory (maximum resident set size of each child process).")]
+pub struct BenchConvertArgs {
+    /// Generated click_mouse episodes converted by both tools.
+    #[arg(long, default_value_t = 50)]
+    pub episodes: usize,
+    /// Frames per episode.
+    #[arg(long, default_value_t = 60)]
+    pub frames: usize,
+    /// Camera frame size (square; at least 64 for lerobot's AV1 encoder).
+    #[arg(long, default_value_t = 96)]
+    pub size: u32,
+    /// Episode counts for our peak-memory runs (short episodes).
+    #[arg(long, value_delimiter = ',', default_values_t = [100, 1000])]
+    pub memory_episodes: Vec<usize>,
+    /// Frames per episode in the peak-memory runs.
+    #[arg(long, default_value_t = 10)]
+    pub memory_frames: usize,
+    /// Skip lerobot's writer (our side only).
+    #[arg(long)]
+    pub no_lerobot: bool,
+}
+
+/// `bench render` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data bench render
+  dexjoco-data bench render --scene ../shared/dexjoco-upstream/xmls/arena_arm_hand_plant.xml --frames 50")]
+pub struct BenchRenderArgs {
+    /// Scenes to measure (repeatable; default: the built-in tabletop scene and, when
+    /// present, the DexJoCo reference plant scene in ../shared/dexjoco-upstream).
+    #[arg(long = "scene")]
+    pub scenes: Vec<PathBuf>,
+    /// Timed frames per row (after 3 warm-up frames).
+    #[arg(long, default_value_t = 30)]
+    pub frames: usize,
+    /// Square resolutions to measure.
+    #[arg(long, value_delimiter = ',', default_value = "224,640")]
+    pub sizes: Vec<u32>,
+    /// Presets to measure (default: all).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub presets: Vec<QualityArg>,
+    /// Camera to render (default: `front` when the scene has it, else the first camera).
+    #[arg(long)]
+    pub camera: Option<String>,
+}
+
+/// `bench ingest` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data bench ingest
+  dexjoco-data bench ingest --episodes 20 --frames 300")]
+pub struct BenchIngestArgs {
+    /// Generated episodes per input format (tasks cycle through all 11).
+    #[arg(long, default_value_t = 100)]
+    pub episodes: usize,
+    /// Frames per episode.
+    #[arg(long, default_value_t = 600)]
+    pub frames: usize,
+}

@@ -1,0 +1,418 @@
+//! Settings of each pipeline command, resolved once from its arguments and the global
+//! options (defaults from the work folder, checks of values), the way uv does it: every
+//! `resolve` destructures the whole arguments struct, so a new flag that is not handled
+//! here fails to compile.
+
+use std::path::{Path, PathBuf};
+
+use dexjoco_augment::AugmentConfig;
+use dexjoco_convert::{
+    ConvertOptions, OutputFormat, Selection, V3Options, VideoCodec, VideoOptions,
+};
+use dexjoco_core::TaskSet;
+use dexjoco_ingest::{IngestOptions, ValidationOptions};
+use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
+
+use crate::cli::{
+    AugmentArgs, CamerasArgs, ConvertArgs, ConvertFormatArg, ExportArgs, ExportFormat, GlobalArgs,
+    IngestArgs, JsBaseArg, QualityArg, StatsArgs, VideoCodecArg,
+};
+use crate::exit::{CliError, ExitStatus};
+
+/// A usage error (exit code 2) with a hint.
+pub fn usage(message: String, hint: impl Into<String>) -> anyhow::Error {
+    CliError {
+        message,
+        hint: Some(hint.into()),
+        status: ExitStatus::Usage,
+    }
+    .into()
+}
+
+/// The spec of a known task, or a usage error naming the known ones.
+pub fn known_task<'a>(tasks: &'a TaskSet, id: &str) -> anyhow::Result<&'a dexjoco_core::TaskSpec> {
+    tasks.get(id).ok_or_else(|| {
+        usage(
+            format!("unknown task '{id}'"),
+            format!("known tasks: {}", tasks.ids().join(", ")),
+        )
+    })
+}
+
+/// The render settings of a square `--size` and a `--quality` preset.
+pub fn render_settings(size: u32, quality: QualityArg) -> RenderSettings {
+    RenderSettings {
+        width: size,
+        height: size,
+        quality: RenderQuality::from_name(quality.name()).expect("every QualityArg is a preset"),
+        depth: false,
+    }
+}
+
+/// `ingest`.
+pub struct IngestSettings {
+    /// Inputs as given.
+    pub inputs: Vec<PathBuf>,
+    /// The store.
+    pub store: PathBuf,
+    /// Library options.
+    pub options: IngestOptions,
+    /// JSON report on stdout.
+    pub json: bool,
+}
+
+impl IngestSettings {
+    /// Resolves `ingest`'s arguments.
+    pub fn resolve(args: IngestArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let IngestArgs {
+            inputs,
+            store,
+            force,
+            task,
+            quat_tolerance,
+            timestep_tolerance,
+            json,
+        } = args;
+        let tasks = TaskSet::builtin().clone();
+        if let Some(t) = &task {
+            known_task(&tasks, t)?;
+        }
+        Ok(Self {
+            inputs,
+            store: store.unwrap_or_else(|| global.work_dir.join("ingest")),
+            options: IngestOptions {
+                force,
+                task,
+                validation: ValidationOptions {
+                    quat_norm_tolerance: quat_tolerance,
+                    timestep_tolerance,
+                    ..ValidationOptions::default()
+                },
+                tasks,
+            },
+            json,
+        })
+    }
+}
+
+/// `export`.
+pub struct ExportSettings {
+    /// Episode folders or stores.
+    pub inputs: Vec<PathBuf>,
+    /// Output folder.
+    pub out: PathBuf,
+    /// Container.
+    pub to: ExportFormat,
+}
+
+impl ExportSettings {
+    /// Resolves `export`'s arguments.
+    pub fn resolve(args: ExportArgs, global: &GlobalArgs) -> Self {
+        let ExportArgs { to, episodes, out } = args;
+        Self {
+            inputs: if episodes.is_empty() {
+                vec![global.work_dir.join("ingest")]
+            } else {
+                episodes
+            },
+            out: out.unwrap_or_else(|| global.work_dir.join("export")),
+            to,
+        }
+    }
+}
+
+/// `augment`.
+pub struct AugmentSettings {
+    /// The library's configuration.
+    pub config: AugmentConfig,
+}
+
+impl AugmentSettings {
+    /// Resolves `augment`'s arguments; `sample_data` gives the default input.
+    pub fn resolve(
+        args: AugmentArgs,
+        global: &GlobalArgs,
+        sample_data: impl FnOnce() -> anyhow::Result<PathBuf>,
+    ) -> anyhow::Result<Self> {
+        let AugmentArgs {
+            inputs,
+            replays,
+            scene_dir,
+            camera_pool,
+            cameras,
+            size,
+            quality,
+            keep_failed,
+            tasks_dir,
+            depth,
+            dynamics,
+            max_frames,
+            out,
+        } = args;
+        if size == 0 || !size.is_multiple_of(2) {
+            return Err(usage(
+                format!("--size {size} must be even and positive (H.264 yuv420p)"),
+                "use 640 (the reference) or 224",
+            ));
+        }
+        let inputs = if inputs.is_empty() {
+            vec![sample_data()?]
+        } else {
+            inputs
+        };
+        Ok(Self {
+            config: AugmentConfig {
+                inputs,
+                out: out.unwrap_or_else(|| global.work_dir.join("augment")),
+                replays,
+                tasks_dir,
+                seed: global.seed,
+                scene: SceneSource::from_option(scene_dir),
+                camera_pool,
+                cameras,
+                settings: render_settings(size, quality),
+                keep_failed,
+                max_frames,
+                resimulate_per_replay: false,
+                contact_sheet: true,
+                depth,
+                dynamics,
+            },
+        })
+    }
+}
+
+/// `cameras`.
+pub struct CamerasSettings {
+    /// Task id.
+    pub task: String,
+    /// Where the scene comes from.
+    pub scene: SceneSource,
+    /// Pool options.
+    pub options: dexjoco_augment::PoolOptions,
+    /// Pool file.
+    pub out: PathBuf,
+    /// Also a preview sheet.
+    pub preview: bool,
+}
+
+impl CamerasSettings {
+    /// Resolves `cameras`' arguments.
+    pub fn resolve(args: CamerasArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let CamerasArgs {
+            task,
+            scene_dir,
+            count,
+            candidates,
+            distance,
+            elevation,
+            azimuth,
+            out,
+            preview,
+        } = args;
+        let spec = known_task(TaskSet::builtin(), &task)?;
+        let mut options = dexjoco_augment::PoolOptions::for_setup(spec.setup);
+        options.count = count;
+        options.candidates = candidates;
+        options.seed = global.seed;
+        if let Some(d) = distance {
+            options.distance = d;
+        }
+        if let Some(e) = elevation {
+            options.elevation = (e[0], e[1]);
+        }
+        if let Some(a) = azimuth {
+            options.azimuth = (a[0], a[1]);
+        }
+        Ok(Self {
+            out: out
+                .unwrap_or_else(|| global.work_dir.join("cameras").join(format!("{task}.json"))),
+            task,
+            scene: SceneSource::from_option(scene_dir),
+            options,
+            preview,
+        })
+    }
+}
+
+/// `convert`.
+pub struct ConvertSettings {
+    /// Episode store or folder.
+    pub input: PathBuf,
+    /// Dataset folder.
+    pub out: PathBuf,
+    /// Library options.
+    pub options: ConvertOptions,
+}
+
+impl ConvertSettings {
+    /// Resolves `convert`'s arguments.
+    pub fn resolve(args: ConvertArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let ConvertArgs {
+            input,
+            out,
+            format,
+            config,
+            overwrite,
+            no_skip_static,
+            merge_bimanual,
+            exclude,
+            reencode,
+            video_codec,
+            robot_type,
+            videos,
+            norm_stats,
+            norm_stats_horizon,
+        } = args;
+        let input = match input {
+            Some(p) => p,
+            None => {
+                let default = global.work_dir.join("augment");
+                if !default.is_dir() {
+                    return Err(CliError {
+                        message: format!(
+                            "no input: the augment stage's output {} does not exist",
+                            default.display()
+                        ),
+                        hint: Some(
+                            "pass --input DIR: an episode store (`dexjoco-data ingest` makes one) or a folder of \
+                             DexJoCo raw episode folders (replay.zarr + videos/)"
+                                .into(),
+                        ),
+                        status: ExitStatus::Failure,
+                    }
+                    .into());
+                }
+                default
+            }
+        };
+        let (format, format_dir) = match format {
+            ConvertFormatArg::DiffusionPolicy => {
+                (OutputFormat::DiffusionPolicy, "diffusion-policy")
+            }
+            ConvertFormatArg::LerobotV21 => (OutputFormat::LeRobotV21, "lerobot-v2.1"),
+            ConvertFormatArg::LerobotV3 => (OutputFormat::LeRobotV3, "lerobot-v3"),
+        };
+        if videos && format != OutputFormat::DiffusionPolicy {
+            return Err(usage(
+                "--videos applies to --format diffusion-policy only".into(),
+                "LeRobot formats always carry their videos",
+            ));
+        }
+        let out = out.unwrap_or_else(|| global.work_dir.join("convert").join(format_dir));
+        let mut selection = match &config {
+            None => Selection::default(),
+            Some(p) if p.is_dir() => Selection::from_reference_dir(p)?,
+            Some(p) => Selection::load(p)?,
+        };
+        if no_skip_static {
+            selection.skip_static_frames = false;
+        }
+        if merge_bimanual {
+            selection.merge_bimanual = true;
+        }
+        selection.bad_episodes.extend(exclude);
+        Ok(Self {
+            input,
+            out,
+            options: ConvertOptions {
+                format,
+                videos,
+                norm_stats: norm_stats.then_some(norm_stats_horizon),
+                selection,
+                video: VideoOptions {
+                    codec: match video_codec {
+                        VideoCodecArg::Av1 => VideoCodec::Av1,
+                        VideoCodecArg::H264 => VideoCodec::H264,
+                    },
+                    reencode,
+                },
+                v3: V3Options {
+                    robot_type: Some(robot_type),
+                    ..V3Options::default()
+                },
+                overwrite,
+                ..ConvertOptions::default()
+            },
+        })
+    }
+}
+
+/// `stats`.
+pub struct StatsSettings {
+    /// Language evaluation input, when asked (None inside: the shipped example).
+    pub language_eval: Option<Option<PathBuf>>,
+    /// Success-table input, when asked.
+    pub success_table: Option<Option<PathBuf>>,
+    /// Dataset to describe, when asked.
+    pub dataset: Option<PathBuf>,
+    /// Output folder.
+    pub out: PathBuf,
+    /// Options of the language analysis.
+    pub language: dexjoco_stats::LanguageOptions,
+    /// JSON on stdout.
+    pub json: bool,
+}
+
+impl StatsSettings {
+    /// Resolves `stats`' arguments.
+    pub fn resolve(args: StatsArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let StatsArgs {
+            language_eval,
+            success_table,
+            dataset,
+            out,
+            js_base,
+            alpha,
+            nmi_weak,
+            json,
+        } = args;
+        if language_eval.is_none() && success_table.is_none() && dataset.is_none() {
+            return Err(usage(
+                "nothing to do: say which statistics to make".into(),
+                "`dexjoco-data stats --language-eval` or `--success-table` (each on the shipped example input \
+                 without a path), or `--dataset` (the ingest store)",
+            ));
+        }
+        if !(alpha > 0.0 && alpha < 1.0) {
+            return Err(usage(
+                format!("--alpha {alpha} is not in (0, 1)"),
+                "for example --alpha 0.01",
+            ));
+        }
+        if !(0.0..=1.0).contains(&nmi_weak) {
+            return Err(usage(
+                format!("--nmi-weak {nmi_weak} is not in [0, 1]"),
+                "for example --nmi-weak 0.1",
+            ));
+        }
+        Ok(Self {
+            language_eval,
+            success_table,
+            dataset: dataset.map(|d| d.unwrap_or_else(|| global.work_dir.join("ingest"))),
+            out: out.unwrap_or_else(|| global.work_dir.join("stats")),
+            language: dexjoco_stats::LanguageOptions {
+                alpha,
+                nmi_weak,
+                js_base: match js_base {
+                    JsBaseArg::Two => dexjoco_stats::LogBase::Two,
+                    JsBaseArg::E => dexjoco_stats::LogBase::E,
+                },
+            },
+            json,
+        })
+    }
+}
+
+/// Whether `path` exists (as a file, folder or link), else a failure naming it.
+pub fn must_exist(path: &Path, hint: &str) -> anyhow::Result<()> {
+    if fs_err::symlink_metadata(path).is_err() {
+        return Err(CliError {
+            message: format!("input '{}' does not exist", path.display()),
+            hint: Some(hint.into()),
+            status: ExitStatus::Failure,
+        }
+        .into());
+    }
+    Ok(())
+}
