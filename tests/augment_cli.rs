@@ -27,7 +27,7 @@ fn augment(out: &Path) -> Command {
 /// Finished replay folders (those holding their record).
 fn finished(out: &Path) -> Vec<PathBuf> {
     let dir = out.join("click_mouse");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
+    let mut v: Vec<PathBuf> = fs_err::read_dir(&dir)
         .map(|rd| rd.flatten().map(|e| e.path()).collect())
         .unwrap_or_default();
     v.sort();
@@ -73,8 +73,7 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
     assert_eq!(after.len(), 6);
     assert!(!killed.join(".staging").exists());
     let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(killed.join("augment_report.json")).unwrap())
-            .unwrap();
+        serde_json::from_slice(&fs_err::read(killed.join("augment_report.json")).unwrap()).unwrap();
     assert_eq!(report["replays"].as_array().unwrap().len(), 6);
     assert_eq!(
         report["rendered_now"].as_u64().unwrap(),
@@ -117,7 +116,7 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
         "{stdout}"
     );
     let replays: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(stats_out.join("dataset/replay_success.json")).unwrap(),
+        &fs_err::read(stats_out.join("dataset/replay_success.json")).unwrap(),
     )
     .unwrap();
     assert_eq!(replays["tasks"][0]["replays_successful"], 6);

@@ -272,7 +272,7 @@ fn bench_augment_compares_with_the_reference_approach() {
         assert!(table.contains(row), "{row} missing:\n{table}");
     }
     let json: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.path().join("dexjoco-work/bench/augment.json")).unwrap(),
+        &fs_err::read_to_string(dir.path().join("dexjoco-work/bench/augment.json")).unwrap(),
     )
     .unwrap();
     let runs = json["runs"].as_array().unwrap();
@@ -312,7 +312,7 @@ fn bench_render_prints_a_table() {
         "{table}"
     );
     let json: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.path().join("dexjoco-work/bench/render.json")).unwrap(),
+        &fs_err::read_to_string(dir.path().join("dexjoco-work/bench/render.json")).unwrap(),
     )
     .unwrap();
     assert_eq!(json["rows"].as_array().unwrap().len(), 2);
@@ -393,7 +393,7 @@ fn convert_input(dir: &Path) -> PathBuf {
         };
         ep.compute_action_rotvec(ArmSetup::SingleArm).unwrap();
         let d = input.join("click_mouse").join(format!("episode_{e:06}"));
-        std::fs::create_dir_all(d.join("videos")).unwrap();
+        fs_err::create_dir_all(d.join("videos")).unwrap();
         dexjoco_formats::raw::write_replay_zarr(&d, &ep).unwrap();
         let spec = dexjoco_video::VideoSpec {
             width: 64,
@@ -448,7 +448,7 @@ fn convert_writes_lerobot_v3_and_refuses_to_overwrite() {
         text(&out.stdout)
     );
     let info: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.path().join("ds/meta/info.json")).unwrap(),
+        &fs_err::read_to_string(dir.path().join("ds/meta/info.json")).unwrap(),
     )
     .unwrap();
     assert_eq!(info["total_frames"], 13);
@@ -477,7 +477,7 @@ fn convert_writes_lerobot_v3_and_refuses_to_overwrite() {
 
     // A broken episode is left out and named; the other is written; exit code 3.
     let broken = input.join("click_mouse/episode_000000");
-    std::fs::remove_file(broken.join("videos/front.mp4")).unwrap();
+    fs_err::remove_file(broken.join("videos/front.mp4")).unwrap();
     let mut over = args.to_vec();
     over.push("--overwrite");
     let out = run(&over, dir.path());
@@ -520,8 +520,7 @@ fn convert_writes_diffusion_policy_v21_and_norm_stats() {
     );
     assert!(dp.join("videos/1/0.mp4").is_file());
     let norm: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dp.join("norm_stats.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&fs_err::read_to_string(dp.join("norm_stats.json")).unwrap()).unwrap();
     assert_eq!(
         norm["norm_stats"]["actions"]["q99"]
             .as_array()
@@ -597,8 +596,8 @@ fn render_task_uses_the_specs_built_in_outside_the_checkout() {
 
     // --tasks-dir adds to the built-in specs; a broken file there is named.
     let specs = dir.path().join("specs");
-    std::fs::create_dir(&specs).unwrap();
-    std::fs::write(specs.join("my_task.toml"), "id = \"my_task\"\nbogus = 1\n").unwrap();
+    fs_err::create_dir(&specs).unwrap();
+    fs_err::write(specs.join("my_task.toml"), "id = \"my_task\"\nbogus = 1\n").unwrap();
     let out = run(
         &[
             "render",
@@ -638,7 +637,7 @@ fn cameras_writes_a_pool_that_augment_uses() {
     assert!(stdout.contains("10 of 200 poses kept"), "{stdout}");
     assert!(dir.path().join("pool_preview.png").is_file());
     let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&pool).unwrap()).unwrap();
+        serde_json::from_str(&fs_err::read_to_string(&pool).unwrap()).unwrap();
     let rows = json["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 10);
     assert!(rows.iter().all(|r| r[2] == 1.4 && r[3] == 45.0));
@@ -667,7 +666,7 @@ fn cameras_writes_a_pool_that_augment_uses() {
     // The first 3 frames do not reach success: exit 3 (partial), replay kept.
     assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
     let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(aug.join("augment_report.json")).unwrap())
+        serde_json::from_str(&fs_err::read_to_string(aug.join("augment_report.json")).unwrap())
             .unwrap();
     assert_eq!(
         report["camera_pools"]["click_mouse"].as_str().unwrap(),

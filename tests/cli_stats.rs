@@ -139,7 +139,7 @@ fn dataset_statistics_of_raw_episode_folders_leave_out_unreadable_ones() {
     }
 
     // A broken episode (an empty replay.zarr) is named and left out; exit code 3.
-    std::fs::create_dir_all(data.join("click_mouse/episode_000009/replay.zarr")).unwrap();
+    fs_err::create_dir_all(data.join("click_mouse/episode_000009/replay.zarr")).unwrap();
     let out = stats(
         work.path(),
         &["--dataset", data.to_str().unwrap(), "--json"],

@@ -28,7 +28,7 @@ fn cli() -> Command {
 }
 
 fn manifest(store: &Path) -> Manifest {
-    serde_json::from_slice(&std::fs::read(store.join("manifest.json")).unwrap()).unwrap()
+    serde_json::from_slice(&fs_err::read(store.join("manifest.json")).unwrap()).unwrap()
 }
 
 fn write_inputs(root: &Path, n: usize, frames: usize) {
@@ -62,7 +62,7 @@ fn exit_code_is_3_when_anything_is_rejected_and_0_otherwise() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("3 landed"), "{stdout}");
 
-    std::fs::write(input.join("empty.mcap"), b"").unwrap();
+    fs_err::write(input.join("empty.mcap"), b"").unwrap();
     let out = cli()
         .args(["-q", "ingest"])
         .arg(&input)
@@ -144,7 +144,7 @@ fn an_ingest_killed_midway_completes_on_rerun_without_duplicates_or_half_episode
     // reads back completely).
     let mut landed_before = 0;
     for task in tasks() {
-        let Ok(rd) = std::fs::read_dir(store.join(&task.id)) else {
+        let Ok(rd) = fs_err::read_dir(store.join(&task.id)) else {
             continue;
         };
         for e in rd.flatten() {
@@ -181,7 +181,7 @@ fn an_ingest_killed_midway_completes_on_rerun_without_duplicates_or_half_episode
     assert_eq!(ids.len(), n, "no duplicate ids");
     let mut folders = 0;
     for task in tasks() {
-        for e in std::fs::read_dir(store.join(&task.id)).unwrap().flatten() {
+        for e in fs_err::read_dir(store.join(&task.id)).unwrap().flatten() {
             read_stored_episode(&e.path()).unwrap();
             folders += 1;
         }

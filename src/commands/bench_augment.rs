@@ -34,13 +34,13 @@ fn timed(config: &AugmentConfig, threads: usize) -> anyhow::Result<(AugmentRepor
         .thread_name(|i| format!("bench-augment-{i}"))
         .build()
         .context("starting worker threads")?;
-    let _ = std::fs::remove_dir_all(&config.out);
+    let _ = fs_err::remove_dir_all(&config.out);
     let t = Instant::now();
     let report = pool
         .install(|| augment(config, &dexjoco_core::NoProgress))
         .with_context(|| format!("augmenting into {}", config.out.display()))?;
     let seconds = t.elapsed().as_secs_f64();
-    let _ = std::fs::remove_dir_all(&config.out);
+    let _ = fs_err::remove_dir_all(&config.out);
     Ok((report, seconds))
 }
 

@@ -107,7 +107,7 @@ fn python() -> Option<PathBuf> {
         return Some(p.into());
     }
     let recorded = Path::new(env!("CARGO_MANIFEST_DIR")).join(".deps/python-path");
-    if let Ok(p) = std::fs::read_to_string(recorded) {
+    if let Ok(p) = fs_err::read_to_string(recorded) {
         let p = PathBuf::from(p.trim());
         if p.is_file() {
             return Some(p);

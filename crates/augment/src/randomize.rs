@@ -441,7 +441,7 @@ mod tests {
         let q = CameraPool::load(&dir.join("replay_cameras_2.json")).unwrap();
         assert!(q.poses.iter().all(|c| (c.distance - 2.4).abs() < 1e-5));
         let bad = std::env::temp_dir().join("dexjoco-augment-bad-pool.json");
-        std::fs::write(&bad, r#"{"rows": [[1.0, 2.0]]}"#).unwrap();
+        fs_err::write(&bad, r#"{"rows": [[1.0, 2.0]]}"#).unwrap();
         let e = CameraPool::load(&bad).unwrap_err().to_string();
         assert!(e.contains("row 0"), "{e}");
     }

@@ -375,7 +375,7 @@ fn dynamics_are_drawn_in_the_spec_ranges_per_replay_and_change_the_physics() {
 
 /// Copies the folder `src` to `dst` (parents made), as `cp -r` does.
 fn copy_dir(src: &Path, dst: &Path) {
-    std::fs::create_dir_all(dst.parent().unwrap()).unwrap();
+    fs_err::create_dir_all(dst.parent().unwrap()).unwrap();
     let status = std::process::Command::new("cp")
         .args(["-r", src.to_str().unwrap(), dst.to_str().unwrap()])
         .status()
@@ -390,9 +390,9 @@ fn a_bad_input_is_skipped_and_named_while_the_rest_is_replayed() {
     let broken = tmp.path().join("click_mouse/episode_000007");
     let src = demos().join("click_mouse/episode_000000");
     copy_dir(&src, &broken);
-    std::fs::remove_dir_all(broken.join("replay.zarr/data/action")).unwrap();
+    fs_err::remove_dir_all(broken.join("replay.zarr/data/action")).unwrap();
     let junk = tmp.path().join("junk.mcap");
-    std::fs::write(&junk, b"not an mcap").unwrap();
+    fs_err::write(&junk, b"not an mcap").unwrap();
     // A one-arm recording filed under a two-arm task: read, then rejected by the scene.
     let misfiled = tmp.path().join("two/bimanual_unlock_ipad/episode_000009");
     copy_dir(&src, &misfiled);
@@ -430,7 +430,7 @@ fn a_bad_input_is_skipped_and_named_while_the_rest_is_replayed() {
         reason.contains("episode_000009") && reason.contains("61"),
         "{reason}"
     );
-    let md = std::fs::read_to_string(tmp.path().join("out/augment_report.md")).unwrap();
+    let md = fs_err::read_to_string(tmp.path().join("out/augment_report.md")).unwrap();
     assert!(md.contains("Skipped inputs (4)"), "{md}");
 
     // Nothing replayable at all: an error with the first reason.
@@ -447,13 +447,13 @@ fn replays_failing_under_their_dynamics_draw_are_recorded_once_and_kept_on_reque
     // Own specs: the mouse up to 20 times heavier, so some draws fail the task.
     let tmp = tempfile::tempdir().unwrap();
     let specs = tmp.path().join("specs");
-    std::fs::create_dir(&specs).unwrap();
-    let text = std::fs::read_to_string(
+    fs_err::create_dir(&specs).unwrap();
+    let text = fs_err::read_to_string(
         dexjoco_testkit::workspace_root().join("schemas/tasks/click_mouse.toml"),
     )
     .unwrap();
     assert!(text.contains("range = [0.75, 1.25]"));
-    std::fs::write(
+    fs_err::write(
         specs.join("click_mouse.toml"),
         text.replace("range = [0.75, 1.25]", "range = [1.0, 20.0]"),
     )
@@ -480,7 +480,7 @@ fn replays_failing_under_their_dynamics_draw_are_recorded_once_and_kept_on_reque
         assert!(!out.join("click_mouse").join(&d.name).exists());
     }
     let stamp = |name: &str| {
-        std::fs::metadata(
+        fs_err::metadata(
             out.join(".dropped/click_mouse")
                 .join(format!("{name}.json")),
         )

@@ -68,7 +68,7 @@ fn pools_are_on_the_band_deterministic_and_keep_the_least_occluded() {
     // The written file is a pool augment reads.
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("pool.json");
-    std::fs::write(&f, a.to_json()).unwrap();
+    fs_err::write(&f, a.to_json()).unwrap();
     let pool = CameraPool::load(&f).unwrap();
     assert_eq!(pool.poses, a.pool("x").poses);
 

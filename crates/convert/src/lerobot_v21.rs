@@ -33,8 +33,8 @@ pub struct V21Writer {
     action_names: Vec<String>,
     state_names: Vec<String>,
     cameras: Vec<CameraSpec>,
-    episodes: std::fs::File,
-    episodes_stats: std::fs::File,
+    episodes: fs_err::File,
+    episodes_stats: fs_err::File,
     /// Per episode, its statistics (kept for stats.json; a few hundred numbers each).
     stats: Vec<BTreeMap<String, FeatureStats>>,
     tasks: Vec<String>,
@@ -51,7 +51,7 @@ impl std::fmt::Debug for V21Writer {
     }
 }
 
-fn jsonl_line(file: &mut std::fs::File, value: &Value) -> Result<(), ConvertError> {
+fn jsonl_line(file: &mut fs_err::File, value: &Value) -> Result<(), ConvertError> {
     let mut line = serde_json::to_string(value).expect("JSON values serialize");
     line.push('\n');
     file.write_all(line.as_bytes())?;
@@ -82,8 +82,8 @@ impl V21Writer {
         let root = root.into();
         let meta = root.join("meta");
         fs_err::create_dir_all(&meta)?;
-        let open = |name: &str| -> Result<std::fs::File, ConvertError> {
-            Ok(fs_err::File::create(meta.join(name))?.into_parts().0)
+        let open = |name: &str| -> Result<fs_err::File, ConvertError> {
+            Ok(fs_err::File::create(meta.join(name))?)
         };
         Ok(Self {
             episodes: open("episodes.jsonl")?,
@@ -201,9 +201,7 @@ impl V21Writer {
         self.episodes.flush()?;
         self.episodes_stats.flush()?;
         let meta = self.root.join("meta");
-        let mut tasks = fs_err::File::create(meta.join("tasks.jsonl"))?
-            .into_parts()
-            .0;
+        let mut tasks = fs_err::File::create(meta.join("tasks.jsonl"))?;
         for (i, t) in self.tasks.iter().enumerate() {
             jsonl_line(&mut tasks, &json!({"task_index": i, "task": t}))?;
         }

@@ -158,7 +158,7 @@ struct EpisodeRow {
 }
 
 struct DataFile {
-    writer: ArrowWriter<std::fs::File>,
+    writer: ArrowWriter<fs_err::File>,
     path: PathBuf,
 }
 
@@ -308,7 +308,7 @@ impl V3Writer {
                 "parquet",
             );
             fs_err::create_dir_all(path.parent().expect("has parent"))?;
-            let file = fs_err::File::create(&path)?.into_parts().0;
+            let file = fs_err::File::create(&path)?;
             let writer = ArrowWriter::try_new(file, batch.schema(), Some(pq::props()))
                 .map_err(|e| parquet_err(&path)(e.to_string()))?;
             self.data = Some(DataFile { writer, path });

@@ -111,7 +111,7 @@ pub(crate) fn batch(
 pub(crate) fn write_file(path: &Path, batch: &RecordBatch) -> Result<(), ConvertError> {
     let file = fs_err::File::create(path)?;
     let err = parquet_err(path);
-    let mut w = ArrowWriter::try_new(file.into_parts().0, batch.schema(), Some(props()))
+    let mut w = ArrowWriter::try_new(file, batch.schema(), Some(props()))
         .map_err(|e| err(e.to_string()))?;
     w.write(batch).map_err(|e| err(e.to_string()))?;
     w.close().map_err(|e| err(e.to_string()))?;

@@ -127,7 +127,7 @@ fn replay_buffer_opens_in_diffusion_policy_with_source_values() {
 
     // Videos beside the store, one per episode and camera, trimmed like the arrays.
     let map: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("videos/name_map.json")).unwrap())
+        serde_json::from_str(&fs_err::read_to_string(out.join("videos/name_map.json")).unwrap())
             .unwrap();
     assert_eq!(map["cameras"], serde_json::json!(["front", "wrist"]));
     assert_eq!(map["episodes"][1], "episode_000001");
@@ -154,7 +154,7 @@ fn replay_buffer_opens_in_diffusion_policy_with_source_values() {
 /// openpi's statistics equal an independent numpy computation on the same arrays.
 fn check_norm_stats(out: &Path, zarr: &Path) {
     let ours: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("norm_stats.json")).unwrap())
+        serde_json::from_str(&fs_err::read_to_string(out.join("norm_stats.json")).unwrap())
             .unwrap();
     let want = dexjoco_testkit::run_python_json(
         "openpi_norm_stats_ref.py",

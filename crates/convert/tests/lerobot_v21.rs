@@ -10,7 +10,7 @@ use dexjoco_core::NoProgress;
 use serde_json::Value;
 
 fn read_json(p: &std::path::Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    serde_json::from_str(&fs_err::read_to_string(p).unwrap()).unwrap()
 }
 
 #[test]
@@ -49,18 +49,18 @@ fn v21_converts_with_lerobots_script_and_loads() {
         assert_eq!(times.len(), [10, 13, 9][e], "{}", v.display());
         assert!(times[0].abs() < 1e-6, "episode {e} video starts at 0");
     }
-    let episodes = std::fs::read_to_string(out.join("meta/episodes.jsonl")).unwrap();
+    let episodes = fs_err::read_to_string(out.join("meta/episodes.jsonl")).unwrap();
     let lines: Vec<Value> = episodes
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
     assert_eq!(lines.len(), 3);
     assert_eq!(lines[1]["length"], 13);
-    let stats = std::fs::read_to_string(out.join("meta/episodes_stats.jsonl")).unwrap();
+    let stats = fs_err::read_to_string(out.join("meta/episodes_stats.jsonl")).unwrap();
     let first: Value = serde_json::from_str(stats.lines().next().unwrap()).unwrap();
     assert_eq!(first["stats"]["action"]["count"][0], 10);
     assert!(first["stats"]["observation.images.front"]["mean"][0][0][0].is_number());
-    let tasks = std::fs::read_to_string(out.join("meta/tasks.jsonl")).unwrap();
+    let tasks = fs_err::read_to_string(out.join("meta/tasks.jsonl")).unwrap();
     assert!(tasks.contains("Click the mouse."), "{tasks}");
 
     // The parquet carries the huggingface features the v2.1 loader builds its types from.

@@ -43,8 +43,7 @@ fn stream_copied_h264_loads_in_lerobot_with_pyav_and_torchcodec() {
         assert!((t - k as f64 / 30.0).abs() < 1e-4, "frame {k} at {t}");
     }
     let info: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("meta/info.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&fs_err::read_to_string(out.join("meta/info.json")).unwrap()).unwrap();
     assert_eq!(info["codebase_version"], "v3.0");
     assert_eq!(info["total_frames"], 32);
     assert_eq!(info["total_tasks"], 2);
@@ -66,7 +65,7 @@ fn stream_copied_h264_loads_in_lerobot_with_pyav_and_torchcodec() {
         );
     }
     // No leftovers beside the dataset.
-    let names: Vec<String> = std::fs::read_dir(out_dir.path())
+    let names: Vec<String> = fs_err::read_dir(out_dir.path())
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
@@ -104,8 +103,8 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
     let fx = fixture();
     let out_dir = tempfile::tempdir().unwrap();
     let out = out_dir.path().join("dataset");
-    std::fs::create_dir_all(&out).unwrap();
-    std::fs::write(out.join("keep.txt"), "x").unwrap();
+    fs_err::create_dir_all(&out).unwrap();
+    fs_err::write(out.join("keep.txt"), "x").unwrap();
     let opts = options(VideoOptions::default());
     let err = convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &NoProgress).unwrap_err();
     assert!(err.to_string().contains("not empty"), "{err}");
@@ -131,7 +130,7 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
         "{err}"
     );
     assert!(out.join("keep.txt").exists());
-    assert_eq!(std::fs::read_dir(out_dir.path()).unwrap().count(), 1);
+    assert_eq!(fs_err::read_dir(out_dir.path()).unwrap().count(), 1);
 
     // One episode lacks it and one input cannot be read: those two are left out and
     // named, the rest is written.
@@ -158,7 +157,7 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
     assert!(s.failed[0].reason.contains("handcam_rgb"), "{:?}", s.failed);
     assert!(s.failed[1].reason.contains("replay.zarr is missing"));
     let info: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("meta/info.json")).unwrap()).unwrap();
+        serde_json::from_slice(&fs_err::read(out.join("meta/info.json")).unwrap()).unwrap();
     assert_eq!(info["total_episodes"], 2);
 
     // The first episode is the broken one: the layout is still the others', and the
@@ -178,7 +177,7 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
         assert_eq!(failed, ["episode_000000"]);
         assert!(s.failed[0].reason.contains("handcam_rgb"), "{:?}", s.failed);
         trees.push(dexjoco_testkit::file_tree(&dir));
-        std::fs::remove_dir_all(&dir).unwrap();
+        fs_err::remove_dir_all(&dir).unwrap();
     }
     assert_eq!(trees[0], trees[1]);
 

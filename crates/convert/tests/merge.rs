@@ -57,7 +57,7 @@ fn bimanual_episode(dir: &std::path::Path) -> InputEpisode {
     };
     episode.compute_action_rotvec(ArmSetup::Bimanual).unwrap();
     let ep_dir = dir.join(&episode.id);
-    std::fs::create_dir_all(ep_dir.join("videos")).unwrap();
+    fs_err::create_dir_all(ep_dir.join("videos")).unwrap();
     for (c, cam) in ["ego", "wrist_right"].iter().enumerate() {
         let rel = PathBuf::from(format!("videos/{cam}.mp4"));
         write_video(&ep_dir.join(&rel), n, |k| {
@@ -111,8 +111,7 @@ fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
     let s = convert(inputs.iter().cloned().map(Ok), &out, &opts, &NoProgress).unwrap();
     assert_eq!((s.episodes, s.frames), (4, 40));
     let info: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("meta/info.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&fs_err::read_to_string(out.join("meta/info.json")).unwrap()).unwrap();
     assert_eq!(info["total_tasks"], 3);
     assert_eq!(info["features"]["action"]["shape"][0], 44);
     assert_eq!(info["features"]["observation.state"]["shape"][0], 46);

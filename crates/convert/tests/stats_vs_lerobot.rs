@@ -108,13 +108,13 @@ fn statistics_equal_lerobots_own_code() {
         .collect();
     let dir = tempfile::tempdir().unwrap();
     let raw = dir.path().join("frames.u8");
-    std::fs::write(&raw, &pixels).unwrap();
+    fs_err::write(&raw, &pixels).unwrap();
     let spec = json!({
         "episodes": episodes,
         "images": {"path": raw, "frames": frames, "height": h, "width": w},
     });
     let spec_path = dir.path().join("spec.json");
-    std::fs::write(&spec_path, spec.to_string()).unwrap();
+    fs_err::write(&spec_path, spec.to_string()).unwrap();
     let theirs =
         dexjoco_testkit::run_python_json("lerobot_stats.py", &[spec_path.to_str().unwrap()]);
 

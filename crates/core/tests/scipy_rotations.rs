@@ -54,7 +54,7 @@ fn rotations_match_scipy() {
     }
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("rotations.json");
-    std::fs::write(
+    fs_err::write(
         &input,
         serde_json::json!({ "quats": quats, "rotvecs": rotvecs }).to_string(),
     )

@@ -257,7 +257,7 @@ mod tests {
     use super::*;
 
     fn touch_raw(dir: &Path) {
-        std::fs::create_dir_all(dir.join(REPLAY_ZARR)).unwrap();
+        fs_err::create_dir_all(dir.join(REPLAY_ZARR)).unwrap();
     }
 
     #[test]
@@ -267,8 +267,8 @@ mod tests {
         touch_raw(&root.join("b/click_mouse/episode_000001"));
         touch_raw(&root.join("b/click_mouse/episode_000000"));
         touch_raw(&root.join("b/.staging/click_mouse/episode_000002"));
-        std::fs::write(root.join("a.MCAP"), b"x").unwrap();
-        std::fs::write(root.join("notes.txt"), b"x").unwrap();
+        fs_err::write(root.join("a.MCAP"), b"x").unwrap();
+        fs_err::write(root.join("notes.txt"), b"x").unwrap();
         // A store: only its landed episodes (not the quarantined copy) are read.
         let store = root.join("c");
         touch_raw(&store.join("quarantine/q1/source/x"));
@@ -286,7 +286,7 @@ mod tests {
             problems: Vec::new(),
             notes: Vec::new(),
         });
-        std::fs::write(store.join(MANIFEST), serde_json::to_vec(&m).unwrap()).unwrap();
+        fs_err::write(store.join(MANIFEST), serde_json::to_vec(&m).unwrap()).unwrap();
         let found = discover(&[root.to_owned(), root.join("a.MCAP")], None).unwrap();
         let rel: Vec<_> = found
             .iter()

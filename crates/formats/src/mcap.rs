@@ -660,7 +660,7 @@ mod tests {
             ..EpisodeMeta::default()
         };
         write_episode_mcap(&path, &ep, task, &meta).unwrap();
-        let bytes = std::fs::read(&path).unwrap();
+        let bytes = fs_err::read(&path).unwrap();
         let back = read_episode_mcap(&path, &bytes, TaskSet::builtin()).unwrap();
         assert_eq!(back.meta.operator.as_deref(), Some("op"));
         assert_eq!(back.episode.id, ep.id);
@@ -680,7 +680,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("ep.mcap");
         write_episode_mcap(&path, &ep, task, &EpisodeMeta::default()).unwrap();
-        let bytes = std::fs::read(&path).unwrap();
+        let bytes = fs_err::read(&path).unwrap();
         for cut in [bytes.len() - 1, bytes.len() / 2, 9] {
             match read_episode_mcap(&path, &bytes[..cut], TaskSet::builtin()) {
                 Err(FormatError::Input(p)) => {

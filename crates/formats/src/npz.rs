@@ -47,7 +47,7 @@ fn npy_header(shape: &[usize]) -> Vec<u8> {
 
 /// Streams depth frames into `<camera>_depth.npz`.
 pub struct DepthWriter {
-    zip: zip::ZipWriter<BufWriter<std::fs::File>>,
+    zip: zip::ZipWriter<BufWriter<fs_err::File>>,
     tmp: PathBuf,
     path: PathBuf,
     frames: usize,
@@ -66,7 +66,7 @@ impl DepthWriter {
     ) -> Result<Self> {
         let path = path.into();
         let tmp = path.with_extension("npz.tmp");
-        let file = std::fs::File::create(&tmp).map_err(io_err("create", &tmp))?;
+        let file = fs_err::File::create(&tmp).map_err(io_err("create", &tmp))?;
         let mut zip = zip::ZipWriter::new(BufWriter::new(file));
         let (w, h) = (width as usize, height as usize);
         let bytes = frames * w * h * 4 + 128;
@@ -160,7 +160,7 @@ pub fn read_depth_npz(path: &Path) -> Result<((usize, usize, usize), Vec<f32>)> 
         path: path.to_path_buf(),
         source: std::io::Error::new(std::io::ErrorKind::InvalidData, what),
     };
-    let file = std::fs::File::open(path).map_err(io_err("open", path))?;
+    let file = fs_err::File::open(path).map_err(io_err("open", path))?;
     let mut zip = zip::ZipArchive::new(file).map_err(|e| bad(e.to_string()))?;
     let mut member = zip
         .by_name(&format!("{DEPTH_KEY}.npy"))

@@ -273,7 +273,7 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
     ]
     .map(str::to_owned)
     .to_vec();
-    if let Ok(rd) = std::fs::read_dir(zarr.join("data")) {
+    if let Ok(rd) = fs_err::read_dir(zarr.join("data")) {
         let mut extra: Vec<String> = rd
             .flatten()
             .filter(|e| e.path().join(".zarray").is_file())

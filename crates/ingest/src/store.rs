@@ -186,7 +186,7 @@ impl Store {
         };
         let mut recovered = 0;
         for entry_file in Self::entry_files(&root)? {
-            let Ok(bytes) = std::fs::read(&entry_file) else {
+            let Ok(bytes) = fs_err::read(&entry_file) else {
                 continue;
             };
             let Ok(entry) = serde_json::from_slice::<ManifestEntry>(&bytes) else {
@@ -227,7 +227,7 @@ impl Store {
             } else {
                 ENTRY_FILE
             };
-            let Ok(rd) = std::fs::read_dir(e.path()) else {
+            let Ok(rd) = fs_err::read_dir(e.path()) else {
                 continue;
             };
             for sub in rd.flatten() {
@@ -291,7 +291,7 @@ impl Store {
             }
             self.save_manifest()?;
         }
-        let _ = std::fs::remove_dir_all(&staging);
+        let _ = fs_err::remove_dir_all(&staging);
         summary.seconds = t0.elapsed().as_secs_f64();
         Ok(summary)
     }
@@ -310,7 +310,7 @@ impl Store {
                 continue;
             }
             let mut max = 0;
-            for ep in std::fs::read_dir(e.path()).into_iter().flatten().flatten() {
+            for ep in fs_err::read_dir(e.path()).into_iter().flatten().flatten() {
                 if let Some(n) = ep
                     .file_name()
                     .to_str()
@@ -474,7 +474,7 @@ impl Store {
             entry.problems.first().map(ToString::to_string).unwrap_or_default()
         );
         let dir = staging.join(format!("q-{}", entry.id));
-        let _ = std::fs::remove_dir_all(&dir);
+        let _ = fs_err::remove_dir_all(&dir);
         let copied = (|| -> dexjoco_formats::Result<()> {
             let dest = dir.join("source");
             fs_err::create_dir_all(&dest).map_err(io_err("create", &dest))?;
@@ -531,7 +531,7 @@ impl Store {
         }
         if let Some(first) = seen.get(&entry.id) {
             if let Some(dir) = &staged {
-                let _ = std::fs::remove_dir_all(dir);
+                let _ = fs_err::remove_dir_all(dir);
             }
             let problem = Problem::new(
                 ProblemCode::Duplicate,

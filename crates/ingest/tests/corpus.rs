@@ -34,9 +34,9 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
     // Good: two raw folders and one MCAP file.
     let p = root.join("click_mouse/episode_000000");
     write_raw(&p, &good("click_mouse", 40, 1));
-    std::fs::create_dir_all(p.join("videos")).unwrap();
-    std::fs::write(p.join("videos/front.mp4"), b"not really h264").unwrap();
-    std::fs::write(p.join("videos/front_depth.npz"), b"not really npz").unwrap();
+    fs_err::create_dir_all(p.join("videos")).unwrap();
+    fs_err::write(p.join("videos/front.mp4"), b"not really h264").unwrap();
+    fs_err::write(p.join("videos/front_depth.npz"), b"not really npz").unwrap();
     ok.push(p);
     let p = root.join("bimanual_hanoi/episode_000000");
     write_raw(&p, &good("bimanual_hanoi", 40, 2));
@@ -53,7 +53,7 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
     ok.push(p.clone());
 
     // Truncated MCAP: a good file cut in half.
-    let bytes = std::fs::read(&p).unwrap();
+    let bytes = fs_err::read(&p).unwrap();
     let t = root.join("truncated.mcap");
     let ep = good("water_plant", 40, 4);
     write_episode_mcap(
@@ -63,8 +63,8 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
         &EpisodeMeta::default(),
     )
     .unwrap();
-    let full = std::fs::read(&t).unwrap();
-    std::fs::write(&t, &full[..full.len() / 2]).unwrap();
+    let full = fs_err::read(&t).unwrap();
+    fs_err::write(&t, &full[..full.len() / 2]).unwrap();
     assert_ne!(bytes.len(), 0);
     bad.push((t, ProblemCode::Truncated));
 
@@ -86,26 +86,26 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
     // Missing array: no data/state.
     let p = root.join("hammer_nail/episode_000001");
     write_raw(&p, &good("hammer_nail", 40, 7));
-    std::fs::remove_dir_all(p.join("replay.zarr/data/state")).unwrap();
+    fs_err::remove_dir_all(p.join("replay.zarr/data/state")).unwrap();
     bad.push((p, ProblemCode::MissingArray));
 
     // Wrong dtype: action declared int32.
     let p = root.join("hammer_nail/episode_000002");
     write_raw(&p, &good("hammer_nail", 40, 8));
     let zarray = p.join("replay.zarr/data/action/.zarray");
-    let text = std::fs::read_to_string(&zarray)
+    let text = fs_err::read_to_string(&zarray)
         .unwrap()
         .replace("<f8", "<i4");
-    std::fs::write(&zarray, text).unwrap();
+    fs_err::write(&zarray, text).unwrap();
     bad.push((p, ProblemCode::WrongDtype));
 
     // episode_ends says 39 frames where the arrays hold 40.
     let p = root.join("fold_glasses/episode_000000");
     write_raw(&p, &good("fold_glasses", 40, 9));
     let chunk = p.join("replay.zarr/meta/episode_ends/0");
-    let mut b = std::fs::read(&chunk).unwrap();
+    let mut b = fs_err::read(&chunk).unwrap();
     b[..8].copy_from_slice(&39i64.to_le_bytes());
-    std::fs::write(&chunk, b).unwrap();
+    fs_err::write(&chunk, b).unwrap();
     bad.push((p, ProblemCode::EpisodeEndsMismatch));
 
     // Unknown task.
@@ -115,7 +115,7 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
 
     // Empty file.
     let p = root.join("empty.mcap");
-    std::fs::write(&p, b"").unwrap();
+    fs_err::write(&p, b"").unwrap();
     bad.push((p, ProblemCode::EmptyFile));
 
     // Unreadable file: a link to nothing (permissions do not stop root).
@@ -125,7 +125,7 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
 
     // Not an MCAP at all.
     let p = root.join("garbage.mcap");
-    std::fs::write(&p, b"this is not an mcap file").unwrap();
+    fs_err::write(&p, b"this is not an mcap file").unwrap();
     bad.push((p, ProblemCode::Corrupt));
 
     // Out of range values: dh above 0.05, a hand target beyond its range, a quaternion
@@ -248,7 +248,7 @@ fn broken_inputs_are_quarantined_with_named_problems_and_good_ones_land() {
     let r = summary.sources.iter().find(|s| s.source == ok[0]).unwrap();
     let landed = store.join(&r.path);
     assert_eq!(
-        std::fs::read(landed.join("videos/front.mp4")).unwrap(),
+        fs_err::read(landed.join("videos/front.mp4")).unwrap(),
         b"not really h264"
     );
     let ep = read_stored_episode(&landed).unwrap();
@@ -264,7 +264,7 @@ fn broken_inputs_are_quarantined_with_named_problems_and_good_ones_land() {
         m.episodes.iter().filter(|e| e.status == Status::Ok).count(),
         ok.len()
     );
-    let json = std::fs::read_to_string(store.join("manifest.json")).unwrap();
+    let json = fs_err::read_to_string(store.join("manifest.json")).unwrap();
     for code in [
         "truncated",
         "wrong_dimensions",
@@ -291,13 +291,13 @@ fn reruns_are_idempotent_and_force_redoes_in_place() {
     let (bad, ok) = corpus(&input);
     let store = tmp.path().join("store");
     let first = run(&input, &store, false);
-    let manifest1 = std::fs::read_to_string(store.join("manifest.json")).unwrap();
+    let manifest1 = fs_err::read_to_string(store.join("manifest.json")).unwrap();
 
     let second = run(&input, &store, false);
     assert_eq!(second.count(Outcome::AlreadyPresent), ok.len());
     assert_eq!(second.count(Outcome::Quarantined), bad.len());
     assert_eq!(second.count(Outcome::Landed), 0);
-    let manifest2 = std::fs::read_to_string(store.join("manifest.json")).unwrap();
+    let manifest2 = fs_err::read_to_string(store.join("manifest.json")).unwrap();
     assert_eq!(manifest1, manifest2, "a re-run changes nothing");
     for (a, b) in first.sources.iter().zip(&second.sources) {
         assert_eq!((&a.id, &a.path), (&b.id, &b.path));
@@ -315,13 +315,13 @@ fn reruns_are_idempotent_and_force_redoes_in_place() {
     // One folder per good episode, nothing else.
     let mut dirs = 0;
     for task in ["click_mouse", "bimanual_hanoi", "pinch_tongs"] {
-        dirs += std::fs::read_dir(store.join(task)).unwrap().count();
+        dirs += fs_err::read_dir(store.join(task)).unwrap().count();
     }
     assert_eq!(dirs, ok.len());
 
     // The same content under another name is ingested once.
     let copy = input.join("copy_of_good.mcap");
-    std::fs::copy(input.join("good.mcap"), &copy).unwrap();
+    fs_err::copy(input.join("good.mcap"), &copy).unwrap();
     let fourth = run(&input, &store, false);
     let r = fourth.sources.iter().find(|s| s.source == copy).unwrap();
     assert_eq!(r.outcome, Outcome::AlreadyPresent);
@@ -329,7 +329,7 @@ fn reruns_are_idempotent_and_force_redoes_in_place() {
     // Within one run: a second copy of a good input is a duplicate; a second empty file
     // is rejected like the first.
     let fresh = tmp.path().join("store-fresh");
-    std::fs::write(input.join("zz_empty_again.mcap"), b"").unwrap();
+    fs_err::write(input.join("zz_empty_again.mcap"), b"").unwrap();
     let fifth = run(&input, &fresh, false);
     // Inputs are taken in path order: copy_of_good.mcap comes first.
     let r = fifth.sources.iter().find(|s| s.source == copy).unwrap();
@@ -366,7 +366,7 @@ fn a_store_is_used_by_one_process_at_a_time_and_stale_locks_are_taken_over() {
     drop(first);
     assert!(!store.join(dexjoco_formats::LOCK_FILE).exists());
     // A lock left by a process that has ended (a killed run) does not block.
-    std::fs::write(store.join(dexjoco_formats::LOCK_FILE), u32::MAX.to_string()).unwrap();
+    fs_err::write(store.join(dexjoco_formats::LOCK_FILE), u32::MAX.to_string()).unwrap();
     Store::open(&store).unwrap();
 }
 
@@ -382,12 +382,12 @@ fn discovery_finds_raw_folders_and_mcap_files_and_survives_link_loops() {
         &root.join("b/pick_bucket_demo_3_2026-01-01_00-00-00_000000"),
         &good("pick_bucket", 5, 2),
     );
-    std::fs::write(root.join("b/x.MCAP"), b"").unwrap();
-    std::fs::write(root.join("b/notes.txt"), b"ignored").unwrap();
+    fs_err::write(root.join("b/x.MCAP"), b"").unwrap();
+    fs_err::write(root.join("b/notes.txt"), b"ignored").unwrap();
     std::os::unix::fs::symlink(&root, root.join("a/loop")).unwrap();
     let store = root.join("store");
-    std::fs::create_dir_all(&store).unwrap();
-    std::fs::write(store.join("inside_the_store.mcap"), b"").unwrap();
+    fs_err::create_dir_all(&store).unwrap();
+    fs_err::write(store.join("inside_the_store.mcap"), b"").unwrap();
     let found = discover(std::slice::from_ref(&root), Some(&store)).unwrap();
     let names: Vec<String> = found
         .iter()

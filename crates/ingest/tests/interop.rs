@@ -211,7 +211,7 @@ fn stored_episodes_are_read_by_zarr_python_as_the_recorder_writes_them() {
 fn mcap_files_written_by_python_are_ingested_bit_exact() {
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("in");
-    std::fs::create_dir_all(&input).unwrap();
+    fs_err::create_dir_all(&input).unwrap();
     let cases: &[(&str, &[&str])] = &[
         ("click_mouse", &[]),
         ("bimanual_photograph", &["--extras"]),
@@ -260,7 +260,7 @@ fn mcap_files_written_by_python_are_ingested_bit_exact() {
         }
     }
     // The metadata record's operator/date reach the reader.
-    let bytes = std::fs::read(input.join("0_click_mouse.mcap")).unwrap();
+    let bytes = fs_err::read(input.join("0_click_mouse.mcap")).unwrap();
     let t = read_episode_mcap(Path::new("x.mcap"), &bytes, TaskSet::builtin()).unwrap();
     assert_eq!(t.meta.operator.as_deref(), Some("fixture"));
     assert_eq!(

@@ -21,7 +21,7 @@ pub fn mujoco_version() -> String {
 pub fn mujoco_library_path() -> Option<PathBuf> {
     // Touch the library so it is mapped before we look.
     let _ = mujoco_version();
-    let maps = std::fs::read_to_string("/proc/self/maps").ok()?;
+    let maps = fs_err::read_to_string("/proc/self/maps").ok()?;
     maps.lines()
         .filter_map(|l| l.split_whitespace().nth(5))
         .find(|p| p.contains("libmujoco"))

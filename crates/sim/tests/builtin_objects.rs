@@ -48,14 +48,14 @@ fn remove_spans(s: &str, start: &str, end: &str, keep: impl Fn(&str) -> bool) ->
 /// the robot's and arena's relative asset paths resolve.
 fn compose(spec: &TaskSpec, dir: &Path, fragment: Option<&Path>) -> PathBuf {
     let xmls = common::scene_dir();
-    for e in std::fs::read_dir(&xmls).unwrap() {
+    for e in fs_err::read_dir(&xmls).unwrap() {
         let e = e.unwrap();
         let link = dir.join(e.file_name());
         if !link.exists() {
             std::os::unix::fs::symlink(e.path(), link).unwrap();
         }
     }
-    let src = std::fs::read_to_string(xmls.join(&spec.scene)).unwrap();
+    let src = fs_err::read_to_string(xmls.join(&spec.scene)).unwrap();
     let s = remove_spans(&src, "<!--", "-->", |_| false);
     let s = remove_spans(&s, "<include ", "/>", |inc| inc.contains("\"panda_allegro"));
     let s = remove_spans(&s, "<sensor>", "</sensor>", |_| false);
@@ -70,7 +70,7 @@ fn compose(spec: &TaskSpec, dir: &Path, fragment: Option<&Path>) -> PathBuf {
     } else {
         "without_objects.xml"
     });
-    std::fs::write(&path, s).unwrap();
+    fs_err::write(&path, s).unwrap();
     path
 }
 
@@ -225,7 +225,7 @@ fn visible_share(t: &Task, env: &mut TaskEnv) -> f64 {
 
 /// The id of the fragment's first body (the first body named in its file).
 fn fragment_first_body(t: &Task) -> usize {
-    let xml = std::fs::read_to_string(fragment(&t.spec.id)).unwrap();
+    let xml = fs_err::read_to_string(fragment(&t.spec.id)).unwrap();
     let i = xml.find("<body name=\"").expect("a body") + "<body name=\"".len();
     let name = &xml[i..i + xml[i..].find('"').unwrap()];
     id(&t.scene.model, NameKind::Body, name)

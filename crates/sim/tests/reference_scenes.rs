@@ -57,7 +57,7 @@ fn a_missing_asset_is_named() {
     let xml = r#"<mujoco><asset><mesh name="m" file="no_such_mesh.obj"/></asset>
         <worldbody><geom type="mesh" mesh="m"/></worldbody></mujoco>"#;
     let path = dir.path().join("scene.xml");
-    std::fs::write(&path, xml).unwrap();
+    fs_err::write(&path, xml).unwrap();
     let err = Scene::load(&path).unwrap_err();
     assert!(matches!(err, SimError::Load { .. }));
     assert!(err.to_string().contains("no_such_mesh.obj"), "{err}");

@@ -171,16 +171,16 @@ fn unknown_camera_lists_the_available_ones() {
 #[test]
 fn missing_asset_is_named() {
     let dir = std::env::temp_dir().join(format!("dexjoco-missing-asset-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    fs_err::create_dir_all(&dir).unwrap();
     let xml = dir.join("scene.xml");
-    std::fs::write(
+    fs_err::write(
         &xml,
         r#"<mujoco><asset><mesh name="m" file="no_such_mesh.stl"/></asset>
            <worldbody><geom type="mesh" mesh="m"/></worldbody></mujoco>"#,
     )
     .unwrap();
     let err = Scene::load(&xml).unwrap_err().to_string();
-    std::fs::remove_dir_all(&dir).ok();
+    fs_err::remove_dir_all(&dir).ok();
     assert!(err.contains("no_such_mesh.stl"), "{err}");
     assert!(err.contains("scene.xml"), "{err}");
 }

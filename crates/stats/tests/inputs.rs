@@ -14,7 +14,7 @@ fn example(name: &str) -> PathBuf {
 
 fn mkdirs(root: &Path, dirs: &[&str]) {
     for d in dirs {
-        std::fs::create_dir_all(root.join(d)).unwrap();
+        fs_err::create_dir_all(root.join(d)).unwrap();
     }
 }
 
@@ -69,8 +69,8 @@ fn small_tree(root: &Path) {
             "one plus one/ipad_seed1/episode_01_failure_13",
         ],
     );
-    std::fs::write(root.join("1/ipad_seed0/success_rate_2_2.txt"), "").unwrap();
-    std::fs::write(root.join("1/ipad_seed0/notes.txt"), "ignored").unwrap();
+    fs_err::write(root.join("1/ipad_seed0/success_rate_2_2.txt"), "").unwrap();
+    fs_err::write(root.join("1/ipad_seed0/notes.txt"), "ignored").unwrap();
 }
 
 #[test]
@@ -132,9 +132,9 @@ fn tidy_csv_and_json_give_the_same_report_as_the_tree() {
         }));
     }
     let csv_path = dir.path().join("trials.csv");
-    std::fs::write(&csv_path, csv).unwrap();
+    fs_err::write(&csv_path, csv).unwrap();
     let json_path = dir.path().join("trials.json");
-    std::fs::write(&json_path, serde_json::to_string(&json).unwrap()).unwrap();
+    fs_err::write(&json_path, serde_json::to_string(&json).unwrap()).unwrap();
     for path in [csv_path, json_path] {
         let mut r = LanguageReport::analyze(
             &LanguageInput::load(&path).unwrap(),
@@ -149,7 +149,7 @@ fn tidy_csv_and_json_give_the_same_report_as_the_tree() {
 fn bad_inputs_name_the_file_and_row() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("bad.csv");
-    std::fs::write(
+    fs_err::write(
         &csv,
         "instruction,expected,seed,episode,output\n1,1,0,0,1\n1,1,zero,1,2\n",
     )
@@ -160,11 +160,11 @@ fn bad_inputs_name_the_file_and_row() {
         "{err}"
     );
 
-    std::fs::write(&csv, "instruction,seed,episode,output\n1,0,0,1\n").unwrap();
+    fs_err::write(&csv, "instruction,seed,episode,output\n1,0,0,1\n").unwrap();
     let err = LanguageInput::load(&csv).unwrap_err().to_string();
     assert!(err.contains("no 'expected' column"), "{err}");
 
-    std::fs::write(
+    fs_err::write(
         &csv,
         "instruction,expected,seed,episode,output\n1,1,0,0,1\n1,1,0,0,2\n",
     )
@@ -176,7 +176,7 @@ fn bad_inputs_name_the_file_and_row() {
     );
 
     let json = dir.path().join("bad.json");
-    std::fs::write(&json, r#"[{"instruction": "1", "expected": "1", "seed": 0, "episode": 0, "output": "1"}, {"instruction": "1", "seed": 0, "episode": 1}]"#).unwrap();
+    fs_err::write(&json, r#"[{"instruction": "1", "expected": "1", "seed": 0, "episode": 0, "output": "1"}, {"instruction": "1", "seed": 0, "episode": 1}]"#).unwrap();
     let err = LanguageInput::load(&json).unwrap_err().to_string();
     assert!(
         err.contains("bad.json") && err.contains("row 2") && err.contains("'expected'"),
@@ -211,7 +211,7 @@ fn never_entered_outputs_are_dropped_from_the_test_and_named() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("t.csv");
     // Expected answers 4 and 2 are never entered; nor is "none".
-    std::fs::write(
+    fs_err::write(
         &csv,
         "instruction,expected,seed,episode,output\n2+2,4,0,0,1\n2+2,4,0,1,3\ntwo,2,0,0,3\ntwo,2,0,1,3\n",
     )
@@ -238,8 +238,8 @@ fn success_tables_from_markers_and_episode_folders() {
     // Policy A: markers, 40/50, 42/50 and 38/50 -> 80 +- 4.
     for (seed, k) in [(0, 40), (1, 42), (2, 38)] {
         let run = root.join(format!("A/click_mouse_seed{seed}"));
-        std::fs::create_dir_all(&run).unwrap();
-        std::fs::write(run.join(format!("success_rate_{k}_50.txt")), "").unwrap();
+        fs_err::create_dir_all(&run).unwrap();
+        fs_err::write(run.join(format!("success_rate_{k}_50.txt")), "").unwrap();
     }
     // Policy B: episode folders only, rand_full: 1/2, 2/2, 0/2 -> 50 +- 50.
     mkdirs(
@@ -255,7 +255,7 @@ fn success_tables_from_markers_and_episode_folders() {
         ],
     );
     // A marker that disagrees with the folders: the marker wins, with a warning.
-    std::fs::write(
+    fs_err::write(
         root.join("B/bimanual_hanoi_rand_full_seed0/success_rate_0_1.txt"),
         "",
     )
@@ -347,10 +347,10 @@ fn outputs_are_written_and_the_pictures_decode() {
         .filter(|p| p.0[0] < 100 && p.0[2] > 100)
         .count();
     assert!(dark > 1000, "{dark} dark blue pixels");
-    let svg = std::fs::read_to_string(dir.path().join("heatmap.svg")).unwrap();
+    let svg = fs_err::read_to_string(dir.path().join("heatmap.svg")).unwrap();
     assert!(svg.contains("<svg") && svg.contains("one plus one") && svg.contains("EXAMPLE INPUT"));
     let json: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.path().join("language_eval.json")).unwrap(),
+        &fs_err::read_to_string(dir.path().join("language_eval.json")).unwrap(),
     )
     .unwrap();
     assert_eq!(
@@ -358,7 +358,7 @@ fn outputs_are_written_and_the_pictures_decode() {
         report.outputs.len()
     );
     assert_eq!(json["chi_square"]["dof"], report.chi_square.dof);
-    let dist = std::fs::read_to_string(dir.path().join("distribution.csv")).unwrap();
+    let dist = fs_err::read_to_string(dir.path().join("distribution.csv")).unwrap();
     assert_eq!(
         dist.lines().count(),
         1 + report.instructions.len() * report.outputs.len()

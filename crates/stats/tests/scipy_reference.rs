@@ -93,7 +93,7 @@ fn chi_square_nmi_and_js_match_scipy_and_sklearn() {
         .iter()
         .map(|t| serde_json::json!({ "counts": t }))
         .collect();
-    std::fs::write(&input, serde_json::to_string(&payload).unwrap()).unwrap();
+    fs_err::write(&input, serde_json::to_string(&payload).unwrap()).unwrap();
     let reference = dexjoco_testkit::run_python_json(
         "stats_reference.py",
         &["tables", input.to_str().unwrap()],
@@ -298,7 +298,7 @@ fn norm_stats_match_numpy() {
     }
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("columns.json");
-    std::fs::write(&input, serde_json::to_string(&payload).unwrap()).unwrap();
+    fs_err::write(&input, serde_json::to_string(&payload).unwrap()).unwrap();
     let want = dexjoco_testkit::run_python_json(
         "stats_reference.py",
         &["columns", input.to_str().unwrap()],

@@ -24,7 +24,7 @@ pub fn python() -> PathBuf {
         return p.into();
     }
     let recorded = workspace_root().join(".deps/python-path");
-    if let Ok(p) = std::fs::read_to_string(&recorded) {
+    if let Ok(p) = fs_err::read_to_string(&recorded) {
         let p = PathBuf::from(p.trim());
         if p.is_file() {
             return p;
@@ -89,14 +89,14 @@ pub fn upstream_dir() -> PathBuf {
 /// for byte.
 pub fn file_tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     fn walk(root: &Path, p: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
-        let entries = std::fs::read_dir(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        let entries = fs_err::read_dir(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         for e in entries {
             let p = e.expect("directory entry").path();
             if p.is_dir() {
                 walk(root, &p, out);
             } else {
                 let rel = p.strip_prefix(root).expect("below root");
-                let bytes = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+                let bytes = fs_err::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
                 out.insert(rel.to_string_lossy().into_owned(), bytes);
             }
         }

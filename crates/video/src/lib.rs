@@ -244,7 +244,7 @@ impl VideoWriter {
             .and_then(|c| c.wait_with_output().ok())
             .map(|o| String::from_utf8_lossy(&o.stderr).trim().to_owned())
             .filter(|m| !m.is_empty());
-        let _ = std::fs::remove_file(&self.tmp);
+        let _ = fs_err::remove_file(&self.tmp);
         match message {
             Some(message) => VideoError::Failed {
                 program: "ffmpeg".into(),
@@ -268,14 +268,14 @@ impl VideoWriter {
             source,
         })?;
         if !out.status.success() {
-            let _ = std::fs::remove_file(&self.tmp);
+            let _ = fs_err::remove_file(&self.tmp);
             return Err(VideoError::Failed {
                 program: "ffmpeg".into(),
                 path: self.path.clone(),
                 message: String::from_utf8_lossy(&out.stderr).trim().to_owned(),
             });
         }
-        std::fs::rename(&self.tmp, &self.path).map_err(|source| VideoError::Io {
+        fs_err::rename(&self.tmp, &self.path).map_err(|source| VideoError::Io {
             path: self.path.clone(),
             source,
         })?;
@@ -291,7 +291,7 @@ impl Drop for VideoWriter {
             drop(self.stdin.take());
             let _ = child.kill();
             let _ = child.wait();
-            let _ = std::fs::remove_file(&self.tmp);
+            let _ = fs_err::remove_file(&self.tmp);
         }
     }
 }
@@ -529,7 +529,7 @@ pub fn concat_copy(inputs: &[PathBuf], out: &Path, fps: u32) -> Result<(), Video
         let quoted = abs.to_string_lossy().replace('\'', "'\\''");
         text.push_str(&format!("file '{quoted}'\n"));
     }
-    std::fs::write(&list, text).map_err(|source| VideoError::Io {
+    fs_err::write(&list, text).map_err(|source| VideoError::Io {
         path: list.clone(),
         source,
     })?;
@@ -567,12 +567,12 @@ pub fn concat_copy(inputs: &[PathBuf], out: &Path, fps: u32) -> Result<(), Video
         ],
         out,
     );
-    let _ = std::fs::remove_file(&list);
+    let _ = fs_err::remove_file(&list);
     if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
+        let _ = fs_err::remove_file(&tmp);
         return Err(e);
     }
-    std::fs::rename(&tmp, out).map_err(|source| VideoError::Io {
+    fs_err::rename(&tmp, out).map_err(|source| VideoError::Io {
         path: out.into(),
         source,
     })

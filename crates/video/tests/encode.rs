@@ -59,7 +59,7 @@ fn h264_as_the_dexjoco_recorder_writes_it_round_trips() {
         assert!(mean < 4.0, "frame {k}: mean abs difference {mean}");
     }
     // No temporary file is left behind.
-    let names: Vec<_> = std::fs::read_dir(dir.path())
+    let names: Vec<_> = fs_err::read_dir(dir.path())
         .unwrap()
         .map(|e| e.unwrap().file_name())
         .collect();
@@ -72,7 +72,7 @@ fn same_frames_give_identical_bytes() {
     let (a, b) = (dir.path().join("a.mp4"), dir.path().join("b.mp4"));
     encode(&a, Codec::DEXJOCO, 20);
     encode(&b, Codec::DEXJOCO, 20);
-    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    assert_eq!(fs_err::read(&a).unwrap(), fs_err::read(&b).unwrap());
 }
 
 #[test]
@@ -111,7 +111,7 @@ fn wrong_frame_size_names_file_and_frame_and_leaves_nothing() {
     assert!(err.contains("bad.mp4") && err.contains("frame 1"), "{err}");
     drop(w);
     assert_eq!(
-        std::fs::read_dir(dir.path()).unwrap().count(),
+        fs_err::read_dir(dir.path()).unwrap().count(),
         0,
         "an unfinished video leaves no file"
     );

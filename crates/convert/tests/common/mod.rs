@@ -87,7 +87,7 @@ pub fn fixture() -> Fixture {
             .compute_action_rotvec(dexjoco_core::ArmSetup::SingleArm)
             .unwrap();
         let ep_dir = dir.path().join(&episode.id);
-        std::fs::create_dir_all(ep_dir.join("videos")).unwrap();
+        fs_err::create_dir_all(ep_dir.join("videos")).unwrap();
         for (c, cam) in ["front", "handcam_rgb"].iter().enumerate() {
             let rel = PathBuf::from(format!("videos/{cam}.mp4"));
             write_video(&ep_dir.join(&rel), n, |k| colour(e, c, k));

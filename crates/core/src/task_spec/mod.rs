@@ -134,7 +134,7 @@ impl TaskSpec {
 
     /// Reads and validates one spec file.
     pub fn from_file(path: &std::path::Path) -> Result<Self, TaskSpecError> {
-        let text = std::fs::read_to_string(path).map_err(|e| TaskSpecError::Parse {
+        let text = fs_err::read_to_string(path).map_err(|e| TaskSpecError::Parse {
             file: path.display().to_string(),
             message: e.to_string(),
         })?;
@@ -151,7 +151,7 @@ impl TaskSpec {
 
     /// Reads every `*.toml` spec of a folder, sorted by task id.
     pub fn load_dir(dir: &std::path::Path) -> Result<Vec<Self>, TaskSpecError> {
-        let entries = std::fs::read_dir(dir).map_err(|e| TaskSpecError::Parse {
+        let entries = fs_err::read_dir(dir).map_err(|e| TaskSpecError::Parse {
             file: dir.display().to_string(),
             message: e.to_string(),
         })?;

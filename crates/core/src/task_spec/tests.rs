@@ -35,9 +35,9 @@ fn the_embedded_specs_are_the_folder() {
     let mut text = BUILTIN_SPEC_FILES[5]
         .1
         .replace("prompt = \"", "prompt = \"Changed. ");
-    std::fs::write(tmp.path().join("click_mouse.toml"), &text).unwrap();
+    fs_err::write(tmp.path().join("click_mouse.toml"), &text).unwrap();
     text = text.replace("id = \"click_mouse\"", "id = \"my_click\"");
-    std::fs::write(tmp.path().join("my_click.toml"), &text).unwrap();
+    fs_err::write(tmp.path().join("my_click.toml"), &text).unwrap();
     let all: Vec<TaskSpec> = TaskSet::with_dir(Some(tmp.path()))
         .unwrap()
         .iter()
@@ -111,14 +111,14 @@ fn json_schema_matches_the_types() {
     let path = schemas_dir().join("task-spec.schema.json");
     let generated = sorted(&TaskSpec::json_schema());
     if std::env::var_os("DEXJOCO_UPDATE_SCHEMA").is_some() {
-        std::fs::write(
+        fs_err::write(
             &path,
             serde_json::to_string_pretty(&generated).unwrap() + "\n",
         )
         .unwrap();
     }
     let committed: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&path).unwrap_or_default())
+        serde_json::from_str(&fs_err::read_to_string(&path).unwrap_or_default())
             .unwrap_or_default();
     assert!(
         committed == generated,
