@@ -6,6 +6,12 @@
 //! episode is simulated once and every replay's views are rendered from that one
 //! trajectory, each replay streaming its frames to its own encoder. Each replay gets its
 //! own seed derived from (global seed, episode id, replay index).
+//!
+//! Modules by job: `inputs` (episodes and their specs, the unreadable ones skipped),
+//! `physics` (the replay simulated once: success, deviation), `render` (a unit of replays
+//! drawn from one simulation), `staging` (replay folders staged and renamed whole; the
+//! records of dropped replays; resume), `report` (report and contact sheet), `run` (the
+//! orchestration); `randomize`, `dynamics` and `camera_pool` the randomization.
 
 mod camera_pool;
 mod config;

@@ -1,9 +1,15 @@
-//! The data model shared by every dexjoco-data stage: episodes as named per-frame
-//! arrays, the arm setups and array layouts of the DexJoCo tasks, rotations in the
-//! DexJoCo convention, task specifications as data, and the error type that names file, episode, field and frame.
+//! The data model shared by every dexjoco-data stage:
+//!
+//! - [`Episode`]: named per-frame arrays plus camera streams;
+//! - [`ArmSetup`] and [`ArrayLayout`]: the robot's array layouts, Allegro ranges, 30 fps;
+//! - [`TaskSpec`] (`schemas/tasks/<id>.toml`, the only source of task facts) and
+//!   [`TaskSet`], the known tasks, parsed once;
+//! - rotations in the DexJoCo convention; [`synth`]: valid synthetic episodes;
+//! - [`Progress`]: how every stage reports long work;
+//! - [`CoreError`] and [`Location`]: errors that name file, episode, field and frame.
 //!
 //! This crate stays light: no MuJoCo, Arrow or Zarr. Formats convert into these types
-//! once, in their own crates.
+//! once, in `dexjoco-formats`.
 
 mod episode;
 mod error;

@@ -5,7 +5,8 @@
 //! The simulation core of the DexJoCo tasks: [`TaskEnv`] builds a task's reference
 //! scene from a recorded initial state, steps recorded actions with the DexJoCo
 //! controller ([`Robot`]: operational-space arm control, hand position targets) and
-//! evaluates the task spec's conditions ([`SuccessChecker`], built from the reusable
+//! evaluates the task spec's conditions ([`SuccessChecker`] in `checker/`: `compile.rs`
+//! turns a spec into nodes, `eval.rs` evaluates them; built from the reusable
 //! [`primitives`]) after every step.
 //!
 //! `MjModel` is shared across threads; each worker owns its `MjData` and its
