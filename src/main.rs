@@ -25,6 +25,7 @@ fn main() -> ExitCode {
         Command::Ingest(args) => commands::ingest::run(&cli.global, args),
         Command::Export(args) => commands::export::run(&cli.global, args),
         Command::Augment(args) => commands::augment::run(&cli.global, args),
+        Command::AugmentWorker(_) => commands::augment::run_worker(),
         Command::Cameras(args) => commands::cameras::run(&cli.global, args),
         Command::Convert(args) => commands::convert::run(&cli.global, args),
         Command::Stats(args) => commands::stats::run(&cli.global, args),

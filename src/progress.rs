@@ -12,7 +12,7 @@ pub fn bar(len: u64, what: &str, quiet: bool) -> ProgressBar {
     }
     pb.set_style(
         ProgressStyle::with_template(
-            "{prefix:>10.bold} [{bar:30}] {pos}/{len} {msg} ({elapsed}, eta {eta})",
+            "{prefix:>10.bold} [{bar:30}] {pos}/{len} {msg} ({per_sec}, {elapsed}, eta {eta})",
         )
         .expect("static template")
         .progress_chars("=> "),
@@ -40,6 +40,13 @@ impl Bar {
 
 impl Progress for Bar {
     fn start(&self, total: u64) {
+        self.0.set_length(total);
+    }
+
+    fn phase(&self, name: &str, total: u64) {
+        self.0.set_prefix(name.to_owned());
+        self.0.set_message("");
+        self.0.reset();
         self.0.set_length(total);
     }
 

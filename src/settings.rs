@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use dexjoco_augment::AugmentConfig;
+use dexjoco_augment::{AugmentConfig, Shard};
 use dexjoco_convert::{
     ConvertOptions, OutputFormat, Selection, V3Options, VideoCodec, VideoOptions,
 };
@@ -125,6 +125,12 @@ impl ExportSettings {
 pub struct AugmentSettings {
     /// The library's configuration.
     pub config: AugmentConfig,
+    /// Worker processes.
+    pub workers: usize,
+    /// EGL devices for the workers, round-robin.
+    pub egl_devices: Vec<usize>,
+    /// Plan and estimate only.
+    pub dry_run: bool,
 }
 
 impl AugmentSettings {
@@ -148,6 +154,11 @@ impl AugmentSettings {
             dynamics,
             max_frames,
             out,
+            extend_steps,
+            shard,
+            dry_run,
+            egl_devices,
+            overwrite,
         } = args;
         if size == 0 || !size.is_multiple_of(2) {
             return Err(usage(
@@ -160,7 +171,22 @@ impl AugmentSettings {
         } else {
             inputs
         };
+        let shard = match shard.as_deref() {
+            None => None,
+            Some("auto") => Some(Shard::from_env(|k| std::env::var(k).ok()).map_err(|e| {
+                usage(e, "run inside a Slurm job array or a Kubernetes Indexed Job, or give --shard I/N")
+            })?),
+            Some(s) => Some(
+                Shard::parse(s).map_err(|e| usage(format!("--shard {e}"), "for example --shard 0/4"))?,
+            ),
+        };
+        let workers = global.jobs.unwrap_or_else(|| {
+            std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+        });
         Ok(Self {
+            workers,
+            egl_devices,
+            dry_run,
             config: AugmentConfig {
                 inputs,
                 out: out.unwrap_or_else(|| global.work_dir.join("augment")),
@@ -177,6 +203,9 @@ impl AugmentSettings {
                 contact_sheet: true,
                 depth,
                 dynamics,
+                extend_steps,
+                shard,
+                overwrite,
             },
         })
     }

@@ -58,7 +58,8 @@ pub struct GlobalArgs {
     /// Only errors; no progress bars.
     #[arg(short, long, global = true)]
     pub quiet: bool,
-    /// Worker threads (default: all cores). Results do not depend on it.
+    /// Workers (default: all cores): threads, and for `augment` worker processes. Results
+    /// do not depend on it.
     #[arg(short, long, global = true, env = "DEXJOCO_JOBS",
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub jobs: Option<usize>,
@@ -93,6 +94,9 @@ pub enum Command {
     Export(ExportArgs),
     /// Replay each episode under sampled camera/light/texture randomization; keep successes.
     Augment(AugmentArgs),
+    /// A worker process of `augment` (started by it; speaks JSON lines on stdin/stdout).
+    #[command(hide = true)]
+    AugmentWorker(AugmentWorkerArgs),
     /// Build a third-person camera pose pool for a task: sample poses on a sphere, keep the
     /// least occluded (the DexJoCo paper's way); `augment --camera-pool` reads it.
     Cameras(CamerasArgs),

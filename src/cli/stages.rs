@@ -172,20 +172,36 @@ pub struct ConvertArgs {
 #[command(after_help = "\
 Examples:
   dexjoco-data augment --replays 10                      # the sample demos, built-in scenes
+  dexjoco-data augment --replays 10 --dry-run            # the plan and a time estimate first
   dexjoco-data augment --replays 10 --scene-dir ../shared/dexjoco-upstream/xmls
-  dexjoco-data augment recordings/ --replays 5 --size 224 --quality fast
+  dexjoco-data augment recordings/ --replays 5 --size 224 --quality fast -j 8
   dexjoco-data augment --replays 2 --camera handcam_rgb --keep-failed --out aug/
   dexjoco-data augment --replays 2 --camera front --depth --size 224  # + <camera>_depth.npz
   dexjoco-data augment --replays 10 --dynamics           # + mass/friction/stiffness per replay
+  dexjoco-data augment data/ --out /shared/aug --shard 2/8   # one eighth, e.g. on one node
+  dexjoco-data augment data/ --out /shared/aug --shard auto  # Slurm array / Kubernetes Indexed Job
+  dexjoco-data augment data/ --out /shared/aug               # after the shards: the report
+  scripts/slurm/submit.sh 8 data/ --out /shared/aug --replays 10   # the whole job on Slurm
 
 Output: one DexJoCo raw folder per replay, <out>/<task>/<episode>__rNN/ (replay.zarr with
 the recorded actions, recomputed state and action_rotvec; videos/third_person.mp4 plus one
-video per --camera; with --depth videos/<camera>_depth.npz), augment_report.json / .md and
-contact_sheet.png. A killed run resumes
-where it stopped when run again; the same --seed gives the same output whatever --jobs is.
+video per --camera; with --depth videos/<camera>_depth.npz), augment_report.json / .md,
+contact_sheet.png and augment_settings.json (the settings that decide the bytes: a later run
+into the same --out with other settings is refused, naming the difference).
+
+Workers: -j N worker processes (default: one per core), each with its own MuJoCo model and
+EGL renderer; --egl-devices 0,1 spreads them over GPUs. A killed run resumes where it
+stopped when run again; a crashed worker's unit is retried once. The same --seed gives the
+same bytes whatever -j or --shard is.
+
+Shards: --shard I/N renders a balanced, deterministic share (by frames) into a shared --out;
+the same command without --shard afterwards renders nothing new and writes the report.
+--shard auto reads SLURM_ARRAY_TASK_ID / SLURM_ARRAY_TASK_COUNT (a contiguous --array=0-N-1),
+or JOB_COMPLETION_INDEX with DEXJOCO_SHARD_COUNT (a Kubernetes Indexed Job).
+
 Inputs that cannot be replayed (unreadable, unknown task, missing field) are skipped and
 listed; the rest of the batch goes on.
-Exit code 3: some episodes were skipped or did not replay to success.")]
+Exit code 3: some episodes were skipped, did not replay to success, or a unit failed twice.")]
 pub struct AugmentArgs {
     /// Raw episode folders, episode stores or MCAP files (default: the sample data in
     /// datasets/demos).
@@ -233,7 +249,34 @@ pub struct AugmentArgs {
     /// Output folder (default: <work-dir>/augment).
     #[arg(short, long)]
     pub out: Option<PathBuf>,
+    /// After a recording that ends without success, repeat its last action up to N more
+    /// steps, stopping at the first success. The DexJoCo recorder stops on the step that
+    /// first succeeds, so a replay that drifts by a step (another MuJoCo version, rounding)
+    /// would otherwise be dropped; 30 = one second at 30 Hz. 0: the reference's strict
+    /// replay.
+    #[arg(long, default_value_t = dexjoco_augment::DEFAULT_EXTEND_STEPS, value_name = "N")]
+    pub extend_steps: usize,
+    /// Render only this share of the work: I/N (0-based), or `auto` from the cluster's
+    /// environment (Slurm job array, Kubernetes Indexed Job).
+    #[arg(long, value_name = "I/N|auto")]
+    pub shard: Option<String>,
+    /// Print the plan (episodes, replays, frames per task, what is done) and a time
+    /// estimate from a short calibration render; render nothing.
+    #[arg(long)]
+    pub dry_run: bool,
+    /// EGL devices (indices as `doctor` lists them) assigned to worker processes
+    /// round-robin, e.g. 0,1,2,3 on a node with four GPUs.
+    #[arg(long, value_delimiter = ',', env = "DEXJOCO_EGL_DEVICES", value_name = "LIST")]
+    pub egl_devices: Vec<usize>,
+    /// When --out was made with other settings, start clean: remove what augment wrote
+    /// there (replays, records, report), nothing else.
+    #[arg(long)]
+    pub overwrite: bool,
 }
+
+/// `augment-worker`: internal, started by `augment` (JSON lines on stdin/stdout).
+#[derive(Debug, Args)]
+pub struct AugmentWorkerArgs {}
 
 /// `cameras` options.
 #[derive(Debug, Args)]

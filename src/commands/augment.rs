@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use dexjoco_augment::augment;
+use dexjoco_augment::{AugmentConfig, Executor, WorkerProcesses, augment_with};
 
 use crate::cli::{AugmentArgs, GlobalArgs};
 use crate::exit::{CliError, ExitStatus};
@@ -33,23 +33,50 @@ pub(crate) fn sample_data() -> anyhow::Result<PathBuf> {
 
 /// Runs `augment`.
 pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus> {
-    let AugmentSettings { config } = AugmentSettings::resolve(args, global, sample_data)?;
+    let AugmentSettings {
+        config,
+        workers,
+        egl_devices,
+        dry_run,
+    } = AugmentSettings::resolve(args, global, sample_data)?;
+    if dry_run {
+        return print_plan(&config, workers);
+    }
     let out = config.out.clone();
+    let executor = Executor::Processes(WorkerProcesses {
+        program: std::env::current_exe().context("locating the dexjoco-data binary")?,
+        args: worker_args(global),
+        count: workers,
+        egl_devices,
+    });
     let bar = Bar::new("augment", global.quiet);
     let started = std::time::Instant::now();
-    let report =
-        augment(&config, &bar).with_context(|| format!("augmenting into {}", out.display()))?;
+    let report = augment_with(&config, &executor, &bar)
+        .with_context(|| format!("augmenting into {}", out.display()))?;
     bar.finish();
-    let failed = report.failed_episodes();
-    let ok = report.episodes.len() - failed;
-    println!(
-        "augment: {} episode(s) replayed to success, {failed} failed; {} replay(s) in {} ({} rendered now, {:.1} s)",
-        ok,
-        report.replays.len(),
-        out.display(),
-        report.rendered_now,
-        started.elapsed().as_secs_f64()
-    );
+    let seconds = started.elapsed().as_secs_f64();
+    if let Some(shard) = config.shard {
+        println!(
+            "augment shard {shard}: {} replay(s) rendered now into {} ({seconds:.1} s); run the same command without --shard after every shard for the report",
+            report.rendered_now,
+            out.display(),
+        );
+    } else {
+        let failed = report.failed_episodes();
+        println!(
+            "augment: {} episode(s) replayed to success, {failed} failed; {} replay(s) in {} ({} rendered now, {seconds:.1} s)",
+            report.episodes.len() - failed,
+            report.replays.len(),
+            out.display(),
+            report.rendered_now,
+        );
+        let extended = report.episodes.iter().filter(|e| e.extended).count();
+        if extended > 0 {
+            println!(
+                "  {extended} episode(s) succeeded only after their recording ended (--extend-steps): see the report's shift column"
+            );
+        }
+    }
     if !report.dropped.is_empty() {
         println!(
             "  {} replay(s) failed under their --dynamics draw and were dropped (--keep-failed keeps them)",
@@ -59,16 +86,130 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
     for k in &report.skipped {
         println!("  SKIPPED: {}: {}", k.source, k.reason);
     }
+    for u in &report.failed_units {
+        println!(
+            "  UNIT FAILED: {}/{} replays {:?}: {} (run again to redo it)",
+            u.task, u.episode, u.replays, u.reason
+        );
+    }
     for e in report.episodes.iter().filter(|e| !e.success) {
         println!(
             "  FAILED: {}/{} (max state deviation {:e})",
             e.task, e.episode, e.max_state_deviation
         );
     }
-    println!("report: {}", out.join(dexjoco_augment::REPORT_MD).display());
-    Ok(if failed > 0 || !report.skipped.is_empty() {
+    if config.shard.is_none() {
+        println!("report: {}", out.join(dexjoco_augment::REPORT_MD).display());
+    }
+    let partial = report.failed_episodes() > 0
+        || !report.skipped.is_empty()
+        || !report.failed_units.is_empty();
+    Ok(if partial {
         ExitStatus::Partial
     } else {
         ExitStatus::Success
     })
+}
+
+/// The arguments that start this binary as an augment worker, with the same logging.
+fn worker_args(global: &GlobalArgs) -> Vec<std::ffi::OsString> {
+    let mut args: Vec<std::ffi::OsString> = Vec::new();
+    if global.quiet {
+        args.push("-q".into());
+    }
+    for _ in 0..global.verbose {
+        args.push("-v".into());
+    }
+    args.push("augment-worker".into());
+    args
+}
+
+/// Runs `augment-worker` (started by `augment`).
+pub fn run_worker() -> anyhow::Result<ExitStatus> {
+    let stdin = std::io::stdin().lock();
+    let stdout = std::io::stdout().lock();
+    dexjoco_augment::serve_worker(stdin, stdout)?;
+    Ok(ExitStatus::Success)
+}
+
+/// `augment --dry-run`: the plan and an estimate.
+fn print_plan(config: &AugmentConfig, workers: usize) -> anyhow::Result<ExitStatus> {
+    let plan = dexjoco_augment::dry_run(config, 30)?;
+    let share = config
+        .shard
+        .map_or_else(String::new, |s| format!(" (shard {s})"));
+    println!(
+        "Plan{share}: {} task(s), {} camera(s) per replay, {}x{} {}",
+        plan.tasks.len(),
+        plan.cameras,
+        config.settings.width,
+        config.settings.height,
+        config.settings.quality.name()
+    );
+    println!();
+    println!("| task | episodes | replays | done | frames to render | calibrated frames/s (1 worker) |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    for t in &plan.tasks {
+        println!(
+            "| {} | {} | {} | {} | {} | {} |",
+            t.task,
+            t.episodes,
+            t.replays,
+            t.done,
+            t.frames_to_render,
+            t.frames_per_s.map_or("-".into(), |f| format!("{f:.1}"))
+        );
+    }
+    let replays: usize = plan.tasks.iter().map(|t| t.replays).sum();
+    let done: usize = plan.tasks.iter().map(|t| t.done).sum();
+    println!(
+        "| **all** | {} | {replays} | {done} | {} | |",
+        plan.tasks.iter().map(|t| t.episodes).sum::<usize>(),
+        plan.frames_to_render()
+    );
+    for (source, reason) in &plan.skipped {
+        println!("SKIPPED: {source}: {reason}");
+    }
+    if !plan.settings_differ.is_empty() {
+        println!();
+        println!(
+            "{} was made with other settings ({}): this run would be refused; pass --overwrite to start clean (the done counts above would be redone)",
+            config.out.display(),
+            plan.settings_differ.join("; ")
+        );
+    }
+    println!();
+    if let Some(s) = plan.seconds_one_worker {
+        let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+        let here = workers.min(cores).max(1);
+        println!("Estimate (calibrated: 30 frames of each scene rendered, encoded and stepped here):");
+        println!("  {:<28} {}", "1 worker process:", duration(s));
+        println!(
+            "  {:<28} {} (assuming rendering scales over {here} core(s); 2 processes on 2 cores measured 1.88x)",
+            format!("-j {workers} on this machine:"),
+            duration(s / here as f64)
+        );
+        for nodes in [4, 16, 64] {
+            println!(
+                "  {:<28} {} (--shard over {nodes} nodes, -j {here} each)",
+                format!("{nodes} nodes like this one:"),
+                duration(s / (here * nodes) as f64)
+            );
+        }
+        println!(
+            "  A replay that needs its extension adds up to {} frames per camera.",
+            config.extend_steps
+        );
+    }
+    Ok(ExitStatus::Success)
+}
+
+fn duration(seconds: f64) -> String {
+    let s = seconds.round() as u64;
+    match s {
+        0..=119 => format!("{s} s"),
+        120..=7199 => format!("{:.1} min", seconds / 60.0),
+        7200..=172_799 => format!("{:.1} h", seconds / 3600.0),
+        _ => format!("{:.1} days", seconds / 86400.0),
+    }
 }

@@ -92,6 +92,9 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
                     contact_sheet: false,
                     depth: false,
                     dynamics: false,
+                    extend_steps: dexjoco_augment::DEFAULT_EXTEND_STEPS,
+                    shard: None,
+                    overwrite: false,
                 };
                 let (report, seconds) = timed(&config, threads)?;
                 if device.is_empty() {

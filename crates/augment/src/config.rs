@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use dexjoco_sim::{RenderSettings, SceneSource};
+use serde::{Deserialize, Serialize};
 
 /// Name of the randomized third-person camera's video (`videos/third_person.mp4`).
 pub const THIRD_PERSON: &str = "third_person";
@@ -15,15 +16,23 @@ pub const REPORT_MD: &str = "augment_report.md";
 pub(crate) const RECORD: &str = "replay.json";
 /// The table-top geom randomized by texture, in every DexJoCo scene.
 pub(crate) const TABLE_GEOM: &str = "table_visual";
+/// Work in progress: each replay is written here whole, then renamed into place.
 pub(crate) const STAGING: &str = ".staging";
+/// First frames of the replays' third-person views, for the contact sheet.
 pub(crate) const PREVIEWS: &str = ".previews";
+/// The settings that decide an output's bytes (see [`crate::fingerprint`]).
+pub const SETTINGS_FILE: &str = "augment_settings.json";
+/// The contact sheet of the replays' first frames.
+pub const CONTACT_SHEET: &str = "contact_sheet.png";
+/// The default of `--extend-steps`: one second at DexJoCo's 30 Hz.
+pub const DEFAULT_EXTEND_STEPS: usize = 30;
 /// Records of replays that failed under `--dynamics` and were not kept
 /// (`.dropped/<task>/<replay>.json`), so a resumed run does not simulate them again and
 /// the report can list them.
 pub(crate) const DROPPED: &str = ".dropped";
 
 /// What to do.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AugmentConfig {
     /// Raw episode folders, episode stores or MCAP files.
     pub inputs: Vec<PathBuf>,
@@ -56,6 +65,83 @@ pub struct AugmentConfig {
     /// Dynamics randomization per replay (the task spec's `[[dynamics]]`): every replay is
     /// simulated on its own model copy and kept only if the task still succeeds.
     pub dynamics: bool,
+    /// After a recording that ends without success, repeat its last action up to this
+    /// many more steps, stopping at the first success (0: the reference's strict replay).
+    pub extend_steps: usize,
+    /// This run's share of the work (`--shard I/N`); `None`: everything, and the report.
+    pub shard: Option<Shard>,
+    /// Start clean when the output folder was made with other settings (removes only what
+    /// augment wrote there).
+    pub overwrite: bool,
+}
+
+/// A deterministic share of an augment run: shard `index` of `count` (0-based).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shard {
+    /// This shard, `0..count`.
+    pub index: usize,
+    /// Number of shards.
+    pub count: usize,
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+impl Shard {
+    /// Parses `I/N` (0 <= I < N).
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let (i, n) = text
+            .split_once('/')
+            .ok_or_else(|| format!("'{text}' is not I/N (e.g. 0/4)"))?;
+        let index: usize = i
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{text}': shard index '{i}' is not a number"))?;
+        let count: usize = n
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{text}': shard count '{n}' is not a number"))?;
+        if count == 0 || index >= count {
+            return Err(format!("'{text}': the index must be in 0..{count}"));
+        }
+        Ok(Self { index, count })
+    }
+
+    /// The shard a cluster scheduler gives this process (`--shard auto`): a Slurm job array
+    /// (`SLURM_ARRAY_TASK_ID` relative to `SLURM_ARRAY_TASK_MIN`, of
+    /// `SLURM_ARRAY_TASK_COUNT`), or a Kubernetes Indexed Job (`JOB_COMPLETION_INDEX`, of
+    /// `DEXJOCO_SHARD_COUNT`).
+    pub fn from_env(var: impl Fn(&str) -> Option<String>) -> Result<Self, String> {
+        let num = |name: &str| -> Result<Option<usize>, String> {
+            var(name)
+                .map(|v| {
+                    v.trim()
+                        .parse::<usize>()
+                        .map_err(|_| format!("{name}={v} is not a number"))
+                })
+                .transpose()
+        };
+        if let Some(id) = num("SLURM_ARRAY_TASK_ID")? {
+            let count = num("SLURM_ARRAY_TASK_COUNT")?
+                .ok_or("SLURM_ARRAY_TASK_ID is set but SLURM_ARRAY_TASK_COUNT is not")?;
+            let min = num("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
+            let index = id
+                .checked_sub(min)
+                .ok_or_else(|| format!("SLURM_ARRAY_TASK_ID {id} < SLURM_ARRAY_TASK_MIN {min}"))?;
+            return Self::parse(&format!("{index}/{count}"))
+                .map_err(|e| format!("Slurm array ({e}): use a contiguous --array=0-{}", count.max(1) - 1));
+        }
+        if let Some(index) = num("JOB_COMPLETION_INDEX")? {
+            let count = num("DEXJOCO_SHARD_COUNT")?.ok_or(
+                "JOB_COMPLETION_INDEX is set (a Kubernetes Indexed Job): set DEXJOCO_SHARD_COUNT to the Job's completions",
+            )?;
+            return Self::parse(&format!("{index}/{count}"));
+        }
+        Err("--shard auto: neither SLURM_ARRAY_TASK_ID (a Slurm job array) nor JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) is set".into())
+    }
 }
 
 /// The folder name of replay `r` of `episode`.

@@ -37,6 +37,18 @@ pub enum AugmentError {
     /// A bad input (episode, field, frame named in the message).
     #[error("{0}")]
     Input(String),
+    /// The output folder was made with other settings.
+    #[error(
+        "'{}' was made with other settings: {}; augment into another --out, or pass --overwrite to start clean (it removes only what augment wrote there)",
+        out.display(),
+        differences.join("; ")
+    )]
+    SettingsChanged {
+        /// The output folder.
+        out: PathBuf,
+        /// What differs, `setting: now (was before)`.
+        differences: Vec<String>,
+    },
     /// A camera pool file is malformed.
     #[error("camera pool '{}': {message}", path.display())]
     Pool {

@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use dexjoco_core::{Episode, FrameArray, TaskSet, TaskSpec};
+use dexjoco_formats::SourceKind;
 use serde::{Deserialize, Serialize};
 
 use crate::error::AugmentError;
@@ -13,6 +14,10 @@ pub(crate) struct Source {
     pub(crate) episode: Episode,
     pub(crate) spec: TaskSpec,
     pub(crate) path: PathBuf,
+    /// Its kind (a worker reads it again).
+    pub(crate) kind: SourceKind,
+    /// Content hash of the episode (recorded in each replay; see `fingerprint`).
+    pub(crate) hash: String,
 }
 
 impl Source {
@@ -41,6 +46,28 @@ impl SkippedInput {
     }
 }
 
+/// The fields a replay needs: `action` and `state`, each with at least one frame, of one
+/// length.
+pub(crate) fn check_fields(episode: &Episode) -> Result<(), String> {
+    for field in [Episode::ACTION, Episode::STATE] {
+        if episode.array(field).is_none_or(FrameArray::is_empty) {
+            return Err(format!(
+                "episode '{}': field '{field}' is missing or empty (frame 0)",
+                episode.id
+            ));
+        }
+    }
+    let (a, s) = (episode.len(), episode.array(Episode::STATE).map_or(0, FrameArray::len));
+    if a != s {
+        return Err(format!(
+            "episode '{}': field 'state' has {s} frames but 'action' has {a} (frame {})",
+            episode.id,
+            a.min(s)
+        ));
+    }
+    Ok(())
+}
+
 /// Reads every input episode and its task spec, through the one episode reader
 /// ([`dexjoco_formats::episodes`]). A path that cannot be listed, an episode that cannot
 /// be read, an unknown task or a missing field skips that input or episode only.
@@ -59,7 +86,7 @@ pub(crate) fn read_sources(
                 continue;
             }
         };
-        'episodes: for found in found {
+        for found in found {
             let episode = match found.read(tasks) {
                 Ok(r) => r.episode,
                 Err(e) => {
@@ -67,30 +94,23 @@ pub(crate) fn read_sources(
                     continue;
                 }
             };
-            let path = found.path;
             let Some(spec) = tasks.get(&episode.task).cloned() else {
                 skip(
-                    &path,
+                    &found.path,
                     format!("episode '{}': unknown task '{}'", episode.id, episode.task),
                 );
                 continue;
             };
-            for field in [Episode::ACTION, Episode::STATE] {
-                if episode.array(field).is_none_or(FrameArray::is_empty) {
-                    skip(
-                        &path,
-                        format!(
-                            "episode '{}': field '{field}' is missing or empty (frame 0)",
-                            episode.id
-                        ),
-                    );
-                    continue 'episodes;
-                }
+            if let Err(reason) = check_fields(&episode) {
+                skip(&found.path, reason);
+                continue;
             }
             out.push(Source {
+                hash: crate::fingerprint::episode_hash(&episode),
                 episode,
                 spec,
-                path,
+                path: found.path,
+                kind: found.kind,
             });
         }
     }

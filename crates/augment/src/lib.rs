@@ -8,25 +8,36 @@
 //! own seed derived from (global seed, episode id, replay index).
 //!
 //! Modules by job: `inputs` (episodes and their specs, the unreadable ones skipped),
-//! `physics` (the replay simulated once: success, deviation), `render` (a unit of replays
-//! drawn from one simulation), `staging` (replay folders staged and renamed whole; the
-//! records of dropped replays; resume), `report` (report and contact sheet), `run` (the
-//! orchestration); `randomize`, `dynamics` and `camera_pool` the randomization.
+//! `fingerprint` (the settings that decide an output's bytes), `physics` (the replay
+//! simulated once: success, deviation, `--extend-steps`), `plan` (shards, resume, units),
+//! `render` (a unit of replays drawn from one simulation), `worker` (units on threads or
+//! worker processes), `staging` (replay folders staged and renamed whole; the records of
+//! dropped replays), `report` (report and contact sheet), `run` (the orchestration);
+//! `randomize`, `dynamics` and `camera_pool` the randomization.
 
 mod camera_pool;
 mod config;
+mod dry_run;
 mod dynamics;
 mod error;
+mod fingerprint;
 mod inputs;
 mod physics;
+mod plan;
 mod randomize;
 mod render;
 mod report;
 mod run;
 mod staging;
+mod worker;
 
 pub use camera_pool::{BuiltPool, PoolOptions, ScoredPose, build_pool, occlusion};
-pub use config::{AugmentConfig, REPORT_JSON, REPORT_MD, THIRD_PERSON, replay_name};
+pub use config::{
+    AugmentConfig, CONTACT_SHEET, DEFAULT_EXTEND_STEPS, REPORT_JSON, REPORT_MD, SETTINGS_FILE,
+    Shard, THIRD_PERSON, replay_name,
+};
+pub use fingerprint::{OutputSettings, TaskInputs};
+pub use dry_run::{DryRun, PlannedTask, dry_run};
 pub use dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, read_dynamics, sample_dynamics};
 pub use error::AugmentError;
 pub use inputs::SkippedInput;
@@ -34,5 +45,6 @@ pub use randomize::{
     CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,
     replay_seed,
 };
-pub use report::{AugmentReport, EpisodeOutcome, ReplayRecord};
-pub use run::augment;
+pub use report::{AugmentReport, EpisodeOutcome, FailedUnit, ReplayRecord};
+pub use run::{augment, augment_with};
+pub use worker::{Executor, FAULT_ENV, WorkerProcesses, serve_worker};

@@ -1,24 +1,25 @@
 //! Rendering a unit of work: replays of one episode drawn from one simulation (or, with
 //! `--dynamics`, one replay on its own model copy), every replay's cameras streamed
-//! frame by frame into its encoders (and depth archives), each worker thread keeping
-//! one renderer.
+//! frame by frame into its encoders (and depth archives). Each worker (thread or
+//! process) keeps one renderer. The same code runs in-process and in worker processes.
 
 use std::cell::RefCell;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use dexjoco_core::{Episode, FrameArray};
+use dexjoco_formats::SourceKind;
 use dexjoco_formats::npz::DepthWriter;
 use dexjoco_formats::raw;
 use dexjoco_sim::mujoco_rs::prelude::MjModel;
-use dexjoco_sim::{CameraView, EnvOptions, RenderSettings, Renderer, Scene, TaskEnv};
+use dexjoco_sim::{CameraView, RenderSettings, Renderer, Scene};
 use dexjoco_video::{Codec, VideoSpec, VideoWriter};
+use serde::{Deserialize, Serialize};
 
 use crate::config::{AugmentConfig, replay_name};
 use crate::dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, sample_dynamics};
 use crate::error::{AugmentError, io_err, sim_err, video_err};
 use crate::inputs::Source;
-use crate::physics::{Physics, deviation, frames, new_env};
+use crate::physics::{Physics, PhysicsSummary, new_env, replay};
 use crate::randomize::{VisualSample, apply_visuals};
 use crate::report::ReplayRecord;
 use crate::run::TaskAssets;
@@ -55,16 +56,52 @@ pub(crate) fn close_renderer() {
     RENDERER.with(|cell| cell.borrow_mut().take());
 }
 
-/// One unit of rendering work: replays `replays` of one episode, from one simulation.
-pub(crate) struct Unit {
-    pub(crate) source: usize,
+/// One unit of rendering work: replays of one episode, from one simulation; what a
+/// worker process is sent.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) struct UnitJob {
+    /// The episode's file or folder.
+    pub(crate) path: PathBuf,
+    /// Its kind.
+    pub(crate) kind: SourceKind,
+    /// Task id.
+    pub(crate) task: String,
+    /// Episode id.
+    pub(crate) episode: String,
+    /// Replay indices.
     pub(crate) replays: Vec<usize>,
+    /// The validated simulation the rendering must reproduce (without `--dynamics`).
+    pub(crate) physics: PhysicsSummary,
+    /// Content hash of the source episode (recorded in each replay).
+    pub(crate) source_hash: String,
+    /// 0 for the first try, 1 for the retry.
+    pub(crate) attempt: u32,
+}
+
+impl UnitJob {
+    /// `<task>/<episode>`, the key of its replays' seeds.
+    pub(crate) fn key(&self) -> String {
+        format!("{}/{}", self.task, self.episode)
+    }
+
+    /// Frames this unit renders (all cameras, all replays), as planned.
+    pub(crate) fn frames(&self, cameras: usize) -> u64 {
+        (self.physics.frames * cameras * self.replays.len()) as u64
+    }
+
+    /// Removes what an interrupted attempt left in staging.
+    pub(crate) fn clear_staging(&self, out: &Path) {
+        for &r in &self.replays {
+            let dir = staging_dir(out, &self.task, &replay_name(&self.episode, r));
+            let _ = fs_err::remove_dir_all(dir);
+        }
+    }
 }
 
 /// A replay being written.
 struct Pending {
     index: usize,
-    staging: std::path::PathBuf,
+    staging: PathBuf,
     sample: VisualSample,
     writers: Vec<VideoWriter>,
     /// One per camera, in the order of `writers`, with `--depth`.
@@ -74,31 +111,62 @@ struct Pending {
     preview: Option<dexjoco_sim::Frame>,
 }
 
+/// What the unit needs besides the job: the episode, its task's scene and looks.
+pub(crate) struct UnitInputs<'a> {
+    pub(crate) src: &'a Source,
+    pub(crate) assets: &'a TaskAssets,
+    pub(crate) config: &'a AugmentConfig,
+    pub(crate) out: &'a Path,
+}
+
 /// Renders one unit and writes its replays (or, failed under `--dynamics`, their
-/// records).
+/// records); `frames_done` is told every rendered frame count as it happens.
 pub(crate) fn render_unit(
-    unit: &Unit,
-    src: &Source,
-    assets: &TaskAssets,
-    physics: &Physics,
-    config: &AugmentConfig,
-    out: &Path,
+    job: &UnitJob,
+    inputs: &UnitInputs<'_>,
+    frames_done: &mut dyn FnMut(u64),
 ) -> Result<Vec<Outcome>, AugmentError> {
-    let n = frames(src, config);
+    let UnitInputs {
+        src,
+        assets,
+        config,
+        out,
+    } = *inputs;
     let id = &src.episode.id;
-    let ep_key = src.key();
-    let fixed: Vec<(String, usize)> = config
+    let ep_key = job.key();
+    let fixed: Vec<usize> = config
         .cameras
         .iter()
-        .map(|c| {
-            assets
-                .scene
-                .camera_id(c)
-                .map(|i| (c.clone(), i))
-                .map_err(sim_err(id))
-        })
+        .map(|c| assets.scene.camera_id(c).map_err(sim_err(id)))
         .collect::<Result<_, _>>()?;
     let cameras = replay_cameras(&config.cameras);
+
+    // The simulation to render: the validated one, or with --dynamics the replay's own on
+    // a model copy (one replay per unit), simulated first so a failed draw is not rendered.
+    let (scene, expected): (Scene, PhysicsSummary) = if config.dynamics {
+        let r = job.replays[0];
+        let seed = crate::randomize::replay_seed(config.seed, &ep_key, r);
+        let values = sample_dynamics(&src.spec, &assets.scene.model, dynamics_seed(seed))?;
+        let model = apply_dynamics(&src.spec, &assets.scene.model, &values)?;
+        let scene = Scene {
+            model: Arc::new(model),
+            path: assets.scene.path.clone(),
+        };
+        let mut env = new_env(src, &scene, &src.spec)?;
+        let physics = replay(src, &mut env, config, |_, _| Ok(()))?;
+        if physics.summary.first_success.is_none() && !config.keep_failed {
+            // The task failed under these dynamics: only the record of the draw is kept.
+            let sample = VisualSample::sample(seed, &assets.pool, &assets.table, assets.nlight);
+            let record = record_of(job, r, sample, Some(values), &physics.summary);
+            write_dropped(out, &record)?;
+            tracing::debug!(episode = %id, replay = r, "failed under randomized dynamics; dropped");
+            return Ok(vec![Outcome::Dropped(record)]);
+        }
+        (scene, physics.summary)
+    } else {
+        (assets.scene.clone(), job.physics.clone())
+    };
+    let n = expected.frames;
     let spec = VideoSpec {
         width: config.settings.width,
         height: config.settings.height,
@@ -106,7 +174,7 @@ pub(crate) fn render_unit(
         codec: Codec::DEXJOCO,
     };
     let mut pending = Vec::new();
-    for &r in &unit.replays {
+    for &r in &job.replays {
         let staging = staging_dir(out, &src.spec.id, &replay_name(id, r));
         if staging.exists() {
             fs_err::remove_dir_all(&staging).map_err(io_err("remove", &staging))?;
@@ -150,25 +218,9 @@ pub(crate) fn render_unit(
         });
     }
 
-    // With --dynamics a unit holds one replay, simulated on its own model copy.
-    let mut env = match pending.first().and_then(|p| p.dynamics.as_ref()) {
-        Some(values) => {
-            debug_assert_eq!(pending.len(), 1);
-            let model = apply_dynamics(&src.spec, &assets.scene.model, values)?;
-            let scene = Scene {
-                model: Arc::new(model),
-                path: assets.scene.path.clone(),
-            };
-            let state0 = src.episode.array(Episode::STATE).expect("checked").row(0);
-            TaskEnv::from_initial_state(&scene, &src.spec, state0, EnvOptions::default())
-                .map_err(sim_err(id))?
-        }
-        None => new_env(src, assets)?,
-    };
-    let actions = src.episode.array(Episode::ACTION).expect("checked");
-    let mut rows = Vec::with_capacity(n);
-    let mut first_success = None;
-    with_renderer(
+    let mut env = new_env(src, &scene, &src.spec)?;
+    let per_step = (cameras.len() * pending.len()) as u64;
+    let rendered: Physics = with_renderer(
         &assets.key,
         &assets.scene.model,
         RenderSettings {
@@ -176,11 +228,10 @@ pub(crate) fn render_unit(
             ..config.settings
         },
         |renderer| {
-            for k in 0..n {
-                rows.push(env.state());
+            replay(src, &mut env, config, |env, k| {
                 for p in &mut pending {
                     let views = std::iter::once(p.sample.camera.view())
-                        .chain(fixed.iter().map(|(_, i)| CameraView::Fixed(*i)));
+                        .chain(fixed.iter().map(|i| CameraView::Fixed(*i)));
                     for (c, (view, writer)) in views.zip(p.writers.iter_mut()).enumerate() {
                         renderer.update_scene(env.data_mut(), view);
                         apply_visuals(renderer, &p.sample, &assets.table);
@@ -194,73 +245,23 @@ pub(crate) fn render_unit(
                         }
                     }
                 }
-                let v = env.step(actions.row(k)).map_err(sim_err(id))?;
-                if v.success && first_success.is_none() {
-                    first_success = Some(k);
-                }
-            }
-            Ok(())
+                frames_done(per_step);
+                Ok(())
+            })
         },
     )?;
-    let replayed = FrameArray::from_rows(&rows).map_err(|e| AugmentError::Input(e.to_string()))?;
-    // Without --dynamics this simulation must be the validated one, bit for bit; with
-    // it, this simulation is the replay's own, and says whether it succeeded.
-    let (states, first_success, max_dev, dev_at) = if config.dynamics {
-        let recorded = src.episode.array(Episode::STATE).expect("checked");
-        let (d, at) = deviation(&replayed, recorded);
-        (replayed, first_success, d, at)
-    } else {
-        if replayed
-            .as_slice()
-            .iter()
-            .zip(physics.states.as_slice())
-            .any(|(a, b)| a.to_bits() != b.to_bits())
-        {
-            return Err(AugmentError::Input(format!(
-                "episode '{id}': the rendering simulation diverged from the validation one"
-            )));
-        }
-        (
-            physics.states.clone(),
-            physics.first_success,
-            physics.deviation,
-            physics.deviation_at,
-        )
-    };
-    let record_of = |index: usize,
-                     sample: VisualSample,
-                     dynamics: Option<Vec<DynamicsValue>>,
-                     videos: Vec<String>,
-                     depth: Vec<String>| ReplayRecord {
-        name: replay_name(id, index),
-        task: src.spec.id.clone(),
-        episode: id.clone(),
-        replay: index,
-        sample,
-        success: first_success.is_some(),
-        first_success,
-        steps: n,
-        max_state_deviation: max_dev,
-        deviation_at: dev_at,
-        videos,
-        depth,
-        dynamics,
-    };
-    let mut outcomes = Vec::new();
-    if config.dynamics && first_success.is_none() && !config.keep_failed {
-        // The task failed under these dynamics: only the record of the draw is kept.
-        for p in pending {
-            for w in p.writers {
-                let _ = w.finish();
-            }
-            let _ = fs_err::remove_dir_all(&p.staging);
-            let record = record_of(p.index, p.sample, p.dynamics, Vec::new(), Vec::new());
-            write_dropped(out, &record)?;
-            tracing::debug!(episode = %id, replay = p.index, "failed under randomized dynamics; dropped");
-            outcomes.push(Outcome::Dropped(record));
-        }
-        return Ok(outcomes);
+    // The rendering simulation must be the validated one, bit for bit.
+    if rendered.summary != expected {
+        return Err(AugmentError::Input(format!(
+            "episode '{id}': the rendering simulation diverged from the validation one \
+             ({} frames, first success {:?}; validated: {} frames, first success {:?})",
+            rendered.summary.frames,
+            rendered.summary.first_success,
+            expected.frames,
+            expected.first_success
+        )));
     }
+    let mut outcomes = Vec::new();
     for p in pending {
         for w in p.writers {
             w.finish().map_err(video_err(id))?;
@@ -268,23 +269,49 @@ pub(crate) fn render_unit(
         for d in p.depth {
             d.finish()?;
         }
-        let videos = cameras
+        let name = replay_name(id, p.index);
+        let ep = replay_episode(src, &name, &rendered.states, &cameras, config.depth)?;
+        let mut record = record_of(job, p.index, p.sample, p.dynamics, &expected);
+        record.videos = cameras
             .iter()
             .map(|c| format!("{}/{c}.mp4", raw::VIDEOS))
             .collect();
-        let depth = if config.depth {
-            cameras
+        if config.depth {
+            record.depth = cameras
                 .iter()
                 .map(|c| format!("{}/{c}_depth.npz", raw::VIDEOS))
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let name = replay_name(id, p.index);
-        let ep = replay_episode(src, &name, &states, &cameras, config.depth)?;
-        let record = record_of(p.index, p.sample, p.dynamics, videos, depth);
+                .collect();
+        }
         commit_replay(out, &p.staging, &ep, &record, p.preview.as_ref())?;
         outcomes.push(Outcome::Kept(record));
     }
     Ok(outcomes)
+}
+
+/// A replay's record (no videos yet).
+fn record_of(
+    job: &UnitJob,
+    index: usize,
+    sample: VisualSample,
+    dynamics: Option<Vec<DynamicsValue>>,
+    physics: &PhysicsSummary,
+) -> ReplayRecord {
+    ReplayRecord {
+        name: replay_name(&job.episode, index),
+        task: job.task.clone(),
+        episode: job.episode.clone(),
+        replay: index,
+        sample,
+        success: physics.first_success.is_some(),
+        first_success: physics.first_success,
+        steps: physics.frames,
+        recorded_steps: physics.recorded,
+        extended: physics.frames > physics.recorded,
+        max_state_deviation: physics.deviation,
+        deviation_at: physics.deviation_at,
+        videos: Vec::new(),
+        depth: Vec::new(),
+        dynamics,
+        source_hash: job.source_hash.clone(),
+    }
 }

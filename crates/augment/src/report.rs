@@ -31,8 +31,14 @@ pub struct ReplayRecord {
     pub success: bool,
     /// First successful step.
     pub first_success: Option<usize>,
-    /// Steps replayed (= frames).
+    /// Steps replayed (= frames): the recorded steps used, plus any extension.
     pub steps: usize,
+    /// Recorded steps used (the recording's length, or `--max-frames`).
+    #[serde(default)]
+    pub recorded_steps: usize,
+    /// The replay ran past the recording (`--extend-steps`) to reach its success.
+    #[serde(default)]
+    pub extended: bool,
     /// Largest |replayed state - recorded state| over frames and columns.
     pub max_state_deviation: f64,
     /// Where that largest deviation is: (frame, column).
@@ -45,6 +51,9 @@ pub struct ReplayRecord {
     /// The dynamics drawn for this replay (`--dynamics`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dynamics: Option<Vec<DynamicsValue>>,
+    /// Content hash of the source episode it was made from.
+    #[serde(default)]
+    pub source_hash: String,
 }
 
 /// The result of replaying one source episode (physics only).
@@ -60,12 +69,35 @@ pub struct EpisodeOutcome {
     pub success: bool,
     /// First successful step.
     pub first_success: Option<usize>,
-    /// Steps replayed.
+    /// Steps replayed (with any extension).
     pub steps: usize,
+    /// Recorded steps used.
+    pub recorded_steps: usize,
+    /// First success minus the recording's last step: 0 when the replay succeeds where
+    /// the recording ends (the DexJoCo recorder stops on the first success), +k when k
+    /// steps later (after an extension), -k when earlier.
+    pub success_shift: Option<i64>,
+    /// The replay ran past the recording to reach its success.
+    pub extended: bool,
     /// Largest deviation of the replayed state from the recording.
     pub max_state_deviation: f64,
     /// Replays kept for this episode (done now or earlier).
     pub replays_kept: usize,
+}
+
+impl EpisodeOutcome {
+    /// The success shift in words: `on time`, `+1 step, extended`, `-3 steps`.
+    pub fn shift_label(&self) -> String {
+        match self.success_shift {
+            None => "-".into(),
+            Some(0) => "on time".into(),
+            Some(s) => format!(
+                "{s:+} step{}{}",
+                if s.abs() == 1 { "" } else { "s" },
+                if self.extended { ", extended" } else { "" }
+            ),
+        }
+    }
 }
 
 /// The augment report (`augment_report.json`).
@@ -93,8 +125,28 @@ pub struct AugmentReport {
     /// a field, in input order, then those the simulator rejected, by task and episode.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub skipped: Vec<SkippedInput>,
-    /// Replays rendered by this run (the rest were already there).
+    /// Units of work that failed twice (a crashed worker, an error), with the reason;
+    /// their replays are not there and a later run redoes them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub failed_units: Vec<FailedUnit>,
+    /// Replays rendered by this run (the rest were already there). Not written into the
+    /// report files, so a resumed or sharded run writes the same report as one that was
+    /// never interrupted.
+    #[serde(skip)]
     pub rendered_now: usize,
+}
+
+/// A unit of work that failed on its retry too.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FailedUnit {
+    /// Task id.
+    pub task: String,
+    /// Episode id.
+    pub episode: String,
+    /// Replay indices of the unit.
+    pub replays: Vec<usize>,
+    /// Why (the second attempt's reason).
+    pub reason: String,
 }
 
 impl AugmentReport {
@@ -115,26 +167,47 @@ pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), Aug
     let mut md = String::new();
     md.push_str("# Augment report\n\n");
     md.push_str(&format!(
-        "Seed {}, {} replays per episode, {}x{}, {} render samples. Rendered by this run: {}.\n\n",
+        "Seed {}, {} replays per episode, {}x{}, {} render samples.\n\n",
         report.seed,
         report.replays_per_episode,
         report.settings.width,
         report.settings.height,
         report.settings.quality.samples,
-        report.rendered_now
     ));
-    md.push_str("| task | episode | replay success | first success | steps | max state deviation | replays kept |\n|---|---|---|---|---|---|---|\n");
+    md.push_str("| task | episode | replay success | recorded steps | first success | shift | steps | max state deviation | replays kept |\n|---|---|---|---|---|---|---|---|---|\n");
     for e in &report.episodes {
         md.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {:e} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {:e} | {} |\n",
             e.task,
             e.episode,
             if e.success { "yes" } else { "NO" },
+            e.recorded_steps,
             e.first_success.map_or("-".into(), |k| k.to_string()),
+            e.shift_label(),
             e.steps,
             e.max_state_deviation,
             e.replays_kept
         ));
+    }
+    let extended = report.episodes.iter().filter(|e| e.extended).count();
+    if extended > 0 {
+        md.push_str(&format!(
+            "\n{extended} episode(s) reached their success only after the recording ended: \
+             the last action was repeated (`--extend-steps`) and the extra frames are written \
+             like the others.\n"
+        ));
+    }
+    if !report.failed_units.is_empty() {
+        md.push_str(&format!(
+            "\n**Failed units ({}, tried twice; a later run redoes them):**\n\n",
+            report.failed_units.len()
+        ));
+        for u in &report.failed_units {
+            md.push_str(&format!(
+                "- `{}/{}` replays {:?}: {}\n",
+                u.task, u.episode, u.replays, u.reason
+            ));
+        }
     }
     if !report.skipped.is_empty() {
         md.push_str(&format!(

@@ -1,25 +1,28 @@
-//! The augment run: read the inputs, simulate each episode once (success, deviation),
-//! plan what is still to render (resume), render the units in parallel, and write the
-//! report and contact sheet.
+//! The augment run: read the inputs, check the output's settings, simulate each owned
+//! episode once (success, deviation, any extension), plan what is still to render
+//! (resume, shard), render the units on threads or worker processes, and (unsharded)
+//! write the report and contact sheet.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 
 use dexjoco_core::{Progress, TaskSet, TaskSpec};
 use dexjoco_sim::{Scene, SceneSource, load_task_scene};
 use rayon::prelude::*;
 
-use crate::config::{AugmentConfig, STAGING, TABLE_GEOM, replay_name};
-use crate::dynamics::{dynamics_seed, sample_dynamics};
+use crate::config::{AugmentConfig, STAGING, TABLE_GEOM};
 use crate::error::{AugmentError, io_err, sim_err};
+use crate::fingerprint::{OutputSettings, scene_hash};
 use crate::inputs::{SkippedInput, Source, read_sources};
-use crate::physics::{Physics, frames, simulate};
+use crate::physics::{PhysicsSummary, simulate};
+use crate::plan::{existing_replays, owned_replays, replays_per_unit, source_state};
 use crate::randomize::{CameraPool, TableLibrary, builtin_pool};
-use crate::render::{Unit, close_renderer, render_unit};
-use crate::report::{AugmentReport, EpisodeOutcome, contact_sheet, write_report};
-use crate::staging::{Outcome, dropped_path, read_record, read_record_file};
+use crate::render::UnitJob;
+use crate::report::{AugmentReport, EpisodeOutcome, FailedUnit, contact_sheet, write_report};
+use crate::staging::Outcome;
+use crate::worker::{Executor, LocalInputs, run_jobs};
 
-/// A task's scene and what randomization needs of it, shared by every worker.
+/// A task's scene and what randomization needs of it, shared by every worker thread.
 pub(crate) struct TaskAssets {
     pub(crate) scene: Scene,
     pub(crate) pool: CameraPool,
@@ -47,9 +50,38 @@ fn pool_for(config: &AugmentConfig, spec: &TaskSpec) -> Result<CameraPool, Augme
     Ok(builtin_pool(spec.setup))
 }
 
-/// Runs the augment stage, reporting rendered units to `progress`.
+/// Loads a task's scene, camera pool and table looks.
+pub(crate) fn load_assets(
+    config: &AugmentConfig,
+    spec: &TaskSpec,
+) -> Result<TaskAssets, AugmentError> {
+    let scene = load_task_scene(&config.scene, spec).map_err(sim_err(&spec.id))?;
+    let table = TableLibrary::of_model(&scene.model, TABLE_GEOM)?;
+    let pool = pool_for(config, spec)?;
+    let nlight = scene.model.ffi().nlight as usize;
+    let key = format!("{}:{}", spec.id, scene.path.display());
+    Ok(TaskAssets {
+        scene,
+        pool,
+        table,
+        nlight,
+        key,
+    })
+}
+
+/// Runs the augment stage on this process's threads.
 pub fn augment(
     config: &AugmentConfig,
+    progress: &dyn Progress,
+) -> Result<AugmentReport, AugmentError> {
+    augment_with(config, &Executor::Threads, progress)
+}
+
+/// Runs the augment stage with units on `executor`, reporting the physics pass
+/// (episodes) and then rendered frames to `progress`.
+pub fn augment_with(
+    config: &AugmentConfig,
+    executor: &Executor,
     progress: &dyn Progress,
 ) -> Result<AugmentReport, AugmentError> {
     let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
@@ -67,143 +99,189 @@ pub fn augment(
     }
     let out = &config.out;
     fs_err::create_dir_all(out).map_err(io_err("create", out))?;
-    // A killed run leaves at most staged (never renamed) replays: drop them.
-    let staging = out.join(STAGING);
-    if staging.exists() {
-        fs_err::remove_dir_all(&staging).map_err(io_err("remove", &staging))?;
-    }
 
-    // One scene per task, shared by the workers.
+    // One scene per task, shared by the workers; the settings that decide the output's
+    // bytes, checked against what the folder was made with.
     let mut assets: BTreeMap<String, Arc<TaskAssets>> = BTreeMap::new();
+    let mut inputs = Vec::new();
     for s in &sources {
         if assets.contains_key(&s.spec.id) {
             continue;
         }
-        let scene = load_task_scene(&config.scene, &s.spec).map_err(sim_err(&s.episode.id))?;
-        let table = TableLibrary::of_model(&scene.model, TABLE_GEOM)?;
-        let pool = pool_for(config, &s.spec)?;
-        let nlight = scene.model.ffi().nlight as usize;
-        let key = format!("{}:{}", s.spec.id, scene.path.display());
-        assets.insert(
+        let a = load_assets(config, &s.spec)?;
+        inputs.push((
             s.spec.id.clone(),
-            Arc::new(TaskAssets {
-                scene,
-                pool,
-                table,
-                nlight,
-                key,
-            }),
-        );
+            scene_hash(&config.scene, &s.spec)?,
+            OutputSettings::spec_hash(&s.spec),
+        ));
+        assets.insert(s.spec.id.clone(), Arc::new(a));
+    }
+    let settings = OutputSettings::of(
+        config,
+        inputs
+            .into_iter()
+            .map(|(t, scene, spec)| (t.clone(), scene, &assets[&t].pool, spec)),
+    );
+    if config.overwrite {
+        crate::staging::clean_output(out)?;
+    }
+    settings.check_or_write(out)?;
+    // Unsharded, this is the only writer: a killed run's staged replays are dropped.
+    // Shards share the folder, and each clears only its own units' staging.
+    let staging = out.join(STAGING);
+    if config.shard.is_none() && staging.exists() {
+        fs_err::remove_dir_all(&staging).map_err(io_err("remove", &staging))?;
     }
 
-    // Physics once per episode: success and deviation from the recording.
-    // An episode the simulator rejects (e.g. a state that does not fit the scene) is
-    // skipped, not the batch.
-    let simulated: Vec<Result<Physics, AugmentError>> = sources
-        .par_iter()
-        .map(|s| simulate(s, &assets[&s.spec.id], frames(s, config)))
+    // This run's share, and the physics of every episode it touches (the unsharded run,
+    // which writes the report, simulates them all). An episode the simulator rejects
+    // (e.g. a state that does not fit the scene) is skipped, not the batch.
+    let cameras = 1 + config.cameras.len();
+    let owned = owned_replays(&sources, config, cameras);
+    let simulate_it: Vec<bool> = owned
+        .iter()
+        .map(|o| config.shard.is_none() || !o.is_empty())
         .collect();
-    let (sources, physics): (Vec<Source>, Vec<Physics>) = sources
-        .into_iter()
-        .zip(simulated)
-        .filter_map(|(s, p)| match p {
-            Ok(p) => Some((s, p)),
-            Err(e) => {
+    progress.phase(
+        "physics",
+        simulate_it.iter().filter(|x| **x).count() as u64,
+    );
+    let simulated: Vec<Option<Result<PhysicsSummary, AugmentError>>> = sources
+        .par_iter()
+        .zip(&simulate_it)
+        .map(|(s, &go)| {
+            go.then(|| {
+                let r = simulate(s, &assets[&s.spec.id].scene, config).map(|p| p.summary);
+                progress.advance(1, &s.key());
+                r
+            })
+        })
+        .collect();
+    let mut physics: Vec<Option<PhysicsSummary>> = Vec::with_capacity(sources.len());
+    for (s, p) in sources.iter().zip(simulated) {
+        physics.push(match p {
+            Some(Ok(p)) => Some(p),
+            Some(Err(e)) => {
                 skipped.push(SkippedInput::new(&s.path, e.to_string()));
                 None
             }
-        })
-        .unzip();
+            None => None,
+        });
+    }
 
-    // What is on disk already (resume), read once, and which replays are still to do.
+    // What is on disk already (resume), read once, and the units still to render.
+    let task_ids: BTreeSet<&str> = sources.iter().map(|s| s.spec.id.as_str()).collect();
+    let on_disk = existing_replays(out, &task_ids);
     let mut outcomes: BTreeMap<(usize, usize), Outcome> = BTreeMap::new();
-    let mut units = Vec::new();
-    let jobs = rayon::current_num_threads().max(1);
+    let mut todo: Vec<(usize, Vec<usize>)> = Vec::new();
     for (i, s) in sources.iter().enumerate() {
-        // Done: the replay's folder is there (made with this seed), or, without
-        // --keep-failed (which would now keep it), it was dropped under --dynamics with the
-        // same seed and the same draw (a changed spec draws again).
-        let key = s.key();
-        let mut todo = Vec::new();
-        for r in 0..config.replays {
-            let name = replay_name(&s.episode.id, r);
-            let seed = crate::randomize::replay_seed(config.seed, &key, r);
-            let folder = out.join(&s.spec.id).join(&name);
-            if let Some(rec) = read_record(&folder) {
-                if rec.sample.seed != seed {
-                    return Err(AugmentError::Input(format!(
-                        "'{}' was made with another --seed (replay seed {}, now {seed}): augment into another --out, or remove it",
-                        folder.display(),
-                        rec.sample.seed
-                    )));
-                }
-                outcomes.insert((i, r), Outcome::Kept(rec));
-                continue;
-            }
-            if config.dynamics
-                && !config.keep_failed
-                && let Some(rec) = read_record_file(&dropped_path(out, &s.spec.id, &name))
-            {
-                let model = &assets[&s.spec.id].scene.model;
-                let draw = sample_dynamics(&s.spec, model, dynamics_seed(seed))?;
-                if rec.sample.seed == seed && rec.dynamics.as_ref() == Some(&draw) {
-                    outcomes.insert((i, r), Outcome::Dropped(rec));
-                    continue;
-                }
-            }
-            todo.push(r);
-        }
-        if physics[i].first_success.is_none() && !config.keep_failed {
-            tracing::warn!(task = %s.spec.id, episode = %s.episode.id, "replay failed; no replays kept");
+        let Some(p) = &physics[i] else {
             continue;
-        }
-        if todo.is_empty() {
-            continue;
-        }
-        let per_unit = if config.resimulate_per_replay || config.dynamics {
-            1
-        } else {
-            // Enough units to keep every worker busy; the output never depends on it.
-            let units_per_episode = (2 * jobs).div_ceil(sources.len()).max(1);
-            todo.len().div_ceil(units_per_episode).max(1)
         };
-        for chunk in todo.chunks(per_unit) {
-            units.push(Unit {
-                source: i,
-                replays: chunk.to_vec(),
-            });
+        let disk = on_disk.get(&(s.spec.id.clone(), s.episode.id.clone()));
+        let state = source_state(s, &s.hash, &owned[i], disk, &assets[&s.spec.id], config)?;
+        outcomes.extend(state.outcomes.into_iter().map(|(r, o)| ((i, r), o)));
+        if p.first_success.is_none() && !config.keep_failed {
+            if !state.todo.is_empty() {
+                tracing::warn!(task = %s.spec.id, episode = %s.episode.id, "replay failed; no replays kept");
+            }
+            continue;
+        }
+        if !state.todo.is_empty() {
+            todo.push((i, state.todo));
         }
     }
-    progress.start(units.len() as u64);
-    let rendered: Vec<Vec<Outcome>> = units
-        .par_iter()
-        .map(|u| {
-            let s = &sources[u.source];
-            let r = render_unit(u, s, &assets[&s.spec.id], &physics[u.source], config, out);
-            progress.advance(1, &s.key());
-            r
-        })
-        .collect::<Result<_, _>>()?;
-    // Close every worker's renderer (and its EGL context) now, in order, rather than at
-    // process exit while other threads are still alive.
-    rayon::broadcast(|_| close_renderer());
-    let _ = fs_err::remove_dir(&staging);
+    let workers = match executor {
+        Executor::Threads => rayon::current_num_threads(),
+        Executor::Processes(w) => w.count,
+    }
+    .max(1);
+    let mut jobs: Vec<(usize, UnitJob)> = Vec::new();
+    for (i, replays) in &todo {
+        let s = &sources[*i];
+        let per_unit = replays_per_unit(replays.len(), config, workers, todo.len());
+        for chunk in replays.chunks(per_unit) {
+            jobs.push((
+                *i,
+                UnitJob {
+                    path: s.path.clone(),
+                    kind: s.kind,
+                    task: s.spec.id.clone(),
+                    episode: s.episode.id.clone(),
+                    replays: chunk.to_vec(),
+                    physics: physics[*i].clone().expect("simulated"),
+                    source_hash: s.hash.clone(),
+                    attempt: 0,
+                },
+            ));
+        }
+    }
+    let local = LocalInputs {
+        sources: &sources,
+        assets: &assets,
+    };
+    let results = run_jobs(executor, &jobs, &local, config, cameras, progress)?;
+    if config.shard.is_none() {
+        let _ = fs_err::remove_dir(&staging);
+    }
     let mut rendered_now = 0;
-    for (u, done) in units.iter().zip(rendered) {
-        for o in done {
-            let r = match &o {
-                Outcome::Kept(rec) => {
-                    rendered_now += 1;
-                    rec.replay
+    let mut failed_units = Vec::new();
+    for ((i, job), result) in jobs.iter().zip(results) {
+        match result {
+            Ok(done) => {
+                for o in done {
+                    let r = match &o {
+                        Outcome::Kept(rec) => {
+                            rendered_now += 1;
+                            rec.replay
+                        }
+                        Outcome::Dropped(rec) => rec.replay,
+                    };
+                    outcomes.insert((*i, r), o);
                 }
-                Outcome::Dropped(rec) => rec.replay,
-            };
-            outcomes.insert((u.source, r), o);
+            }
+            Err(reason) => failed_units.push(FailedUnit {
+                task: job.task.clone(),
+                episode: job.episode.clone(),
+                replays: job.replays.clone(),
+                reason,
+            }),
         }
     }
 
-    // The report covers every replay of these episodes on disk, in (episode, replay)
-    // order.
+    let report = build_report(
+        config,
+        &sources,
+        &physics,
+        &assets,
+        outcomes,
+        skipped,
+        failed_units,
+        rendered_now,
+    );
+    // A shard writes no report: the unsharded run after the shards writes it (and renders
+    // nothing new), the same bytes as one unsharded run.
+    if config.shard.is_none() {
+        write_report(out, &report)?;
+        if config.contact_sheet {
+            contact_sheet(out, &report)?;
+        }
+    }
+    Ok(report)
+}
+
+/// The report: every replay of these episodes on disk, in (episode, replay) order.
+#[allow(clippy::too_many_arguments)]
+fn build_report(
+    config: &AugmentConfig,
+    sources: &[Source],
+    physics: &[Option<PhysicsSummary>],
+    assets: &BTreeMap<String, Arc<TaskAssets>>,
+    outcomes: BTreeMap<(usize, usize), Outcome>,
+    skipped: Vec<SkippedInput>,
+    failed_units: Vec<FailedUnit>,
+    rendered_now: usize,
+) -> AugmentReport {
     let mut replays = Vec::new();
     let mut dropped = Vec::new();
     let mut kept = vec![0; sources.len()];
@@ -216,20 +294,30 @@ pub fn augment(
             Outcome::Dropped(rec) => dropped.push(rec),
         }
     }
-    let mut episodes = Vec::new();
-    for (i, s) in sources.iter().enumerate() {
-        episodes.push(EpisodeOutcome {
-            task: s.spec.id.clone(),
-            episode: s.episode.id.clone(),
-            source: s.path.display().to_string(),
-            success: physics[i].first_success.is_some(),
-            first_success: physics[i].first_success,
-            steps: frames(s, config),
-            max_state_deviation: physics[i].deviation,
-            replays_kept: kept[i],
-        });
-    }
-    let report = AugmentReport {
+    let episodes = sources
+        .iter()
+        .zip(physics)
+        .enumerate()
+        .filter_map(|(i, (s, p))| {
+            let p = p.as_ref()?;
+            Some(EpisodeOutcome {
+                task: s.spec.id.clone(),
+                episode: s.episode.id.clone(),
+                source: s.path.display().to_string(),
+                success: p.first_success.is_some(),
+                first_success: p.first_success,
+                steps: p.frames,
+                recorded_steps: p.recorded,
+                success_shift: p
+                    .first_success
+                    .map(|k| k as i64 - (p.recorded as i64 - 1)),
+                extended: p.frames > p.recorded,
+                max_state_deviation: p.deviation,
+                replays_kept: kept[i],
+            })
+        })
+        .collect();
+    AugmentReport {
         seed: config.seed,
         replays_per_episode: config.replays,
         settings: config.settings,
@@ -250,11 +338,7 @@ pub fn augment(
         replays,
         dropped,
         skipped,
+        failed_units,
         rendered_now,
-    };
-    write_report(out, &report)?;
-    if config.contact_sheet {
-        contact_sheet(out, &report)?;
     }
-    Ok(report)
 }

@@ -12,10 +12,12 @@ use dexjoco_formats::raw;
 use crate::config::{DROPPED, PREVIEWS, RECORD, STAGING, THIRD_PERSON};
 use crate::error::{AugmentError, io_err, sim_err};
 use crate::inputs::Source;
+use crate::physics::action_row;
 use crate::report::ReplayRecord;
 
 /// What became of one replay: its folder was written, or it failed under `--dynamics`
 /// and only its record was kept (`.dropped/`).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) enum Outcome {
     Kept(ReplayRecord),
     Dropped(ReplayRecord),
@@ -78,19 +80,28 @@ pub(crate) fn replay_episode(
             })
             .collect(),
     };
-    let take = |name: &str| -> Option<FrameArray> {
-        let a = src.episode.array(name)?;
-        let rows: Vec<&[f64]> = (0..n).map(|k| a.row(k)).collect();
-        FrameArray::from_rows(&rows).ok()
-    };
-    ep.arrays.insert(
-        Episode::ACTION.into(),
-        take(Episode::ACTION).expect("checked"),
-    );
+    // Past the recording (an extended replay) the last action repeats and the timestamps
+    // go on at the episode's rate.
+    let actions = src.episode.array(Episode::ACTION).expect("checked");
+    let rows: Vec<&[f64]> = (0..n).map(|k| action_row(actions, k)).collect();
+    let action = FrameArray::from_rows(&rows).map_err(|e| AugmentError::Input(e.to_string()))?;
+    let recorded_ts = src
+        .episode
+        .array(Episode::TIMESTAMP)
+        .filter(|t| t.width() == 1 && !t.is_empty());
+    let ts: Vec<f64> = (0..n)
+        .map(|k| match recorded_ts {
+            Some(t) if k < t.len() => t.row(k)[0],
+            Some(t) => t.row(t.len() - 1)[0] + (k + 1 - t.len()) as f64 / src.episode.fps,
+            None => k as f64 / src.episode.fps,
+        })
+        .collect();
+    ep.arrays.insert(Episode::ACTION.into(), action);
     ep.arrays.insert(Episode::STATE.into(), states.clone());
-    let ts =
-        take(Episode::TIMESTAMP).unwrap_or_else(|| Episode::regular_timestamps(n, src.episode.fps));
-    ep.arrays.insert(Episode::TIMESTAMP.into(), ts);
+    ep.arrays.insert(
+        Episode::TIMESTAMP.into(),
+        FrameArray::new(1, ts).map_err(|e| AugmentError::Input(e.to_string()))?,
+    );
     ep.compute_action_rotvec(src.spec.setup)
         .map_err(|e| AugmentError::Input(format!("episode '{id}': {e}")))?;
     Ok(ep)
@@ -136,4 +147,33 @@ pub(crate) fn replay_cameras(fixed: &[String]) -> Vec<String> {
     std::iter::once(THIRD_PERSON.to_owned())
         .chain(fixed.iter().cloned())
         .collect()
+}
+
+/// Removes what augment wrote into `out` (replay folders with their records, staging,
+/// dropped records, previews, report, contact sheet, settings), and nothing else: the
+/// `--overwrite` start from clean.
+pub(crate) fn clean_output(out: &Path) -> Result<(), AugmentError> {
+    use crate::config::{CONTACT_SHEET, REPORT_JSON, REPORT_MD, SETTINGS_FILE};
+    let Ok(rd) = fs_err::read_dir(out) else {
+        return Ok(());
+    };
+    for e in rd.flatten() {
+        let path = e.path();
+        let name = e.file_name().to_string_lossy().into_owned();
+        if [STAGING, DROPPED, PREVIEWS].contains(&name.as_str()) {
+            fs_err::remove_dir_all(&path).map_err(io_err("remove", &path))?;
+        } else if [REPORT_JSON, REPORT_MD, CONTACT_SHEET, SETTINGS_FILE].contains(&name.as_str())
+        {
+            fs_err::remove_file(&path).map_err(io_err("remove", &path))?;
+        } else if path.is_dir() && !name.starts_with('.') {
+            // A task folder: its replay folders (those holding a record) go.
+            for r in fs_err::read_dir(&path).map_err(io_err("list", &path))?.flatten() {
+                if r.path().join(RECORD).is_file() {
+                    fs_err::remove_dir_all(r.path()).map_err(io_err("remove", &r.path()))?;
+                }
+            }
+            let _ = fs_err::remove_dir(&path);
+        }
+    }
+    Ok(())
 }

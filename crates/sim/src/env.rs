@@ -69,7 +69,7 @@ impl Rollout {
 }
 
 /// Where a task's scene comes from.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum SceneSource {
     /// The scenes authored by this project and embedded in the binary (the default).
     #[default]

@@ -64,6 +64,14 @@ impl RenderQuality {
         ("fast", Self::FAST),
     ];
 
+    /// The preset's name, or `custom`.
+    pub fn name(&self) -> &'static str {
+        Self::PRESETS
+            .iter()
+            .find(|(_, q)| q == self)
+            .map_or("custom", |(n, _)| n)
+    }
+
     /// A preset by name (`paper`, `no-msaa`, `no-msaa-no-shadows`, `fast`).
     pub fn from_name(name: &str) -> Option<Self> {
         Self::PRESETS

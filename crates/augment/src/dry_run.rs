@@ -1,0 +1,215 @@
+//! `augment --dry-run`: what a run would do, before the spend. Episodes, replays and
+//! frames per task, what is already on disk, and an estimate of the time from a short
+//! calibration: each task's scene rendered and encoded at the chosen size and preset
+//! while its first episode's actions are stepped, as augment does.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::time::Instant;
+
+use dexjoco_core::{Episode, TaskSet};
+use dexjoco_sim::{CameraView, RenderSettings, Renderer};
+use dexjoco_video::{Codec, VideoSpec, VideoWriter};
+use serde::Serialize;
+
+use crate::config::{AugmentConfig, replay_name};
+use crate::error::{AugmentError, sim_err, video_err};
+use crate::fingerprint::OutputSettings;
+use crate::inputs::read_sources;
+use crate::physics::{action_row, new_env, recorded_frames};
+use crate::plan::{existing_replays, owned_replays};
+use crate::randomize::{VisualSample, apply_visuals};
+use crate::run::load_assets;
+
+/// One task's share of a planned run.
+#[derive(Debug, Clone, Serialize)]
+pub struct PlannedTask {
+    /// Task id.
+    pub task: String,
+    /// Episodes.
+    pub episodes: usize,
+    /// Replays this run owns (all, or its shard's).
+    pub replays: usize,
+    /// Of those, already on disk.
+    pub done: usize,
+    /// Frames still to render (every camera, recorded frames; an extension adds at most
+    /// `--extend-steps` per replay).
+    pub frames_to_render: u64,
+    /// Calibrated frames/s of one worker on this task's scene (render + encode + physics),
+    /// when calibrated.
+    pub frames_per_s: Option<f64>,
+}
+
+/// A planned run and its estimate.
+#[derive(Debug, Clone, Serialize)]
+pub struct DryRun {
+    /// Per task.
+    pub tasks: Vec<PlannedTask>,
+    /// Inputs that could not be replayed, with the reason.
+    pub skipped: Vec<(String, String)>,
+    /// Cameras rendered per replay.
+    pub cameras: usize,
+    /// Estimated seconds for one worker process on this machine.
+    pub seconds_one_worker: Option<f64>,
+    /// How the output folder's settings differ from this run's (the run would be refused
+    /// without `--overwrite`).
+    pub settings_differ: Vec<String>,
+}
+
+impl DryRun {
+    /// Frames still to render.
+    pub fn frames_to_render(&self) -> u64 {
+        self.tasks.iter().map(|t| t.frames_to_render).sum()
+    }
+}
+
+/// Plans `config` without rendering anything but the calibration frames (`calibration`
+/// frames per task; 0 skips it).
+pub fn dry_run(config: &AugmentConfig, calibration: usize) -> Result<DryRun, AugmentError> {
+    let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
+        .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
+    let (sources, skipped) = read_sources(&config.inputs, &tasks)?;
+    let cameras = 1 + config.cameras.len();
+    let owned = owned_replays(&sources, config, cameras);
+    let task_ids: BTreeSet<&str> = sources.iter().map(|s| s.spec.id.as_str()).collect();
+    let on_disk = existing_replays(&config.out, &task_ids);
+    let mut per_task: BTreeMap<String, PlannedTask> = BTreeMap::new();
+    let mut first_of_task: BTreeMap<String, usize> = BTreeMap::new();
+    for (i, s) in sources.iter().enumerate() {
+        let t = per_task
+            .entry(s.spec.id.clone())
+            .or_insert_with(|| PlannedTask {
+                task: s.spec.id.clone(),
+                episodes: 0,
+                replays: 0,
+                done: 0,
+                frames_to_render: 0,
+                frames_per_s: None,
+            });
+        first_of_task.entry(s.spec.id.clone()).or_insert(i);
+        t.episodes += 1;
+        let disk = on_disk.get(&(s.spec.id.clone(), s.episode.id.clone()));
+        let frames = (recorded_frames(s, config) * cameras) as u64;
+        for &r in &owned[i] {
+            t.replays += 1;
+            let done = disk.is_some_and(|d| {
+                d.get(&r)
+                    .is_some_and(|rec| rec.name == replay_name(&s.episode.id, r))
+            });
+            if done {
+                t.done += 1;
+            } else {
+                t.frames_to_render += frames;
+            }
+        }
+    }
+    let mut settings_differ = Vec::new();
+    if let Ok(bytes) = fs_err::read(config.out.join(crate::config::SETTINGS_FILE)) {
+        let mut inputs = Vec::new();
+        let mut pools = BTreeMap::new();
+        for task in first_of_task.keys() {
+            let spec = &sources[first_of_task[task]].spec;
+            pools.insert(task.clone(), load_assets(config, spec)?.pool);
+            inputs.push((
+                task.clone(),
+                crate::fingerprint::scene_hash(&config.scene, spec)?,
+                OutputSettings::spec_hash(spec),
+            ));
+        }
+        let now = OutputSettings::of(
+            config,
+            inputs.into_iter().map(|(t, sc, sp)| (t.clone(), sc, &pools[&t], sp)),
+        );
+        match serde_json::from_slice::<OutputSettings>(&bytes) {
+            Ok(was) => settings_differ = now.differences(&was),
+            Err(e) => settings_differ.push(format!("unreadable settings file ({e})")),
+        }
+    }
+    if calibration > 0 {
+        for (task, t) in per_task.iter_mut() {
+            if t.frames_to_render == 0 {
+                continue;
+            }
+            let s = &sources[first_of_task[task]];
+            t.frames_per_s = Some(calibrate(s, config, calibration)?);
+        }
+    }
+    let seconds_one_worker = (calibration > 0).then(|| {
+        per_task
+            .values()
+            .filter_map(|t| t.frames_per_s.map(|f| t.frames_to_render as f64 / f))
+            .sum()
+    });
+    Ok(DryRun {
+        tasks: per_task.into_values().collect(),
+        skipped: skipped.into_iter().map(|k| (k.source, k.reason)).collect(),
+        cameras,
+        seconds_one_worker,
+        settings_differ,
+    })
+}
+
+/// Frames/s of one worker on `src`'s task: `frames` steps of its actions, every camera
+/// rendered with the first sampled look and encoded, after three warm-up steps.
+fn calibrate(
+    src: &crate::inputs::Source,
+    config: &AugmentConfig,
+    frames: usize,
+) -> Result<f64, AugmentError> {
+    let id = &src.episode.id;
+    let assets = load_assets(config, &src.spec)?;
+    let fixed: Vec<usize> = config
+        .cameras
+        .iter()
+        .map(|c| assets.scene.camera_id(c).map_err(sim_err(id)))
+        .collect::<Result<_, _>>()?;
+    let sample = VisualSample::sample(
+        crate::randomize::replay_seed(config.seed, &src.key(), 0),
+        &assets.pool,
+        &assets.table,
+        assets.nlight,
+    );
+    let mut renderer = Renderer::new(
+        &assets.scene.model,
+        RenderSettings {
+            depth: config.depth,
+            ..config.settings
+        },
+    )
+    .map_err(sim_err(id))?;
+    let tmp = tempfile::tempdir().map_err(|e| AugmentError::Input(e.to_string()))?;
+    let spec = VideoSpec {
+        width: config.settings.width,
+        height: config.settings.height,
+        fps: 30,
+        codec: Codec::DEXJOCO,
+    };
+    let mut writers: Vec<VideoWriter> = (0..=fixed.len())
+        .map(|c| VideoWriter::create(tmp.path().join(format!("{c}.mp4")), spec))
+        .collect::<Result<_, _>>()
+        .map_err(video_err(id))?;
+    let mut env = new_env(src, &assets.scene, &src.spec)?;
+    let actions = src.episode.array(Episode::ACTION).expect("checked");
+    let warmup = 3;
+    let mut started = Instant::now();
+    let mut rendered = 0usize;
+    for k in 0..warmup + frames {
+        if k == warmup {
+            started = Instant::now();
+            rendered = 0;
+        }
+        let views =
+            std::iter::once(sample.camera.view()).chain(fixed.iter().map(|i| CameraView::Fixed(*i)));
+        for (view, w) in views.zip(writers.iter_mut()) {
+            renderer.update_scene(env.data_mut(), view);
+            apply_visuals(&mut renderer, &sample, &assets.table);
+            let frame = renderer.draw().map_err(sim_err(id))?;
+            w.write_frame(&frame.rgb).map_err(video_err(id))?;
+            rendered += 1;
+        }
+        env.step(action_row(actions, k)).map_err(sim_err(id))?;
+    }
+    for w in writers {
+        w.finish().map_err(video_err(id))?;
+    }
+    Ok(rendered as f64 / started.elapsed().as_secs_f64().max(1e-9))
+}
