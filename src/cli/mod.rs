@@ -39,7 +39,13 @@ Exit codes:
 /// episodes, replay them in MuJoCo under randomization, convert to LeRobot / Diffusion
 /// Policy datasets, and analyse results.
 #[derive(Debug, Parser)]
-#[command(name = "dexjoco-data", version, after_help = AFTER_HELP, propagate_version = true)]
+#[command(
+    name = "dexjoco-data",
+    version,
+    after_help = AFTER_HELP,
+    propagate_version = true,
+    args_override_self = true
+)]
 pub struct Cli {
     /// Options every subcommand takes.
     #[command(flatten)]

@@ -27,9 +27,9 @@ use crate::render::{UnitInputs, UnitJob, close_renderer, render_unit};
 use crate::run::{TaskAssets, load_assets};
 use crate::staging::Outcome;
 
-/// Environment variable of a test hook: `<task>/<episode>@<k>` makes a worker process abort
-/// (as a crash would) after the first rendered frames of that episode's units, on their
-/// first `k` attempts.
+/// Environment variable of a test hook: `<task>/<episode>@<k>` makes a worker process die
+/// (exit status 134, as a crash would end it, without a core file) after the first rendered
+/// frames of that episode's units, on their first `k` attempts.
 pub const FAULT_ENV: &str = "DEXJOCO_TEST_WORKER_ABORT";
 
 /// Where units run.
@@ -349,8 +349,8 @@ pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), A
             render_unit(&job, &inputs, &mut |n| {
                 let _ = send(&mut output, &FromWorker::Frames(n));
                 if abort {
-                    tracing::warn!("{FAULT_ENV}: aborting as a crash would");
-                    std::process::abort();
+                    tracing::warn!("{FAULT_ENV}: dying mid-unit, as a crash would");
+                    std::process::exit(134);
                 }
             })
         })();

@@ -35,6 +35,9 @@ fn config(inputs: Vec<PathBuf>, out: &Path) -> AugmentConfig {
         contact_sheet: false,
         depth: false,
         dynamics: false,
+        extend_steps: dexjoco_augment::DEFAULT_EXTEND_STEPS,
+        shard: None,
+        overwrite: false,
     }
 }
 
@@ -498,12 +501,12 @@ fn replays_failing_under_their_dynamics_draw_are_recorded_once_and_kept_on_reque
     let now: Vec<_> = first.dropped.iter().map(|d| stamp(&d.name)).collect();
     assert_eq!(now, stamps, "a dropped replay was simulated again");
 
-    // Another seed into the same folder is refused, naming a replay folder.
+    // Another seed into the same folder is refused, naming the difference.
     let mut other = c.clone();
     other.seed = 8;
     let err = augment(&other, &NoProgress).unwrap_err().to_string();
     assert!(
-        err.contains("another --seed") && err.contains("episode_000000__r"),
+        err.contains("other settings") && err.contains("seed: 8 (was 7)"),
         "{err}"
     );
 

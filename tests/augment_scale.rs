@@ -1,0 +1,244 @@
+//! `augment` at scale, end to end through the binary: worker processes (output identical
+//! whatever -j is; a crashed worker's unit retried, or reported, never left half written),
+//! shards into one folder then the finalize (identical to one run), the dry-run plan, and
+//! the settings fingerprint (a resume with other settings refused, --overwrite starting
+//! clean, episodes of another dataset under the same names refused).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn cli() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
+    c.current_dir(dexjoco_testkit::workspace_root())
+        .env_remove("DEXJOCO_WORK_DIR")
+        .env_remove("DEXJOCO_SEED")
+        .env_remove("DEXJOCO_EGL_DEVICES")
+        .env_remove(dexjoco_augment::FAULT_ENV)
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("SLURM_ARRAY_TASK_COUNT")
+        .env_remove("SLURM_ARRAY_TASK_MIN")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .env("DEXJOCO_LOG", "warn");
+    c
+}
+
+const EPISODE: &str = "datasets/demos/click_mouse/episode_000000";
+
+/// `augment` of one sample episode, small and short (12 frames: the task is not done yet,
+/// so `--keep-failed` keeps the replays), with `extra` arguments.
+fn augment(jobs: usize, out: &Path, extra: &[&str]) -> Command {
+    let mut c = cli();
+    c.args(["-q", "-j", &jobs.to_string(), "augment", EPISODE])
+        .args(["--replays", "4", "--size", "32", "--quality", "fast"])
+        .args(["--max-frames", "12", "--keep-failed", "--out"])
+        .arg(out)
+        .args(extra);
+    c
+}
+
+/// A finished run's stdout. Exit code 3 is expected: 12 frames do not complete the task.
+fn ok(out: &Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        matches!(out.status.code(), Some(0 | 3)) && !stdout.contains("UNIT FAILED"),
+        "{:?}\nstdout: {}\nstderr: {}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    dexjoco_testkit::file_tree(dir)
+}
+
+#[test]
+fn worker_processes_give_identical_bytes_and_a_crashed_worker_is_retried_or_reported() {
+    let tmp = tempfile::tempdir().unwrap();
+    let one = tmp.path().join("one");
+    ok(&augment(1, &one, &[]).output().unwrap());
+    let reference = tree(&one);
+    assert!(reference.contains_key("click_mouse/episode_000000__r03/replay.json"));
+    assert!(reference.contains_key("augment_report.json"));
+
+    // Two worker processes: the same bytes, report and contact sheet included.
+    let two = tmp.path().join("two");
+    ok(&augment(2, &two, &[]).output().unwrap());
+    assert_eq!(tree(&two), reference);
+
+    // A worker that crashes mid-unit on the first attempt: retried, same bytes.
+    let crashed = tmp.path().join("crashed");
+    let out = augment(2, &crashed, &[])
+        .env(dexjoco_augment::FAULT_ENV, "click_mouse/episode_000000@1")
+        .output()
+        .unwrap();
+    ok(&out);
+    assert_eq!(tree(&crashed), reference);
+
+    // Crashing on the retry too: the unit is reported failed (exit 3), nothing of it is
+    // left half written, and the next run completes it.
+    let failed = tmp.path().join("failed");
+    let out = augment(1, &failed, &[])
+        .env(dexjoco_augment::FAULT_ENV, "click_mouse/episode_000000@2")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(3), "{out:?}");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("UNIT FAILED: click_mouse/episode_000000"), "{stdout}");
+    assert!(!failed.join(".staging").exists());
+    assert!(!failed.join("click_mouse").exists(), "no replay of the failed unit");
+    let report: serde_json::Value =
+        serde_json::from_slice(&fs_err::read(failed.join("augment_report.json")).unwrap())
+            .unwrap();
+    assert_eq!(report["failed_units"][0]["episode"], "episode_000000");
+    assert!(
+        report["failed_units"][0]["reason"]
+            .as_str()
+            .unwrap()
+            .contains("worker process ended"),
+        "{report}"
+    );
+    ok(&augment(2, &failed, &[]).output().unwrap());
+    assert_eq!(tree(&failed), reference);
+}
+
+#[test]
+fn shards_run_at_once_into_one_folder_then_the_finalize_equals_one_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let single = tmp.path().join("single");
+    ok(&augment(1, &single, &[]).output().unwrap());
+
+    let shared = tmp.path().join("shared");
+    let children: Vec<_> = ["0/2", "1/2"]
+        .iter()
+        .map(|s| {
+            augment(1, &shared, &["--shard", s])
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    let mut rendered = 0;
+    for c in children {
+        let stdout = ok(&c.wait_with_output().unwrap());
+        let n: usize = stdout
+            .split("augment shard ")
+            .nth(1)
+            .and_then(|s| s.split(": ").nth(1))
+            .and_then(|s| s.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{stdout}"));
+        // Balanced: 4 equal replays over 2 shards.
+        assert_eq!(n, 2, "{stdout}");
+        rendered += n;
+    }
+    assert_eq!(rendered, 4);
+    assert!(!shared.join("augment_report.json").exists(), "shards write no report");
+    let stdout = ok(&augment(2, &shared, &[]).output().unwrap());
+    assert!(stdout.contains("(0 rendered now"), "{stdout}");
+    assert_eq!(tree(&shared), tree(&single));
+
+    // `--shard auto` reads a Slurm array's index and count; a bad shard is a usage error.
+    let auto = tmp.path().join("auto");
+    ok(&augment(1, &auto, &["--shard", "auto"])
+        .env("SLURM_ARRAY_TASK_ID", "1")
+        .env("SLURM_ARRAY_TASK_COUNT", "2")
+        .output()
+        .unwrap());
+    let names: Vec<String> = fs_err::read_dir(auto.join("click_mouse"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names.len(), 2, "{names:?}");
+    let out = augment(1, &auto, &["--shard", "2/2"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+}
+
+#[test]
+fn dry_run_prints_the_plan_and_an_estimate_and_renders_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = tmp.path().join("out");
+    let stdout = ok(&augment(2, &out_dir, &["--dry-run"]).output().unwrap());
+    assert!(stdout.contains("| click_mouse | 1 | 4 | 0 | 48 |"), "{stdout}");
+    assert!(stdout.contains("1 worker process:"), "{stdout}");
+    assert!(stdout.contains("4 nodes like this one:"), "{stdout}");
+    assert!(!out_dir.join("click_mouse").exists());
+    // After a real run, everything is done; another --size would be refused.
+    ok(&augment(2, &out_dir, &[]).output().unwrap());
+    let stdout = ok(&augment(2, &out_dir, &["--dry-run"]).output().unwrap());
+    assert!(stdout.contains("| click_mouse | 1 | 4 | 4 | 0 |"), "{stdout}");
+    let mut other = augment(2, &out_dir, &["--dry-run"]);
+    other.args(["--size", "48"]);
+    let stdout = ok(&other.output().unwrap());
+    assert!(stdout.contains("width: 48 (was 32)"), "{stdout}");
+}
+
+/// A copy of the sample episode under the same name with one action value changed.
+fn changed_copy(root: &Path) -> PathBuf {
+    let tasks = dexjoco_core::TaskSet::builtin();
+    let mut ep = dexjoco_formats::read_episode(
+        &dexjoco_testkit::workspace_root().join(EPISODE),
+        tasks,
+    )
+    .unwrap();
+    ep.arrays.get_mut("action").unwrap().row_mut(5)[20] += 1e-3;
+    let dir = root.join("click_mouse/episode_000000");
+    dexjoco_formats::raw::write_replay_zarr(&dir, &ep).unwrap();
+    dir
+}
+
+#[test]
+fn a_resume_with_other_settings_or_another_dataset_is_refused_and_overwrite_starts_clean() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = tmp.path().join("out");
+    ok(&augment(1, &out_dir, &[]).output().unwrap());
+    let first = tree(&out_dir);
+
+    // Another --size into the same folder: refused, naming the difference; nothing changes.
+    let mut c = augment(1, &out_dir, &[]);
+    c.args(["--size", "48"]);
+    let out = c.output().unwrap();
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("width: 48 (was 32)") && err.contains("--overwrite"), "{err}");
+    assert_eq!(tree(&out_dir), first);
+
+    // Another dataset whose episode has the same name but other content: refused.
+    let other = changed_copy(&tmp.path().join("other"));
+    let mut c = cli();
+    c.args(["-q", "-j", "1", "augment"])
+        .arg(&other)
+        .args(["--replays", "4", "--size", "32", "--quality", "fast"])
+        .args(["--max-frames", "12", "--keep-failed", "--out"])
+        .arg(&out_dir);
+    let out = c.output().unwrap();
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("other content of episode 'click_mouse/episode_000000'"), "{err}");
+
+    // --overwrite starts clean: the result equals a fresh run with the new settings, and
+    // what augment did not write stays.
+    fs_err::write(out_dir.join("notes.txt"), "mine").unwrap();
+    let mut c = augment(1, &out_dir, &["--overwrite"]);
+    c.args(["--size", "48"]);
+    ok(&c.output().unwrap());
+    let fresh = tmp.path().join("fresh");
+    let mut c = augment(1, &fresh, &[]);
+    c.args(["--size", "48"]);
+    ok(&c.output().unwrap());
+    let mut now = tree(&out_dir);
+    assert_eq!(now.remove("notes.txt").as_deref(), Some(&b"mine"[..]));
+    assert_eq!(now, tree(&fresh));
+
+    // Fewer --replays afterwards: the report still lists every replay on disk (what
+    // convert reads).
+    let mut c = augment(1, &fresh, &[]);
+    c.args(["--size", "48", "--replays", "2"]);
+    ok(&c.output().unwrap());
+    let report: serde_json::Value =
+        serde_json::from_slice(&fs_err::read(fresh.join("augment_report.json")).unwrap()).unwrap();
+    assert_eq!(report["replays"].as_array().unwrap().len(), 4);
+}
