@@ -1,0 +1,148 @@
+//! `augment` on a real Slurm cluster: a one-node cluster (Debian's `slurm-wlm` and
+//! `munge`: slurmctld + slurmd, all state under one temporary folder) started by
+//! `scripts/slurm/local-cluster.sh`, the sharded job submitted by `scripts/slurm/submit.sh`
+//! (a job array of 4 shards running `scripts/slurm/augment.sbatch`, then the finalize job
+//! with `--dependency=afterok`), and its output compared byte for byte with one
+//! unsharded run. The daemons it started are stopped (by pid) and the folder removed, also
+//! when the test fails. Needs root and the packages (`scripts/setup.sh --python`).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    dexjoco_testkit::workspace_root()
+}
+
+/// Stops the cluster when dropped (also on a failed assertion).
+struct Cluster {
+    dir: PathBuf,
+}
+
+impl Cluster {
+    fn start(dir: PathBuf) -> Self {
+        let out = Command::new(root().join("scripts/slurm/local-cluster.sh"))
+            .arg("start")
+            .arg(&dir)
+            .output()
+            .expect("running scripts/slurm/local-cluster.sh");
+        assert!(
+            out.status.success(),
+            "the test cluster did not start (needs root and Debian's slurm-wlm and munge: \
+             scripts/setup.sh --python installs them):\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        Self { dir }
+    }
+
+    fn conf(&self) -> PathBuf {
+        self.dir.join("slurm.conf")
+    }
+}
+
+impl Drop for Cluster {
+    fn drop(&mut self) {
+        let out = Command::new(root().join("scripts/slurm/local-cluster.sh"))
+            .arg("stop")
+            .arg(&self.dir)
+            .output();
+        if let Ok(o) = out
+            && !o.status.success()
+        {
+            eprintln!(
+                "stopping the test cluster failed: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
+    }
+}
+
+fn augment_args(out: &Path) -> Vec<String> {
+    let episode = root().join("datasets/demos/click_mouse/episode_000000");
+    vec![
+        episode.display().to_string(),
+        "--replays".into(),
+        "4".into(),
+        "--size".into(),
+        "32".into(),
+        "--quality".into(),
+        "fast".into(),
+        "--out".into(),
+        out.display().to_string(),
+    ]
+}
+
+#[test]
+fn a_sharded_augment_on_a_real_slurm_cluster_equals_one_run() {
+    let bin = env!("CARGO_BIN_EXE_dexjoco-data");
+    let tmp = tempfile::tempdir().unwrap();
+
+    // The reference: one unsharded run.
+    let single = tmp.path().join("single");
+    let out = Command::new(bin)
+        .args(["-q", "-j", "2", "augment"])
+        .args(augment_args(&single))
+        .env("DEXJOCO_LOG", "warn")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+
+    // The cluster lives in a world-readable folder (munged insists), here under /tmp.
+    let dir = std::env::temp_dir().join(format!("dexjoco-slurm-{}", std::process::id()));
+    let cluster = Cluster::start(dir.clone());
+    let sharded = tmp.path().join("sharded");
+    let logs = tmp.path().join("logs");
+    let out = Command::new(root().join("scripts/slurm/submit.sh"))
+        .args(["--wait", "--logs"])
+        .arg(&logs)
+        .arg("4")
+        .args(augment_args(&sharded))
+        .env("SLURM_CONF", cluster.conf())
+        .env("DEXJOCO_BIN", bin)
+        .env("DEXJOCO_LOG", "warn")
+        .env("SUBMIT_POLL_SECONDS", "0.5")
+        .current_dir(tmp.path())
+        .output()
+        .unwrap();
+    let job_logs: Vec<String> = fs_err::read_dir(&logs)
+        .map(|rd| {
+            rd.flatten()
+                .map(|e| {
+                    format!(
+                        "--- {}\n{}",
+                        e.file_name().to_string_lossy(),
+                        fs_err::read_to_string(e.path()).unwrap_or_default()
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    assert!(
+        out.status.success(),
+        "{out:?}\nstderr: {}\njob logs:\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        job_logs.join("\n")
+    );
+    // Four shards and the finalize ran as Slurm jobs, each into the shared folder.
+    let mut names: Vec<String> = fs_err::read_dir(&logs)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 5, "{names:?}");
+    assert_eq!(names.iter().filter(|n| n.starts_with("augment-")).count(), 4);
+    let text = job_logs.join("\n");
+    for k in 0..4 {
+        assert!(
+            text.contains(&format!("augment shard {k}/4:")),
+            "shard {k} did not run:\n{text}"
+        );
+    }
+    assert!(text.contains("(0 rendered now"), "the finalize rendered:\n{text}");
+    drop(cluster);
+    assert!(!dir.exists(), "the cluster's folder is left behind");
+
+    assert_eq!(
+        dexjoco_testkit::file_tree(&sharded),
+        dexjoco_testkit::file_tree(&single)
+    );
+}
