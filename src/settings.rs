@@ -174,10 +174,14 @@ impl AugmentSettings {
         let shard = match shard.as_deref() {
             None => None,
             Some("auto") => Some(Shard::from_env(|k| std::env::var(k).ok()).map_err(|e| {
-                usage(e, "run inside a Slurm job array or a Kubernetes Indexed Job, or give --shard I/N")
+                usage(
+                    e,
+                    "run inside a Slurm job array or a Kubernetes Indexed Job, or give --shard I/N",
+                )
             })?),
             Some(s) => Some(
-                Shard::parse(s).map_err(|e| usage(format!("--shard {e}"), "for example --shard 0/4"))?,
+                Shard::parse(s)
+                    .map_err(|e| usage(format!("--shard {e}"), "for example --shard 0/4"))?,
             ),
         };
         let workers = global.jobs.unwrap_or_else(|| {

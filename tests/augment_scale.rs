@@ -86,12 +86,17 @@ fn worker_processes_give_identical_bytes_and_a_crashed_worker_is_retried_or_repo
         .unwrap();
     assert_eq!(out.status.code(), Some(3), "{out:?}");
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("UNIT FAILED: click_mouse/episode_000000"), "{stdout}");
+    assert!(
+        stdout.contains("UNIT FAILED: click_mouse/episode_000000"),
+        "{stdout}"
+    );
     assert!(!failed.join(".staging").exists());
-    assert!(!failed.join("click_mouse").exists(), "no replay of the failed unit");
+    assert!(
+        !failed.join("click_mouse").exists(),
+        "no replay of the failed unit"
+    );
     let report: serde_json::Value =
-        serde_json::from_slice(&fs_err::read(failed.join("augment_report.json")).unwrap())
-            .unwrap();
+        serde_json::from_slice(&fs_err::read(failed.join("augment_report.json")).unwrap()).unwrap();
     assert_eq!(report["failed_units"][0]["episode"], "episode_000000");
     assert!(
         report["failed_units"][0]["reason"]
@@ -136,7 +141,10 @@ fn shards_run_at_once_into_one_folder_then_the_finalize_equals_one_run() {
         rendered += n;
     }
     assert_eq!(rendered, 4);
-    assert!(!shared.join("augment_report.json").exists(), "shards write no report");
+    assert!(
+        !shared.join("augment_report.json").exists(),
+        "shards write no report"
+    );
     let stdout = ok(&augment(2, &shared, &[]).output().unwrap());
     assert!(stdout.contains("(0 rendered now"), "{stdout}");
     assert_eq!(tree(&shared), tree(&single));
@@ -162,14 +170,20 @@ fn dry_run_prints_the_plan_and_an_estimate_and_renders_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let out_dir = tmp.path().join("out");
     let stdout = ok(&augment(2, &out_dir, &["--dry-run"]).output().unwrap());
-    assert!(stdout.contains("| click_mouse | 1 | 4 | 0 | 48 |"), "{stdout}");
+    assert!(
+        stdout.contains("| click_mouse | 1 | 4 | 0 | 48 |"),
+        "{stdout}"
+    );
     assert!(stdout.contains("1 worker process:"), "{stdout}");
     assert!(stdout.contains("4 nodes like this one:"), "{stdout}");
     assert!(!out_dir.join("click_mouse").exists());
     // After a real run, everything is done; another --size would be refused.
     ok(&augment(2, &out_dir, &[]).output().unwrap());
     let stdout = ok(&augment(2, &out_dir, &["--dry-run"]).output().unwrap());
-    assert!(stdout.contains("| click_mouse | 1 | 4 | 4 | 0 |"), "{stdout}");
+    assert!(
+        stdout.contains("| click_mouse | 1 | 4 | 4 | 0 |"),
+        "{stdout}"
+    );
     let mut other = augment(2, &out_dir, &["--dry-run"]);
     other.args(["--size", "48"]);
     let stdout = ok(&other.output().unwrap());
@@ -179,11 +193,9 @@ fn dry_run_prints_the_plan_and_an_estimate_and_renders_nothing() {
 /// A copy of the sample episode under the same name with one action value changed.
 fn changed_copy(root: &Path) -> PathBuf {
     let tasks = dexjoco_core::TaskSet::builtin();
-    let mut ep = dexjoco_formats::read_episode(
-        &dexjoco_testkit::workspace_root().join(EPISODE),
-        tasks,
-    )
-    .unwrap();
+    let mut ep =
+        dexjoco_formats::read_episode(&dexjoco_testkit::workspace_root().join(EPISODE), tasks)
+            .unwrap();
     ep.arrays.get_mut("action").unwrap().row_mut(5)[20] += 1e-3;
     let dir = root.join("click_mouse/episode_000000");
     dexjoco_formats::raw::write_replay_zarr(&dir, &ep).unwrap();
@@ -203,7 +215,10 @@ fn a_resume_with_other_settings_or_another_dataset_is_refused_and_overwrite_star
     let out = c.output().unwrap();
     assert_eq!(out.status.code(), Some(1), "{out:?}");
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("width: 48 (was 32)") && err.contains("--overwrite"), "{err}");
+    assert!(
+        err.contains("width: 48 (was 32)") && err.contains("--overwrite"),
+        "{err}"
+    );
     assert_eq!(tree(&out_dir), first);
 
     // Another dataset whose episode has the same name but other content: refused.
@@ -217,7 +232,10 @@ fn a_resume_with_other_settings_or_another_dataset_is_refused_and_overwrite_star
     let out = c.output().unwrap();
     assert_eq!(out.status.code(), Some(1), "{out:?}");
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("other content of episode 'click_mouse/episode_000000'"), "{err}");
+    assert!(
+        err.contains("other content of episode 'click_mouse/episode_000000'"),
+        "{err}"
+    );
 
     // --overwrite starts clean: the result equals a fresh run with the new settings, and
     // what augment did not write stays.

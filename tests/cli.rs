@@ -241,7 +241,7 @@ fn reference_scenes_render_through_the_cli() {
 }
 
 #[test]
-fn bench_augment_compares_with_the_reference_approach() {
+fn bench_augment_compares_processes_with_the_reference_and_the_render_only_limit() {
     let dir = tempfile::tempdir().unwrap();
     let demo = dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000");
     let out = run(
@@ -253,21 +253,25 @@ fn bench_augment_compares_with_the_reference_approach() {
             demo.to_str().unwrap(),
             "--size",
             "32",
-            "--preset",
+            "--quality",
             "fast",
             "--replays",
             "2",
             "--max-frames",
             "4",
+            "--limit-frames",
+            "20",
         ],
         dir.path(),
     );
     assert!(out.status.success(), "{}", text(&out.stderr));
     let table = text(&out.stdout);
     for row in [
-        "| 32x32 | fast | reference | 1 |",
-        "| 32x32 | fast | ours | 1 |",
-        "| 32x32 | fast | ours | 2 |",
+        "| 32x32 | fast | reference (re-simulate every replay, 1 process) | 1 |",
+        "| 32x32 | fast | ours, worker processes | 1 |",
+        "| 32x32 | fast | ours, worker processes | 2 |",
+        "| 32x32 | fast | render-only limit (no physics, no encoding) | 1 |",
+        "| 32x32 | fast | render-only limit (no physics, no encoding) | 2 |",
     ] {
         assert!(table.contains(row), "{row} missing:\n{table}");
     }
@@ -276,13 +280,15 @@ fn bench_augment_compares_with_the_reference_approach() {
     )
     .unwrap();
     let runs = json["runs"].as_array().unwrap();
-    assert_eq!(runs.len(), 3);
-    for r in runs {
-        assert_eq!(r["replays"], 2);
-        assert_eq!(r["frames"], 8);
-        assert!(r["speedup"].as_f64().unwrap() > 0.0);
+    assert_eq!(runs.len(), 5);
+    for r in &runs[..3] {
+        assert_eq!(r["frames"], 8, "2 replays x 4 frames: {r}");
+        assert!(r["frames_per_s"].as_f64().unwrap() > 0.0);
+        assert!(r["of_limit"].as_f64().unwrap() > 0.0);
     }
-    assert_eq!(runs[0]["speedup"], 1.0);
+    assert_eq!(runs[0]["vs_reference"], 1.0);
+    assert_eq!(runs[1]["vs_one_worker"], 1.0);
+    assert!(runs[4]["frames_per_s"].as_f64().unwrap() > 0.0);
 }
 
 #[test]

@@ -129,7 +129,10 @@ fn a_sharded_augment_on_a_real_slurm_cluster_equals_one_run() {
         .collect();
     names.sort();
     assert_eq!(names.len(), 5, "{names:?}");
-    assert_eq!(names.iter().filter(|n| n.starts_with("augment-")).count(), 4);
+    assert_eq!(
+        names.iter().filter(|n| n.starts_with("augment-")).count(),
+        4
+    );
     let text = job_logs.join("\n");
     for k in 0..4 {
         assert!(
@@ -137,7 +140,10 @@ fn a_sharded_augment_on_a_real_slurm_cluster_equals_one_run() {
             "shard {k} did not run:\n{text}"
         );
     }
-    assert!(text.contains("(0 rendered now"), "the finalize rendered:\n{text}");
+    assert!(
+        text.contains("(0 rendered now"),
+        "the finalize rendered:\n{text}"
+    );
     drop(cluster);
     assert!(!dir.exists(), "the cluster's folder is left behind");
 

@@ -266,7 +266,12 @@ pub struct AugmentArgs {
     pub dry_run: bool,
     /// EGL devices (indices as `doctor` lists them) assigned to worker processes
     /// round-robin, e.g. 0,1,2,3 on a node with four GPUs.
-    #[arg(long, value_delimiter = ',', env = "DEXJOCO_EGL_DEVICES", value_name = "LIST")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        env = "DEXJOCO_EGL_DEVICES",
+        value_name = "LIST"
+    )]
     pub egl_devices: Vec<usize>,
     /// When --out was made with other settings, start clean: remove what augment wrote
     /// there (replays, records, report), nothing else.

@@ -88,9 +88,12 @@ pub enum BenchCommand {
     /// `convert` against lerobot's own dataset writer on the same episodes, and our
     /// peak memory for few vs many short episodes.
     Convert(BenchConvertArgs),
-    /// `augment` (physics once per episode, parallel) against the reference approach
-    /// (re-simulate and render every replay in one process), per resolution and preset.
+    /// `augment` with 1 and N worker processes against the reference approach (re-simulate
+    /// and render every replay in one process) and the render-only limit of N processes.
     Augment(BenchAugmentArgs),
+    /// One process of `bench augment`'s render-only limit (started by it).
+    #[command(hide = true)]
+    RenderLimit(BenchRenderLimitArgs),
 }
 
 /// `bench augment` options.
@@ -98,35 +101,67 @@ pub enum BenchCommand {
 #[command(after_help = "\
 Examples:
   dexjoco-data bench augment
-  dexjoco-data bench augment --replays 10 --max-frames 300 --size 640 --preset paper
-  dexjoco-data bench augment --jobs 16 datasets/demos
+  dexjoco-data -j 2 bench augment hammer.raw/ --scene-dir ../shared/dexjoco-upstream/xmls \\
+      --replays 4 --size 224 --quality no-msaa-no-shadows
+  dexjoco-data -j 16 bench augment data/ --size 224,640 --quality fast,paper --max-frames 300
 
-Each configuration runs three ways on the same episodes and seed:
-  reference  re-simulate and render every replay, one after another, one thread
-             (what the DexJoCo replay script does)
-  ours x1    simulate each episode once, render every replay from it, one thread
-  ours xN    the same with N worker threads (--jobs, default: all cores)
+Each configuration (size x quality) runs, on the same episodes and seed:
+  reference        re-simulate and render every replay, one after another, in one process
+                   (what the DexJoCo replay script does)
+  ours, 1 worker   one worker process: each episode simulated once, every replay rendered
+                   from it, streamed to ffmpeg
+  ours, N workers  the same with -j N worker processes (default: all cores)
+  render-only      N processes drawing the same views with no physics and no encoding,
+                   started together: the limit augment can approach on this machine
 Outputs are written to a temporary folder and removed; the table goes to stdout and
 <work-dir>/bench/augment.json.")]
 pub struct BenchAugmentArgs {
     /// Episodes to replay (default: the sample demos in datasets/demos).
     pub inputs: Vec<PathBuf>,
+    /// Scene pack folder (e.g. the DexJoCo reference xmls/); default: built-in scenes.
+    #[arg(long)]
+    pub scene_dir: Option<PathBuf>,
     /// Replays per episode.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 4)]
     pub replays: usize,
-    /// Only the first N frames of each episode (keeps the benchmark short).
-    #[arg(long, default_value_t = 60)]
+    /// Only the first N frames of each episode (0: whole episodes).
+    #[arg(long, default_value_t = 120)]
     pub max_frames: usize,
     /// Image sizes (square), comma-separated.
-    #[arg(long = "size", value_delimiter = ',', default_values_t = [224, 640])]
+    #[arg(long = "size", value_delimiter = ',', default_values_t = [224])]
     pub sizes: Vec<u32>,
     /// Quality presets, comma-separated.
-    #[arg(long = "preset", value_enum, value_delimiter = ',',
-          default_values_t = [QualityArg::Fast, QualityArg::Paper])]
-    pub presets: Vec<QualityArg>,
-    /// Skip the one-thread run of our approach.
+    #[arg(long = "quality", value_enum, value_delimiter = ',',
+          default_values_t = [QualityArg::NoMsaaNoShadows])]
+    pub qualities: Vec<QualityArg>,
+    /// Skip the reference approach.
     #[arg(long)]
-    pub no_single_thread: bool,
+    pub no_reference: bool,
+    /// Frames per process of the render-only limit (0 skips it).
+    #[arg(long, default_value_t = 300)]
+    pub limit_frames: usize,
+}
+
+/// `bench render-limit`: internal, one process of the render-only limit.
+#[derive(Debug, Args)]
+pub struct BenchRenderLimitArgs {
+    /// Episode whose scene and views are drawn.
+    pub input: PathBuf,
+    /// Scene pack folder.
+    #[arg(long)]
+    pub scene_dir: Option<PathBuf>,
+    /// Image size (square).
+    #[arg(long)]
+    pub size: u32,
+    /// Quality preset.
+    #[arg(long, value_enum)]
+    pub quality: QualityArg,
+    /// Timed frames.
+    #[arg(long)]
+    pub frames: usize,
+    /// Replays whose sampled views are cycled.
+    #[arg(long)]
+    pub replays: usize,
 }
 
 /// `bench convert` options.

@@ -147,7 +147,9 @@ fn print_plan(config: &AugmentConfig, workers: usize) -> anyhow::Result<ExitStat
         config.settings.quality.name()
     );
     println!();
-    println!("| task | episodes | replays | done | frames to render | calibrated frames/s (1 worker) |");
+    println!(
+        "| task | episodes | replays | done | frames to render | calibrated frames/s (1 worker) |"
+    );
     println!("|---|---:|---:|---:|---:|---:|");
     for t in &plan.tasks {
         println!(
@@ -182,7 +184,9 @@ fn print_plan(config: &AugmentConfig, workers: usize) -> anyhow::Result<ExitStat
     if let Some(s) = plan.seconds_one_worker {
         let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
         let here = workers.min(cores).max(1);
-        println!("Estimate (calibrated: 30 frames of each scene rendered, encoded and stepped here):");
+        println!(
+            "Estimate (calibrated: 30 frames of each scene rendered, encoded and stepped here):"
+        );
         println!("  {:<28} {}", "1 worker process:", duration(s));
         println!(
             "  {:<28} {} (assuming rendering scales over {here} core(s); 2 processes on 2 cores measured 1.88x)",

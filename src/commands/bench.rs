@@ -17,6 +17,7 @@ pub fn run(global: &GlobalArgs, cmd: &BenchCommand) -> anyhow::Result<ExitStatus
         BenchCommand::Ingest(args) => ingest(global, args),
         BenchCommand::Convert(args) => super::bench_convert::run(global, args),
         BenchCommand::Augment(args) => super::bench_augment::run(global, args),
+        BenchCommand::RenderLimit(args) => super::bench_augment::render_limit(global, args),
     }
 }
 

@@ -131,8 +131,12 @@ impl Shard {
             let index = id
                 .checked_sub(min)
                 .ok_or_else(|| format!("SLURM_ARRAY_TASK_ID {id} < SLURM_ARRAY_TASK_MIN {min}"))?;
-            return Self::parse(&format!("{index}/{count}"))
-                .map_err(|e| format!("Slurm array ({e}): use a contiguous --array=0-{}", count.max(1) - 1));
+            return Self::parse(&format!("{index}/{count}")).map_err(|e| {
+                format!(
+                    "Slurm array ({e}): use a contiguous --array=0-{}",
+                    count.max(1) - 1
+                )
+            });
         }
         if let Some(index) = num("JOB_COMPLETION_INDEX")? {
             let count = num("DEXJOCO_SHARD_COUNT")?.ok_or(

@@ -70,10 +70,11 @@ fn sha(bytes: &[u8]) -> String {
 pub(crate) fn scene_hash(source: &SceneSource, spec: &TaskSpec) -> Result<String, AugmentError> {
     match source {
         SceneSource::BuiltIn => {
-            let xml = dexjoco_sim::builtin::scene_xml(spec).map_err(|source| AugmentError::Sim {
-                episode: spec.id.clone(),
-                source,
-            })?;
+            let xml =
+                dexjoco_sim::builtin::scene_xml(spec).map_err(|source| AugmentError::Sim {
+                    episode: spec.id.clone(),
+                    source,
+                })?;
             Ok(sha(xml.as_bytes()))
         }
         SceneSource::Dir(dir) => {

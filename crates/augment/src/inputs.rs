@@ -57,7 +57,10 @@ pub(crate) fn check_fields(episode: &Episode) -> Result<(), String> {
             ));
         }
     }
-    let (a, s) = (episode.len(), episode.array(Episode::STATE).map_or(0, FrameArray::len));
+    let (a, s) = (
+        episode.len(),
+        episode.array(Episode::STATE).map_or(0, FrameArray::len),
+    );
     if a != s {
         return Err(format!(
             "episode '{}': field 'state' has {s} frames but 'action' has {a} (frame {})",

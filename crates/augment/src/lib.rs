@@ -36,10 +36,10 @@ pub use config::{
     AugmentConfig, CONTACT_SHEET, DEFAULT_EXTEND_STEPS, REPORT_JSON, REPORT_MD, SETTINGS_FILE,
     Shard, THIRD_PERSON, replay_name,
 };
-pub use fingerprint::{OutputSettings, TaskInputs};
-pub use dry_run::{DryRun, PlannedTask, dry_run};
+pub use dry_run::{DryRun, PlannedTask, dry_run, render_only};
 pub use dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, read_dynamics, sample_dynamics};
 pub use error::AugmentError;
+pub use fingerprint::{OutputSettings, TaskInputs};
 pub use inputs::SkippedInput;
 pub use randomize::{
     CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,

@@ -64,7 +64,11 @@ pub(crate) fn action_row(actions: &FrameArray, k: usize) -> &[f64] {
 }
 
 /// A fresh environment restored from the episode's `state[0]` on `scene`.
-pub(crate) fn new_env(src: &Source, scene: &Scene, spec: &TaskSpec) -> Result<TaskEnv, AugmentError> {
+pub(crate) fn new_env(
+    src: &Source,
+    scene: &Scene,
+    spec: &TaskSpec,
+) -> Result<TaskEnv, AugmentError> {
     let state0 = src.episode.array(Episode::STATE).expect("checked").row(0);
     TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default())
         .map_err(sim_err(&src.episode.id))

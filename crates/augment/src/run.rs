@@ -142,10 +142,7 @@ pub fn augment_with(
         .iter()
         .map(|o| config.shard.is_none() || !o.is_empty())
         .collect();
-    progress.phase(
-        "physics",
-        simulate_it.iter().filter(|x| **x).count() as u64,
-    );
+    progress.phase("physics", simulate_it.iter().filter(|x| **x).count() as u64);
     let simulated: Vec<Option<Result<PhysicsSummary, AugmentError>>> = sources
         .par_iter()
         .zip(&simulate_it)
@@ -308,9 +305,7 @@ fn build_report(
                 first_success: p.first_success,
                 steps: p.frames,
                 recorded_steps: p.recorded,
-                success_shift: p
-                    .first_success
-                    .map(|k| k as i64 - (p.recorded as i64 - 1)),
+                success_shift: p.first_success.map(|k| k as i64 - (p.recorded as i64 - 1)),
                 extended: p.frames > p.recorded,
                 max_state_deviation: p.deviation,
                 replays_kept: kept[i],

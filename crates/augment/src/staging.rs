@@ -162,12 +162,14 @@ pub(crate) fn clean_output(out: &Path) -> Result<(), AugmentError> {
         let name = e.file_name().to_string_lossy().into_owned();
         if [STAGING, DROPPED, PREVIEWS].contains(&name.as_str()) {
             fs_err::remove_dir_all(&path).map_err(io_err("remove", &path))?;
-        } else if [REPORT_JSON, REPORT_MD, CONTACT_SHEET, SETTINGS_FILE].contains(&name.as_str())
-        {
+        } else if [REPORT_JSON, REPORT_MD, CONTACT_SHEET, SETTINGS_FILE].contains(&name.as_str()) {
             fs_err::remove_file(&path).map_err(io_err("remove", &path))?;
         } else if path.is_dir() && !name.starts_with('.') {
             // A task folder: its replay folders (those holding a record) go.
-            for r in fs_err::read_dir(&path).map_err(io_err("list", &path))?.flatten() {
+            for r in fs_err::read_dir(&path)
+                .map_err(io_err("list", &path))?
+                .flatten()
+            {
                 if r.path().join(RECORD).is_file() {
                     fs_err::remove_dir_all(r.path()).map_err(io_err("remove", &r.path()))?;
                 }

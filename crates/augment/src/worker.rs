@@ -128,7 +128,7 @@ pub(crate) fn run_jobs(
 #[serde(rename_all = "snake_case")]
 enum ToWorker {
     Hello(Box<AugmentConfig>),
-    Job(UnitJob),
+    Job(Box<UnitJob>),
 }
 
 /// Worker -> parent messages.
@@ -148,7 +148,11 @@ struct Worker {
 }
 
 impl Worker {
-    fn spawn(w: &WorkerProcesses, slot: usize, config: &AugmentConfig) -> Result<Self, AugmentError> {
+    fn spawn(
+        w: &WorkerProcesses,
+        slot: usize,
+        config: &AugmentConfig,
+    ) -> Result<Self, AugmentError> {
         let mut cmd = Command::new(&w.program);
         cmd.args(&w.args)
             .stdin(Stdio::piped())
@@ -249,7 +253,7 @@ fn run_on_processes(
                     let mut job = jobs[k].1.clone();
                     job.attempt = attempt;
                     let mut done = 0u64;
-                    let outcome = match wk.send(&ToWorker::Job(job.clone())) {
+                    let outcome = match wk.send(&ToWorker::Job(Box::new(job.clone()))) {
                         Err(e) => Err(format!("{e}; {}", wk.ended())),
                         Ok(()) => loop {
                             match wk.receive() {
@@ -327,7 +331,7 @@ pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), A
     };
     for line in lines {
         let job = match serde_json::from_str::<ToWorker>(&line.map_err(io)?) {
-            Ok(ToWorker::Job(j)) => j,
+            Ok(ToWorker::Job(j)) => *j,
             _ => return Err(AugmentError::Input("worker: expected a job".into())),
         };
         let result = (|| -> Result<Vec<Outcome>, AugmentError> {
@@ -344,7 +348,9 @@ pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), A
             let abort = fault
                 .as_deref()
                 .and_then(|f| f.rsplit_once('@'))
-                .filter(|(key, k)| *key == job.key() && k.parse::<u32>().is_ok_and(|k| job.attempt < k))
+                .filter(|(key, k)| {
+                    *key == job.key() && k.parse::<u32>().is_ok_and(|k| job.attempt < k)
+                })
                 .is_some();
             render_unit(&job, &inputs, &mut |n| {
                 let _ = send(&mut output, &FromWorker::Frames(n));

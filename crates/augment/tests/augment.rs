@@ -532,3 +532,106 @@ fn replays_failing_under_their_dynamics_draw_are_recorded_once_and_kept_on_reque
 fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<dexjoco_core::Episode> {
     dexjoco_formats::read_episode(dir, dexjoco_core::TaskSet::builtin())
 }
+
+/// The sample click_mouse demo without its last frame. The recorder stops on the step that
+/// first succeeds, so this is a recording whose replay succeeds one step after it ends:
+/// what a drift of one step (another MuJoCo version, the controller's rounding) does to a
+/// real DexJoCo recording.
+fn one_step_short(dir: &Path) -> (PathBuf, usize) {
+    let src = read_stored_episode(&demos().join("click_mouse/episode_000000")).unwrap();
+    let n = src.len();
+    let mut ep = src.clone();
+    for a in ep.arrays.values_mut() {
+        let rows: Vec<&[f64]> = (0..n - 1).map(|k| a.row(k)).collect();
+        *a = dexjoco_core::FrameArray::from_rows(&rows).unwrap();
+    }
+    let folder = dir.join("click_mouse/episode_000000");
+    dexjoco_formats::raw::write_replay_zarr(&folder, &ep).unwrap();
+    (folder, n - 1)
+}
+
+#[test]
+fn a_replay_that_succeeds_one_step_late_is_kept_by_the_extension_with_its_shift() {
+    let tmp = tempfile::tempdir().unwrap();
+    // The sample demo itself succeeds exactly on its last frame (shift 0, not extended).
+    let mut c = config(
+        vec![demos().join("click_mouse/episode_000000")],
+        &tmp.path().join("whole"),
+    );
+    c.max_frames = None;
+    c.keep_failed = false;
+    c.replays = 1;
+    c.settings.width = 32;
+    c.settings.height = 32;
+    let whole = run(&c, 2);
+    let e = &whole.episodes[0];
+    assert_eq!(e.first_success, Some(e.recorded_steps - 1));
+    assert_eq!((e.success_shift, e.extended), (Some(0), false));
+
+    let (input, recorded) = one_step_short(tmp.path());
+    // Strict replay (the reference's): no success within the recording; dropped.
+    c.inputs = vec![input.clone()];
+    c.out = tmp.path().join("strict");
+    c.extend_steps = 0;
+    let strict = run(&c, 2);
+    assert!(!strict.episodes[0].success);
+    assert!(strict.replays.is_empty());
+
+    // With the extension: the last action repeats, the success comes one step later, the
+    // replay is kept and the shift reported.
+    c.out = tmp.path().join("extended");
+    c.extend_steps = 30;
+    c.replays = 2;
+    let ext = run(&c, 2);
+    let e = &ext.episodes[0];
+    assert!(e.success && e.extended);
+    assert_eq!(e.recorded_steps, recorded);
+    assert_eq!(e.first_success, Some(recorded));
+    assert_eq!(e.success_shift, Some(1));
+    assert_eq!(e.shift_label(), "+1 step, extended");
+    assert_eq!(e.steps, recorded + 1);
+    assert_eq!(ext.replays.len(), 2);
+    let md = fs_err::read_to_string(c.out.join("augment_report.md")).unwrap();
+    assert!(md.contains("+1 step, extended"), "{md}");
+    let src = read_stored_episode(&input).unwrap();
+    for r in &ext.replays {
+        assert!(r.extended && r.success);
+        assert_eq!((r.steps, r.recorded_steps), (recorded + 1, recorded));
+        // The extra frame is written like the others: state, the repeated action, the
+        // next timestamp at the episode's rate.
+        let ep = read_stored_episode(&c.out.join("click_mouse").join(&r.name)).unwrap();
+        assert_eq!(ep.len(), recorded + 1);
+        let action = ep.array("action").unwrap();
+        assert_eq!(
+            action.row(recorded),
+            src.array("action").unwrap().row(recorded - 1)
+        );
+        let ts = ep.array("timestamp").unwrap();
+        let step = ts.row(recorded)[0] - ts.row(recorded - 1)[0];
+        assert!((step - 1.0 / 30.0).abs() < 1e-9, "{step}");
+        assert_eq!(ep.array("state").unwrap().len(), recorded + 1);
+    }
+
+    // --dynamics honours it too (a spec whose draw changes nothing: the same late success).
+    let specs = tmp.path().join("specs");
+    fs_err::create_dir(&specs).unwrap();
+    let text = fs_err::read_to_string(
+        dexjoco_testkit::workspace_root().join("schemas/tasks/click_mouse.toml"),
+    )
+    .unwrap();
+    fs_err::write(
+        specs.join("click_mouse.toml"),
+        text.replace("range = [0.75, 1.25]", "range = [1.0, 1.0]"),
+    )
+    .unwrap();
+    c.tasks_dir = Some(specs);
+    c.dynamics = true;
+    c.out = tmp.path().join("dynamics");
+    let dyn_run = run(&c, 2);
+    assert!(dyn_run.dropped.is_empty(), "{:?}", dyn_run.dropped);
+    assert_eq!(dyn_run.replays.len(), 2);
+    for r in &dyn_run.replays {
+        assert!(r.extended && r.success);
+        assert_eq!(r.first_success, Some(recorded));
+    }
+}

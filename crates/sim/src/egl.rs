@@ -53,7 +53,8 @@ impl EglDevice {
 pub struct EglProbe {
     /// The devices in EGL's order.
     pub devices: Vec<EglDevice>,
-    /// Index of the device the renderer uses (the first that works, or [`EGL_DEVICE_ENV`]).
+    /// Index of the device the renderer uses ([`EGL_DEVICE_ENV`], else the first GPU that
+    /// works, else the first software device that works).
     pub selected: Option<usize>,
 }
 
@@ -96,6 +97,16 @@ fn requested_device() -> Option<usize> {
         .and_then(|v| v.trim().parse().ok())
 }
 
+/// Device indices in the order they are tried: hardware (GPU) devices first, in EGL's
+/// order, then software ones (Mesa's llvmpipe), so a GPU node renders on its GPU even
+/// when EGL lists the software device first.
+fn preferred_order(devices: &[Device]) -> Vec<usize> {
+    let software: Vec<bool> = devices.iter().map(|d| describe(d).1).collect();
+    let mut order: Vec<usize> = (0..devices.len()).filter(|&i| !software[i]).collect();
+    order.extend((0..devices.len()).filter(|&i| software[i]));
+    order
+}
+
 /// Reads a GL string of the current context.
 fn gl_string(display: &Display, name: u32) -> Option<String> {
     type GetString = unsafe extern "C" fn(u32) -> *const c_char;
@@ -115,7 +126,8 @@ fn gl_string(display: &Display, name: u32) -> Option<String> {
 
 impl EglContext {
     /// Opens a context with a pbuffer of `width` x `height` on the selected device: the one
-    /// named by [`EGL_DEVICE_ENV`], else the first that opens one.
+    /// named by [`EGL_DEVICE_ENV`], else the first GPU that opens one, else the first
+    /// software device.
     pub(crate) fn new(width: u32, height: u32) -> Result<Self, SimError> {
         let devices = devices()?;
         if devices.is_empty() {
@@ -129,7 +141,7 @@ impl EglContext {
                     devices.len()
                 )));
             }
-            None => (0..devices.len()).collect(),
+            None => preferred_order(&devices),
         };
         let mut errors = Vec::new();
         for i in order {
@@ -223,7 +235,9 @@ pub fn probe_egl() -> Result<EglProbe, SimError> {
     }
     let selected = match requested_device() {
         Some(i) => out.get(i).filter(|d| d.error.is_none()).map(|d| d.index),
-        None => out.iter().find(|d| d.error.is_none()).map(|d| d.index),
+        None => preferred_order(&list)
+            .into_iter()
+            .find(|&i| out[i].error.is_none()),
     };
     Ok(EglProbe {
         devices: out,

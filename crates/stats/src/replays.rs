@@ -3,8 +3,9 @@
 //!
 //! Only the fields read here are relied on: `replays_per_episode`, `episodes[]` with
 //! `task` and `success`, `replays[]` with `task`, `success` and `max_state_deviation`,
-//! and the optional `dropped[]` (replays that failed under `--dynamics` and were not
-//! kept) with `task`.
+//! the optional `extended` of a replay (it reached its success only after the recording
+//! ended, `augment --extend-steps`), and the optional `dropped[]` (replays that failed
+//! under `--dynamics` and were not kept) with `task`.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -41,6 +42,8 @@ struct ReplayRow {
     task: String,
     success: bool,
     max_state_deviation: f64,
+    #[serde(default)]
+    extended: bool,
 }
 
 /// One task's replay outcome.
@@ -63,6 +66,10 @@ pub struct TaskReplays {
     pub replays_dropped: usize,
     /// Largest state deviation from the recording over the kept replays.
     pub max_state_deviation: f64,
+    /// Kept replays that reached their success only after the recording ended (the last
+    /// action repeated, `augment --extend-steps`).
+    #[serde(default)]
+    pub replays_extended: usize,
 }
 
 impl TaskReplays {
@@ -76,6 +83,7 @@ impl TaskReplays {
             replays_successful: 0,
             replays_dropped: 0,
             max_state_deviation: 0.0,
+            replays_extended: 0,
         }
     }
 
@@ -146,6 +154,7 @@ impl ReplayStats {
             t.replays_kept += 1;
             t.replays_successful += usize::from(r.success);
             t.max_state_deviation = t.max_state_deviation.max(r.max_state_deviation);
+            t.replays_extended += usize::from(r.extended);
         }
         for r in &report.dropped {
             entry(&mut tasks, &r.task).replays_dropped += 1;
@@ -161,8 +170,8 @@ impl ReplayStats {
     pub fn to_markdown(&self) -> String {
         use std::fmt::Write as _;
         let mut s = String::from(
-            "| Task | Source episodes | Replayed to success | Replays asked | Kept | Successful | Dropped (dynamics) | Yield | Max state deviation |\n\
-             |---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+            "| Task | Source episodes | Replayed to success | Replays asked | Kept | Successful | Dropped (dynamics) | Yield | Max state deviation | Extended |\n\
+             |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         );
         let mut total = TaskReplays::empty("**all**");
         for t in &self.tasks {
@@ -173,11 +182,12 @@ impl ReplayStats {
             total.replays_successful += t.replays_successful;
             total.replays_dropped += t.replays_dropped;
             total.max_state_deviation = total.max_state_deviation.max(t.max_state_deviation);
+            total.replays_extended += t.replays_extended;
         }
         for t in self.tasks.iter().chain(std::iter::once(&total)) {
             let _ = writeln!(
                 s,
-                "| {} | {} | {} ({:.0} %) | {} | {} | {} | {} | {:.0} % | {:e} |",
+                "| {} | {} | {} ({:.0} %) | {} | {} | {} | {} | {:.0} % | {:e} | {} |",
                 t.task,
                 t.source_episodes,
                 t.source_successes,
@@ -187,7 +197,8 @@ impl ReplayStats {
                 t.replays_successful,
                 t.replays_dropped,
                 100.0 * t.yield_rate(),
-                t.max_state_deviation
+                t.max_state_deviation,
+                t.replays_extended
             );
         }
         s
@@ -209,7 +220,7 @@ mod tests {
               {"task": "a", "success": true, "max_state_deviation": 0.0},
               {"task": "a", "success": true, "max_state_deviation": 0.0},
               {"task": "a", "success": true, "max_state_deviation": 0.0},
-              {"task": "a", "success": false, "max_state_deviation": 0.25},
+              {"task": "a", "success": false, "max_state_deviation": 0.25, "extended": true},
               {"task": "b", "success": true, "max_state_deviation": 0.0},
               {"task": "b", "success": true, "max_state_deviation": 0.0},
               {"task": "b", "success": true, "max_state_deviation": 0.0}],
@@ -230,8 +241,9 @@ mod tests {
             "{md}"
         );
         assert!(
-            md.contains("| **all** | 3 | 2 (67 %) | 9 | 7 | 6 | 1 | 67 % | 2.5e-1 |"),
+            md.contains("| **all** | 3 | 2 (67 %) | 9 | 7 | 6 | 1 | 67 % | 2.5e-1 | 1 |"),
             "{md}"
         );
+        assert_eq!(a.replays_extended, 1);
     }
 }
