@@ -120,11 +120,13 @@ pub(crate) struct UnitInputs<'a> {
 }
 
 /// Renders one unit and writes its replays (or, failed under `--dynamics`, their
-/// records); `frames_done` is told every rendered frame count as it happens.
+/// records); `frames_done` is told every rendered frame count as it happens (and with 0
+/// before each replay is committed): an error from it (the run that asked for the unit has
+/// ended) stops the unit before anything more is written.
 pub(crate) fn render_unit(
     job: &UnitJob,
     inputs: &UnitInputs<'_>,
-    frames_done: &mut dyn FnMut(u64),
+    frames_done: &mut dyn FnMut(u64) -> Result<(), AugmentError>,
 ) -> Result<Vec<Outcome>, AugmentError> {
     let UnitInputs {
         src,
@@ -158,6 +160,7 @@ pub(crate) fn render_unit(
             // The task failed under these dynamics: only the record of the draw is kept.
             let sample = VisualSample::sample(seed, &assets.pool, &assets.table, assets.nlight);
             let record = record_of(job, r, sample, Some(values), &physics.summary);
+            frames_done(0)?;
             write_dropped(out, &record)?;
             tracing::debug!(episode = %id, replay = r, "failed under randomized dynamics; dropped");
             return Ok(vec![Outcome::Dropped(record)]);
@@ -245,8 +248,7 @@ pub(crate) fn render_unit(
                         }
                     }
                 }
-                frames_done(per_step);
-                Ok(())
+                frames_done(per_step)
             })
         },
     )?;
@@ -282,6 +284,7 @@ pub(crate) fn render_unit(
                 .map(|c| format!("{}/{c}_depth.npz", raw::VIDEOS))
                 .collect();
         }
+        frames_done(0)?;
         commit_replay(out, &p.staging, &ep, &record, p.preview.as_ref())?;
         outcomes.push(Outcome::Kept(record));
     }

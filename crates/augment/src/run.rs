@@ -130,7 +130,7 @@ pub fn augment_with(
     // Shards share the folder, and each clears only its own units' staging.
     let staging = out.join(STAGING);
     if config.shard.is_none() && staging.exists() {
-        fs_err::remove_dir_all(&staging).map_err(io_err("remove", &staging))?;
+        remove_staging(&staging)?;
     }
 
     // This run's share, and the physics of every episode it touches (the unsharded run,
@@ -265,6 +265,24 @@ pub fn augment_with(
         }
     }
     Ok(report)
+}
+
+/// Removes a killed run's staging. Its worker processes stop within a frame of their
+/// parent's death (their next message fails), so a removal racing one of them is retried
+/// for a few seconds.
+fn remove_staging(staging: &std::path::Path) -> Result<(), AugmentError> {
+    let mut tries = 0;
+    loop {
+        match fs_err::remove_dir_all(staging) {
+            Ok(()) => return Ok(()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+            Err(_) if tries < 20 => {
+                tries += 1;
+                std::thread::sleep(std::time::Duration::from_millis(250));
+            }
+            Err(e) => return Err(io_err("remove", staging)(e)),
+        }
+    }
 }
 
 /// The report: every replay of these episodes on disk, in (episode, replay) order.

@@ -97,6 +97,7 @@ pub(crate) fn run_jobs(
                         let r = render_unit(&job, &inputs, &mut |n| {
                             done += n;
                             progress.advance(n, "");
+                            Ok(())
                         });
                         match r {
                             Ok(o) => return Ok(o),
@@ -353,11 +354,17 @@ pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), A
                 })
                 .is_some();
             render_unit(&job, &inputs, &mut |n| {
-                let _ = send(&mut output, &FromWorker::Frames(n));
-                if abort {
+                // The parent reads every message; a failed write means it has ended (killed):
+                // stop at once, before anything more is written or renamed into place.
+                if send(&mut output, &FromWorker::Frames(n)).is_err() {
+                    tracing::debug!("the augment run that started this worker has ended");
+                    std::process::exit(1);
+                }
+                if abort && n > 0 {
                     tracing::warn!("{FAULT_ENV}: dying mid-unit, as a crash would");
                     std::process::exit(134);
                 }
+                Ok(())
             })
         })();
         let msg = match result {
