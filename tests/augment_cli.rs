@@ -1,5 +1,6 @@
-//! The `augment` command end to end: a run killed midway and run again completes with no
-//! duplicate and no partial replay, byte-identical to an uninterrupted run.
+//! The `augment` command end to end: a run killed anywhere (early, midway, late; twice)
+//! and run again completes with no duplicate and no partial replay, byte-identical to an
+//! uninterrupted run.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -54,6 +55,9 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
     }
     child.kill().unwrap();
     child.wait().unwrap();
+    // Its worker processes stop within a frame; one that was renaming a finished replay
+    // completes that rename (a whole replay) first.
+    std::thread::sleep(Duration::from_secs(1));
     let before = finished(&killed);
     assert!(before.len() < 6, "killed after the end");
     // Only whole replays were renamed into place.
@@ -98,6 +102,25 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
     assert_eq!(a.len(), b.len());
     assert_eq!(a, b);
 
+    // Killed anywhere else: early (before any replay landed; killed twice), or late (5 of
+    // 6 in place, the last being written or renamed): the same bytes, no leftovers.
+    for point in [0, 5] {
+        let dir = tmp.path().join(format!("killed-{point}"));
+        let landed = killed_at(&dir, point);
+        assert!(landed < 6, "killed at {point} after the end");
+        if point == 0 {
+            killed_at(&dir, 0);
+        }
+        let out = augment(&dir).output().unwrap();
+        assert!(out.status.success(), "point {point}: {out:?}");
+        assert!(!dir.join(".staging").exists(), "point {point}: staging left");
+        assert_eq!(
+            dexjoco_testkit::file_tree(&dir),
+            b,
+            "point {point}: not the bytes of an uninterrupted run"
+        );
+    }
+
     // `stats --dataset` on the augment output reads the replays and the report.
     let stats_out = tmp.path().join("stats");
     let out = cli()
@@ -124,4 +147,32 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
     )
     .unwrap();
     assert_eq!(replays["tasks"][0]["replays_successful"], 6);
+}
+
+/// Kills (SIGKILL) a run at `point`: as soon as it has staged anything (`0`: early, before
+/// any replay landed), or once `point` replays are in place (mid-run, while others are
+/// being written and renamed).
+fn killed_at(out: &Path, point: usize) -> usize {
+    let mut child = augment(out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    loop {
+        let reached = if point == 0 {
+            out.join(".staging").is_dir()
+        } else {
+            finished(out).len() >= point
+        };
+        if reached {
+            break;
+        }
+        assert!(child.try_wait().unwrap().is_none(), "ended before the kill");
+        assert!(start.elapsed() < Duration::from_secs(300), "never reached {point}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    finished(out).len()
 }

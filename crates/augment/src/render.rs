@@ -284,8 +284,9 @@ pub(crate) fn render_unit(
                 .map(|c| format!("{}/{c}_depth.npz", raw::VIDEOS))
                 .collect();
         }
-        frames_done(0)?;
-        commit_replay(out, &p.staging, &ep, &record, p.preview.as_ref())?;
+        commit_replay(out, &p.staging, &ep, &record, p.preview.as_ref(), &mut || {
+            frames_done(0)
+        })?;
         outcomes.push(Outcome::Kept(record));
     }
     Ok(outcomes)

@@ -86,7 +86,7 @@ pub fn augment_with(
 ) -> Result<AugmentReport, AugmentError> {
     let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
         .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
-    let (sources, mut skipped) = read_sources(&config.inputs, &tasks)?;
+    let (mut sources, mut skipped) = read_sources(&config.inputs, &tasks)?;
     if sources.is_empty()
         && let Some(first) = skipped.first()
     {
@@ -138,6 +138,15 @@ pub fn augment_with(
     // (e.g. a state that does not fit the scene) is skipped, not the batch.
     let cameras = 1 + config.cameras.len();
     let owned = owned_replays(&sources, config, cameras);
+    if config.shard.is_some() {
+        // A shard needs only its own episodes' arrays (at DexJoCo scale, the others weigh
+        // a gigabyte).
+        for (s, o) in sources.iter_mut().zip(&owned) {
+            if o.is_empty() {
+                s.episode.arrays.clear();
+            }
+        }
+    }
     let simulate_it: Vec<bool> = owned
         .iter()
         .map(|o| config.shard.is_none() || !o.is_empty())

@@ -108,14 +108,15 @@ pub(crate) fn replay_episode(
 }
 
 /// Completes a staged replay (its videos already finished in `staging/videos/`): writes
-/// `replay.zarr`, the preview and the record, syncs, and renames the folder into
-/// `<out>/<task>/<name>`.
+/// `replay.zarr`, the preview and the record, syncs, asks `still_wanted` (a worker whose
+/// run has ended stops there), and renames the folder into `<out>/<task>/<name>`.
 pub(crate) fn commit_replay(
     out: &Path,
     staging: &Path,
     ep: &Episode,
     record: &ReplayRecord,
     preview: Option<&dexjoco_sim::Frame>,
+    still_wanted: &mut dyn FnMut() -> Result<(), AugmentError>,
 ) -> Result<(), AugmentError> {
     let (task, name) = (&record.task, &record.name);
     raw::write_replay_zarr(staging, ep)?;
@@ -134,6 +135,7 @@ pub(crate) fn commit_replay(
     let final_dir = out.join(task).join(name);
     let parent = final_dir.parent().expect("has parent");
     fs_err::create_dir_all(parent).map_err(io_err("create", parent))?;
+    still_wanted()?;
     fs_err::rename(staging, &final_dir).map_err(io_err("rename", staging))?;
     // A replay dropped by an earlier run without --keep-failed is now kept.
     let _ = fs_err::remove_file(dropped_path(out, task, name));
