@@ -1,7 +1,8 @@
 //! Plans scripted demonstrations for several random initial states and reports the
 //! planner's success rate (no files written; `dexjoco-data scripted` writes them):
 //! `cargo run -p dexjoco-sim --example scripted_demos -- TASK [SEEDS] [SCENE_DIR]`
-//! (built-in scenes without SCENE_DIR).
+//! (built-in scenes without SCENE_DIR or with `-`; a 4th argument `wrong` plans the
+//! deliberately wrong variant).
 
 use dexjoco_core::TaskSpec;
 use dexjoco_sim::scripted::{self, Variant};
@@ -11,7 +12,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let task = args.next().unwrap_or_else(|| "click_mouse".into());
     let seeds: u64 = args.next().map_or(Ok(4), |s| s.parse())?;
-    let source = SceneSource::from_option(args.next().map(Into::into));
+    let source = SceneSource::from_option(args.next().filter(|a| a != "-").map(Into::into));
     let wrong = args.next().is_some_and(|a| a == "wrong");
     let spec = TaskSpec::builtin(&task).ok_or("unknown task")?;
     let scene = load_task_scene(&source, &spec)?;

@@ -137,6 +137,12 @@ pub(crate) fn joint(env: &TaskEnv, name: &str) -> Result<f64, SimError> {
     Ok(env.data().qpos()[a])
 }
 
+/// A joint's anchor in the world.
+pub(crate) fn anchor(env: &TaskEnv, name: &str) -> Result<V3, SimError> {
+    let j = id(env, NameKind::Joint, name)?;
+    Ok(env.data().xanchor()[j])
+}
+
 /// Arm `arm`'s TCP position and orientation now.
 pub(crate) fn tcp(env: &TaskEnv, arm: usize) -> (V3, Q) {
     env.robot().tcp_pose(env.data(), &env.robot().arms[arm])

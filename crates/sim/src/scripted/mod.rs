@@ -15,6 +15,8 @@ use crate::error::SimError;
 use crate::scene::Scene;
 
 mod click_mouse;
+pub(crate) mod probe_tmp;
+mod pinch_tongs;
 pub(crate) mod kin;
 mod unlock_ipad;
 
@@ -362,6 +364,16 @@ pub fn plan(
     let env = || TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default());
     match (spec.id.as_str(), variant) {
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
+        ("pinch_tongs", Variant::Demo) => pinch_tongs::plan(env()?, id),
+        ("pinch_tongs", Variant::Wrong) => {
+            probe_tmp::probe(env()?, &[
+                [0.0,0.4,0.4,0.3, 0.0,0.4,0.4,0.3, 0.0,0.4,0.4,0.3, 0.8,0.0,0.2,0.2],
+                [0.0,0.7,0.7,0.5, 0.0,0.7,0.7,0.5, 0.0,0.7,0.7,0.5, 1.2,0.1,0.2,0.2],
+                [0.0,1.0,1.0,0.8, 0.0,1.0,1.0,0.8, 0.0,1.0,1.0,0.8, 1.4,0.3,0.5,0.5],
+                [0.0,1.2,1.2,1.0, 0.0,1.2,1.2,1.0, 0.0,1.2,1.2,1.0, 1.4,0.5,0.8,0.8],
+            ])?;
+            Err(SimError::Spec("probe".into()))
+        }
         ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
         (task, Variant::Demo) => Err(SimError::Spec(format!(
             "no scripted planner for '{task}' (planned: {})",
