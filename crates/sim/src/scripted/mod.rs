@@ -17,6 +17,7 @@ use crate::scene::Scene;
 mod click_mouse;
 pub(crate) mod probe_tmp;
 mod pinch_tongs;
+mod hammer_nail;
 pub(crate) mod kin;
 mod unlock_ipad;
 
@@ -326,6 +327,11 @@ impl Goal {
     }
 }
 
+/// Planner diagnostics on stderr when `DEXJOCO_PLAN_DEBUG` is set.
+pub(crate) fn debug() -> bool {
+    std::env::var_os("DEXJOCO_PLAN_DEBUG").is_some()
+}
+
 /// A planned demonstration: the recorded frames (up to and including the success step,
 /// or all of them when the plan did not succeed) and how the recording ended.
 #[derive(Debug, Clone)]
@@ -364,6 +370,7 @@ pub fn plan(
     let env = || TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default());
     match (spec.id.as_str(), variant) {
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
+        ("hammer_nail", Variant::Demo) => hammer_nail::plan(env()?, id),
         ("pinch_tongs", Variant::Demo) => pinch_tongs::plan(env()?, id),
         ("pinch_tongs", Variant::Wrong) => {
             probe_tmp::probe(env()?, &[

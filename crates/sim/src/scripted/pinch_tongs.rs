@@ -6,7 +6,7 @@
 use dexjoco_core::HAND_DOF;
 
 use super::kin::{self, V3};
-use super::{Planned, Recorder};
+use super::{Planned, Recorder, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
@@ -21,10 +21,6 @@ const CLOSE: [f64; HAND_DOF] = [
 /// Where the squeeze closes, from the TCP (home orientation, world axes): between the
 /// thumb tip and the middle fingertip of [`CLOSE`].
 const GRIP: V3 = [0.045, 0.011, -0.126];
-
-fn debug() -> bool {
-    std::env::var_os("DEXJOCO_PLAN_DEBUG").is_some()
-}
 
 /// Plans pinch_tongs on an environment just restored from its initial state.
 pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
