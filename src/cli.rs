@@ -15,6 +15,7 @@ Examples:
   dexjoco-data augment --replays 10           # randomized replays of the sample demos
   dexjoco-data convert                        # augment output -> LeRobot v3.0
   dexjoco-data stats --language-eval
+  dexjoco-data scripted --task pinch_tongs --episodes 5 --out demos/
 
 Stages chain through the work folder (default ./dexjoco-work, one subfolder per stage),
 so `augment`, `convert` and `stats` need no paths; every path can be overridden.
@@ -91,6 +92,9 @@ pub enum Command {
     Convert(ConvertArgs),
     /// Dataset statistics, success tables and the language-generalization analysis.
     Stats(StatsArgs),
+    /// Plan scripted demonstrations of a task from random resets and write the
+    /// successful ones in the DexJoCo raw layout.
+    Scripted(crate::commands::scripted::ScriptedArgs),
 }
 
 /// `doctor` options.

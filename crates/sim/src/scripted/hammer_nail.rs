@@ -35,7 +35,9 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let handle = kin::geom(e, "handle")?.0;
     let face = kin::geom(e, "face")?.0;
     if debug() {
-        eprintln!("hammer at {hp:.3?} down {down:.3?} along {along:.3?} handle {handle:.3?} face {face:.3?}");
+        eprintln!(
+            "hammer at {hp:.3?} down {down:.3?} along {along:.3?} handle {handle:.3?} face {face:.3?}"
+        );
     }
     // The pinch axis of the hand at home yaw is world (-1, 1): turn it across the handle.
     let a = along[1].atan2(along[0]);
@@ -64,6 +66,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let nail = kin::site(e, "nail_top_site")?;
     let tcp = kin::tcp(e, 0).0;
     let off = kin::sub(face, tcp);
+    rec.snap(0, "hammer_lifted");
     if debug() {
         eprintln!("lifted: face {face:.3?} nail top {nail:.3?} tcp {tcp:.3?}");
     }

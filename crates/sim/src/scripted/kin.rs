@@ -76,15 +76,6 @@ pub(crate) fn mulv(m: &[f64; 9], v: V3) -> V3 {
     ]
 }
 
-/// `m^T * v` for a row-major 3x3 matrix.
-pub(crate) fn mulvt(m: &[f64; 9], v: V3) -> V3 {
-    [
-        m[0] * v[0] + m[3] * v[1] + m[6] * v[2],
-        m[1] * v[0] + m[4] * v[1] + m[7] * v[2],
-        m[2] * v[0] + m[5] * v[1] + m[8] * v[2],
-    ]
-}
-
 /// `a + b`.
 pub(crate) fn add(a: V3, b: V3) -> V3 {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
@@ -146,18 +137,4 @@ pub(crate) fn anchor(env: &TaskEnv, name: &str) -> Result<V3, SimError> {
 /// Arm `arm`'s TCP position and orientation now.
 pub(crate) fn tcp(env: &TaskEnv, arm: usize) -> (V3, Q) {
     env.robot().tcp_pose(env.data(), &env.robot().arms[arm])
-}
-
-/// Where a geom is relative to arm `arm`'s TCP, in the TCP frame (so a planner can put
-/// the geom somewhere by placing the TCP, for a hand pose held fixed).
-pub(crate) fn in_tcp_frame(env: &TaskEnv, arm: usize, geom_name: &str) -> Result<V3, SimError> {
-    let (p, q) = tcp(env, arm);
-    let g = geom(env, geom_name)?.0;
-    Ok(mulvt(&qmat(q), sub(g, p)))
-}
-
-/// The TCP position that puts a point given in the TCP frame (`local`) at `world`, for
-/// the TCP orientation `q`.
-pub(crate) fn tcp_for(world: V3, q: Q, local: V3) -> V3 {
-    sub(world, mulv(&qmat(q), local))
 }

@@ -15,10 +15,9 @@ use crate::error::SimError;
 use crate::scene::Scene;
 
 mod click_mouse;
-pub(crate) mod probe_tmp;
-mod pinch_tongs;
 mod hammer_nail;
 pub(crate) mod kin;
+mod pinch_tongs;
 mod unlock_ipad;
 
 pub use click_mouse::click_mouse_demo;
@@ -154,11 +153,6 @@ impl Recorder {
         Ok(())
     }
 
-    /// Arm `arm`'s last commanded hand targets.
-    pub(crate) fn hand(&self, arm: usize) -> [f64; HAND_DOF] {
-        self.hands[arm]
-    }
-
     /// Arm `arm`'s current target (mocap) position and orientation.
     pub(crate) fn target(&self, arm: usize) -> (V3, Q) {
         self.env.targets()[arm]
@@ -250,6 +244,37 @@ impl Recorder {
             self.go_many(&[], max_steps, arrived)?;
         }
         Ok(())
+    }
+
+    /// With `DEXJOCO_PLAN_SNAP` set to a folder: a picture of the scene around arm
+    /// `arm`'s TCP (planner diagnostics; rendering does not change the state).
+    pub(crate) fn snap(&mut self, arm: usize, name: &str) {
+        let Some(dir) = std::env::var_os("DEXJOCO_PLAN_SNAP") else {
+            return;
+        };
+        let lookat = kin::tcp(&self.env, arm).0;
+        let model = self.env.data().model_clone();
+        let settings = crate::render::RenderSettings {
+            width: 480,
+            height: 480,
+            ..Default::default()
+        };
+        let result = crate::render::Renderer::new(&model, settings).and_then(|mut r| {
+            for (k, az) in [(0, 90.0), (1, 180.0)] {
+                let view = crate::render::CameraView::Orbit {
+                    lookat: [lookat[0], lookat[1], lookat[2] - 0.1],
+                    distance: 0.6,
+                    azimuth: az,
+                    elevation: -30.0,
+                };
+                let f = r.render(self.env.data_mut(), view)?;
+                f.save_png(&std::path::Path::new(&dir).join(format!("{name}_{k}.png")))?;
+            }
+            Ok(())
+        });
+        if let Err(e) = result {
+            eprintln!("snapshot {name}: {e}");
+        }
     }
 
     /// The recorded episode and how it ended.
@@ -356,7 +381,12 @@ pub enum Variant {
 }
 
 /// The tasks that have a scripted planner.
-pub const PLANNED_TASKS: &[&str] = &["bimanual_unlock_ipad", "click_mouse"];
+pub const PLANNED_TASKS: &[&str] = &[
+    "bimanual_unlock_ipad",
+    "click_mouse",
+    "hammer_nail",
+    "pinch_tongs",
+];
 
 /// Plans and records a demonstration of `spec`'s task from the initial state `state0`
 /// (a `state[0]` row, e.g. from [`TaskEnv::sample_initial_state`]).
@@ -372,16 +402,6 @@ pub fn plan(
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
         ("hammer_nail", Variant::Demo) => hammer_nail::plan(env()?, id),
         ("pinch_tongs", Variant::Demo) => pinch_tongs::plan(env()?, id),
-        ("pinch_tongs", Variant::Wrong) => {
-            probe_tmp::probe(env()?, &[
-                [0.0,0.4,0.4,0.3, 0.0,0.4,0.4,0.3, 0.0,0.4,0.4,0.3, 0.8,0.0,0.2,0.2],
-                [0.0,0.7,0.7,0.5, 0.0,0.7,0.7,0.5, 0.0,0.7,0.7,0.5, 1.2,0.1,0.2,0.2],
-                [0.0,1.0,1.0,0.8, 0.0,1.0,1.0,0.8, 0.0,1.0,1.0,0.8, 1.4,0.3,0.5,0.5],
-                [0.0,1.2,1.2,1.0, 0.0,1.2,1.2,1.0, 0.0,1.2,1.2,1.0, 1.4,0.5,0.8,0.8],
-            ])?;
-            Err(SimError::Spec("probe".into()))
-        }
-        ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
         (task, Variant::Demo) => Err(SimError::Spec(format!(
             "no scripted planner for '{task}' (planned: {})",
             PLANNED_TASKS.join(", ")

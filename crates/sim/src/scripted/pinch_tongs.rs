@@ -41,7 +41,9 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
                 "{what}: step {} joint_0 {:.3} tongs z {:.3} pinches {:?}",
                 e.steps(),
                 kin::joint(e, "joint_0").unwrap_or(f64::NAN),
-                kin::geom(e, "tongs").map(|g| g.0[2] - table).unwrap_or(f64::NAN),
+                kin::geom(e, "tongs")
+                    .map(|g| g.0[2] - table)
+                    .unwrap_or(f64::NAN),
                 e.checker().output("pinches", "count"),
             );
         }
@@ -55,6 +57,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         rec.go(0, at, q, CLOSE, 25)?;
         rec.wait(15)?;
         show(&rec, &format!("closed {k}"));
+        rec.snap(0, &format!("tongs_closed_{k}"));
         rec.go(0, at, q, OPEN, 20)?;
         rec.wait(15)?;
         show(&rec, &format!("opened {k}"));
