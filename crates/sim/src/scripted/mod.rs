@@ -399,6 +399,7 @@ pub fn plan(
 ) -> Result<Planned, SimError> {
     let env = || TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default());
     match (spec.id.as_str(), variant) {
+        ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
         ("hammer_nail", Variant::Demo) => hammer_nail::plan(env()?, id),
         ("pinch_tongs", Variant::Demo) => pinch_tongs::plan(env()?, id),
