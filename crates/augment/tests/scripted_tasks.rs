@@ -97,12 +97,18 @@ fn pinch_tongs_plans_and_replays() {
 }
 
 #[test]
+fn water_plant_plans_and_replays() {
+    plan_record_replay("water_plant", 16);
+}
+
+#[test]
 fn every_task_with_a_planner_is_tested_here() {
     let tested = [
         "bimanual_unlock_ipad",
         "click_mouse",
         "hammer_nail",
         "pinch_tongs",
+        "water_plant",
     ];
     assert_eq!(scripted::PLANNED_TASKS, tested);
 }
@@ -121,6 +127,14 @@ fn wrong_plans_reach_the_failure_condition() {
         .unwrap();
     assert_eq!(r.first_failure(), Some(p.episode.len() - 1));
     assert!(!r.succeeded());
+    // water_plant: pulling the trigger right after lifting the bottle, far from the plant.
+    let (scene, spec, s0) = reset("water_plant", 15);
+    let p = scripted::plan(&scene, &spec, &s0, "wrong", Variant::Wrong).unwrap();
+    assert!(
+        p.failed,
+        "pulling the trigger away from the plant did not fail"
+    );
+    assert_eq!(p.success_at, None);
     // A task without a failure condition has no wrong plan.
     let (scene, spec, s0) = reset("pinch_tongs", 15);
     assert!(scripted::plan(&scene, &spec, &s0, "wrong", Variant::Wrong).is_err());

@@ -19,6 +19,7 @@ mod hammer_nail;
 pub(crate) mod kin;
 mod pinch_tongs;
 mod unlock_ipad;
+mod water_plant;
 
 pub use click_mouse::click_mouse_demo;
 pub use unlock_ipad::unlock_ipad_demo;
@@ -386,6 +387,7 @@ pub const PLANNED_TASKS: &[&str] = &[
     "click_mouse",
     "hammer_nail",
     "pinch_tongs",
+    "water_plant",
 ];
 
 /// Plans and records a demonstration of `spec`'s task from the initial state `state0`
@@ -402,6 +404,7 @@ pub fn plan(
         ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
         ("hammer_nail", Variant::Demo) => hammer_nail::plan(env()?, id),
+        ("water_plant", v) => water_plant::plan(env()?, id, v),
         ("pinch_tongs", Variant::Demo) => pinch_tongs::plan(env()?, id),
         (task, Variant::Demo) => Err(SimError::Spec(format!(
             "no scripted planner for '{task}' (planned: {})",
