@@ -87,6 +87,11 @@ fn bimanual_unlock_ipad_plans_and_replays() {
 }
 
 #[test]
+fn fold_glasses_plans_and_replays() {
+    plan_record_replay("fold_glasses", 17);
+}
+
+#[test]
 fn hammer_nail_plans_and_replays() {
     plan_record_replay("hammer_nail", 13);
 }
@@ -106,6 +111,7 @@ fn every_task_with_a_planner_is_tested_here() {
     let tested = [
         "bimanual_unlock_ipad",
         "click_mouse",
+        "fold_glasses",
         "hammer_nail",
         "pinch_tongs",
         "water_plant",

@@ -15,6 +15,7 @@ use crate::error::SimError;
 use crate::scene::Scene;
 
 mod click_mouse;
+mod fold_glasses;
 mod hammer_nail;
 pub(crate) mod kin;
 mod pinch_tongs;
@@ -385,6 +386,7 @@ pub enum Variant {
 pub const PLANNED_TASKS: &[&str] = &[
     "bimanual_unlock_ipad",
     "click_mouse",
+    "fold_glasses",
     "hammer_nail",
     "pinch_tongs",
     "water_plant",
@@ -403,6 +405,7 @@ pub fn plan(
     match (spec.id.as_str(), variant) {
         ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
+        ("fold_glasses", Variant::Demo) => fold_glasses::plan(env()?, id),
         ("hammer_nail", Variant::Demo) => hammer_nail::plan(env()?, id),
         ("water_plant", v) => water_plant::plan(env()?, id, v),
         ("pinch_tongs", Variant::Demo) => pinch_tongs::plan(env()?, id),
