@@ -82,6 +82,11 @@ fn click_mouse_plans_and_replays() {
 }
 
 #[test]
+fn bimanual_assembly_plans_and_replays() {
+    plan_record_replay("bimanual_assembly", 18);
+}
+
+#[test]
 fn bimanual_unlock_ipad_plans_and_replays() {
     plan_record_replay("bimanual_unlock_ipad", 12);
 }
@@ -109,6 +114,7 @@ fn water_plant_plans_and_replays() {
 #[test]
 fn every_task_with_a_planner_is_tested_here() {
     let tested = [
+        "bimanual_assembly",
         "bimanual_unlock_ipad",
         "click_mouse",
         "fold_glasses",

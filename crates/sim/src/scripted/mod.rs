@@ -14,6 +14,7 @@ use crate::env::{EnvOptions, TaskEnv};
 use crate::error::SimError;
 use crate::scene::Scene;
 
+mod assembly;
 mod click_mouse;
 mod fold_glasses;
 mod hammer_nail;
@@ -384,6 +385,7 @@ pub enum Variant {
 
 /// The tasks that have a scripted planner.
 pub const PLANNED_TASKS: &[&str] = &[
+    "bimanual_assembly",
     "bimanual_unlock_ipad",
     "click_mouse",
     "fold_glasses",
@@ -403,6 +405,7 @@ pub fn plan(
 ) -> Result<Planned, SimError> {
     let env = || TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default());
     match (spec.id.as_str(), variant) {
+        ("bimanual_assembly", Variant::Demo) => assembly::plan(env()?, id),
         ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
         ("fold_glasses", Variant::Demo) => fold_glasses::plan(env()?, id),
