@@ -87,6 +87,11 @@ fn bimanual_assembly_plans_and_replays() {
 }
 
 #[test]
+fn bimanual_photograph_plans_and_replays() {
+    plan_record_replay("bimanual_photograph", 19);
+}
+
+#[test]
 fn bimanual_unlock_ipad_plans_and_replays() {
     plan_record_replay("bimanual_unlock_ipad", 12);
 }
@@ -115,6 +120,7 @@ fn water_plant_plans_and_replays() {
 fn every_task_with_a_planner_is_tested_here() {
     let tested = [
         "bimanual_assembly",
+        "bimanual_photograph",
         "bimanual_unlock_ipad",
         "click_mouse",
         "fold_glasses",

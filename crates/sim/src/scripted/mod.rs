@@ -19,6 +19,7 @@ mod click_mouse;
 mod fold_glasses;
 mod hammer_nail;
 pub(crate) mod kin;
+mod photograph;
 mod pinch_tongs;
 mod unlock_ipad;
 mod water_plant;
@@ -386,6 +387,7 @@ pub enum Variant {
 /// The tasks that have a scripted planner.
 pub const PLANNED_TASKS: &[&str] = &[
     "bimanual_assembly",
+    "bimanual_photograph",
     "bimanual_unlock_ipad",
     "click_mouse",
     "fold_glasses",
@@ -406,6 +408,7 @@ pub fn plan(
     let env = || TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default());
     match (spec.id.as_str(), variant) {
         ("bimanual_assembly", Variant::Demo) => assembly::plan(env()?, id),
+        ("bimanual_photograph", Variant::Demo) => photograph::plan(env()?, id),
         ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
         ("fold_glasses", Variant::Demo) => fold_glasses::plan(env()?, id),
