@@ -107,6 +107,11 @@ fn hammer_nail_plans_and_replays() {
 }
 
 #[test]
+fn pick_bucket_plans_and_replays() {
+    plan_record_replay("pick_bucket", 20);
+}
+
+#[test]
 fn pinch_tongs_plans_and_replays() {
     plan_record_replay("pinch_tongs", 14);
 }
@@ -125,6 +130,7 @@ fn every_task_with_a_planner_is_tested_here() {
         "click_mouse",
         "fold_glasses",
         "hammer_nail",
+        "pick_bucket",
         "pinch_tongs",
         "water_plant",
     ];

@@ -20,6 +20,7 @@ mod fold_glasses;
 mod hammer_nail;
 pub(crate) mod kin;
 mod photograph;
+mod pick_bucket;
 mod pinch_tongs;
 mod unlock_ipad;
 mod water_plant;
@@ -392,6 +393,7 @@ pub const PLANNED_TASKS: &[&str] = &[
     "click_mouse",
     "fold_glasses",
     "hammer_nail",
+    "pick_bucket",
     "pinch_tongs",
     "water_plant",
 ];
@@ -414,6 +416,7 @@ pub fn plan(
         ("fold_glasses", Variant::Demo) => fold_glasses::plan(env()?, id),
         ("hammer_nail", Variant::Demo) => hammer_nail::plan(env()?, id),
         ("water_plant", v) => water_plant::plan(env()?, id, v),
+        ("pick_bucket", Variant::Demo) => pick_bucket::plan(env()?, id),
         ("pinch_tongs", Variant::Demo) => pinch_tongs::plan(env()?, id),
         (task, Variant::Demo) => Err(SimError::Spec(format!(
             "no scripted planner for '{task}' (planned: {})",
