@@ -2,21 +2,11 @@
 //! the peg, lifts it, pitches the hand fingers-down so the peg hangs vertical, and
 //! lowers it into the tray's socket; the left hand holds the tray down by its base.
 
-use dexjoco_core::HAND_DOF;
-
 use super::kin::{self, V3};
-use super::{Goal, Planned, Recorder, debug};
+use super::{CLOSE, Goal, OPEN, Planned, Recorder, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
-/// Fingers half curled, thumb turned under the palm but open: the approach pose.
-const OPEN: [f64; HAND_DOF] = [
-    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.8, 0.0, 0.2, 0.2,
-];
-/// Fingers and thumb closed on each other.
-const CLOSE: [f64; HAND_DOF] = [
-    0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
-];
 /// Where the grip block goes, from the TCP along the thumb-to-fingers axis.
 const GRIP_X: f64 = 0.06;
 /// The TCP's height above the table while pinching.
@@ -37,11 +27,6 @@ const LEFT: usize = 1;
 /// Right arm.
 const RIGHT: usize = 0;
 
-fn horizontal(v: V3) -> V3 {
-    let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
-    [v[0] / n, v[1] / n, 0.0]
-}
-
 /// Plans bimanual_assembly on an environment just restored from its initial state.
 pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let s = env.state();
@@ -50,7 +35,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let e = rec.env();
     let table = kin::site(e, "table_top")?[2];
     let (pp, pm) = kin::body(e, "industreal_round_peg_8mm")?;
-    let axis = horizontal([pm[2], pm[5], pm[8]]);
+    let axis = kin::horizontal([pm[2], pm[5], pm[8]]);
     // The fingers along the peg toward its round end: D = the fingers turned -90 deg.
     let f = [-axis[0], -axis[1], 0.0];
     let d = [f[1], -f[0], 0.0];

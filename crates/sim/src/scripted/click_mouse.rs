@@ -1,17 +1,12 @@
 //! The click_mouse planner: push the mouse onto its pad with the ring-finger edge of the
 //! flat hand, then press the left button with a curled index finger.
 
-use dexjoco_core::{Episode, HAND_DOF, TaskSpec};
+use dexjoco_core::{Episode, TaskSpec};
 
-use super::{FLAT_HAND, Planned, Recorder, geom_of_body};
+use super::{FLAT_HAND, POINT_HAND, Planned, Recorder, geom_of_body};
 use crate::env::{EnvOptions, TaskEnv};
 use crate::error::SimError;
 use crate::scene::Scene;
-
-/// Index finger curled to point down, the others tucked away, the thumb at home.
-const POINT_HAND: [f64; HAND_DOF] = [
-    0.0, 1.3, 0.9, 0.3, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 0.263, 0.0, 0.0, 0.0,
-];
 
 /// A scripted click_mouse demonstration from an initial state: push the mouse's side
 /// with the ring-finger edge of the flat hand toward -y onto the pad, lift, point the

@@ -10,7 +10,7 @@ use std::f64::consts::FRAC_PI_2;
 use dexjoco_core::HAND_DOF;
 
 use super::kin::{self, V3};
-use super::{Planned, Recorder, debug};
+use super::{CLOSE, OPEN, Planned, Recorder, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
@@ -18,14 +18,6 @@ use crate::error::SimError;
 /// pitched fingers-down, the index fingertip is a probe well below the rest of the hand.
 const POINT: [f64; HAND_DOF] = [
     0.0, 0.0, 0.0, 0.0, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 0.263, 0.0, 0.0, 0.0,
-];
-/// Fingers half curled, thumb turned under the palm but open: the approach pose.
-const OPEN: [f64; HAND_DOF] = [
-    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.8, 0.0, 0.2, 0.2,
-];
-/// Fingers and thumb closed on each other.
-const CLOSE: [f64; HAND_DOF] = [
-    0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
 ];
 /// Where the pinch closes on the front, from the TCP along the thumb-to-fingers axis.
 const PINCH_X: f64 = 0.08;
@@ -49,11 +41,6 @@ const FOLD_LEAD: f64 = 0.06;
 const FOLD_BEHIND: f64 = 0.3;
 /// The fingertip's offset outside the temple (m).
 const FOLD_OUT: f64 = 0.018;
-
-fn horizontal(v: V3) -> V3 {
-    let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
-    [v[0] / n, v[1] / n, 0.0]
-}
 
 /// Plans fold_glasses on an environment just restored from its initial state.
 pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
@@ -81,8 +68,8 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     ] {
         let e = rec.env();
         let hinge = kin::anchor(e, joint)?;
-        let dir = horizontal(kin::sub(kin::geom(e, temple)?.0, hinge));
-        let fold = horizontal(kin::sub(kin::anchor(e, other)?, hinge));
+        let dir = kin::horizontal(kin::sub(kin::geom(e, temple)?.0, hinge));
+        let fold = kin::horizontal(kin::sub(kin::anchor(e, other)?, hinge));
         let a0 = dir[1].atan2(dir[0]);
         let mut a1 = fold[1].atan2(fold[0]);
         // Sweep the short way round (through the back of the glasses).
@@ -108,7 +95,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         // The temple may have moved meanwhile: come down behind where it is now.
         let e = rec.env();
         let hinge = kin::anchor(e, joint)?;
-        let dir = horizontal(kin::sub(kin::geom(e, temple)?.0, hinge));
+        let dir = kin::horizontal(kin::sub(kin::geom(e, temple)?.0, hinge));
         let a = dir[1].atan2(dir[0]) - sign * FOLD_BEHIND;
         let p = [hinge[0] + FOLD_R * a.cos(), hinge[1] + FOLD_R * a.sin(), z];
         let first = kin::sub(p, TIP);
@@ -131,7 +118,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
                 break;
             }
             let hinge = kin::anchor(e, joint)?;
-            let dir = horizontal(kin::sub(kin::geom(e, temple)?.0, hinge));
+            let dir = kin::horizontal(kin::sub(kin::geom(e, temple)?.0, hinge));
             let a = dir[1].atan2(dir[0]) + sign * FOLD_LEAD;
             let p = [hinge[0] + FOLD_R * a.cos(), hinge[1] + FOLD_R * a.sin(), z];
             rec.go(0, kin::sub(p, TIP), down, POINT, 1)?;
@@ -149,7 +136,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         let (fc, fm) = kin::geom(e, "glass_front")?;
         let up = [fm[2], fm[5], fm[8]];
         if up[2] > 0.7 {
-            let mut back = horizontal([fm[0], fm[3], fm[6]]);
+            let mut back = kin::horizontal([fm[0], fm[3], fm[6]]);
             if back[0] < 0.0 {
                 back = [-back[0], -back[1], 0.0];
             }
@@ -184,7 +171,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let thick = [fm[0], fm[3], fm[6]];
     let upright = up[2].abs() > 0.7;
     let across = if upright { thick } else { up };
-    let mut d = horizontal(across);
+    let mut d = kin::horizontal(across);
     // Fingers away from the robot (+x), the thumb on the near side.
     if d[0] < 0.0 {
         d = [-d[0], -d[1], 0.0];

@@ -2,21 +2,11 @@
 //! fingers, lift the hammer face-down over the nail, and strike with the arm (a fast
 //! straight-down target step) until the nail is driven in.
 
-use dexjoco_core::HAND_DOF;
-
 use super::kin::{self, V3};
-use super::{Planned, Recorder, debug};
+use super::{CLOSE, OPEN, Planned, Recorder, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
-/// Fingers half curled, thumb turned under the palm but open: the approach pose.
-const OPEN: [f64; HAND_DOF] = [
-    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.8, 0.0, 0.2, 0.2,
-];
-/// Fingers and thumb closed on each other.
-const CLOSE: [f64; HAND_DOF] = [
-    0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
-];
 /// Where the pinch closes, from the TCP (home orientation, world axes).
 const GRIP: V3 = [0.045, 0.011, -0.126];
 const GRIP_ALONG: f64 = 0.045;

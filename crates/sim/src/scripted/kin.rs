@@ -91,6 +91,12 @@ pub(crate) fn scale(a: V3, k: f64) -> V3 {
     [a[0] * k, a[1] * k, a[2] * k]
 }
 
+/// The horizontal direction of `v` (its xy part, normalized; z = 0).
+pub(crate) fn horizontal(v: V3) -> V3 {
+    let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
+    [v[0] / n, v[1] / n, 0.0]
+}
+
 /// The length of `a`.
 pub(crate) fn norm(a: V3) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()

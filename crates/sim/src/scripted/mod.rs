@@ -331,6 +331,20 @@ pub(crate) fn geom_of_body(env: &TaskEnv, body: &str) -> Option<usize> {
         .find(|&g| m.geom_bodyid()[g] as usize == b && m.geom_contype()[g] != 0)
 }
 
+/// The cage pinch's approach pose: fingers half curled, the thumb turned under the palm
+/// but open (hand targets ff, mf, rf, th).
+pub(crate) const OPEN: [f64; HAND_DOF] = [
+    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.8, 0.0, 0.2, 0.2,
+];
+/// The cage pinch closed: fingers and thumb closed on each other, so an object between
+/// them is squeezed (targets past contact give the force).
+pub(crate) const CLOSE: [f64; HAND_DOF] = [
+    0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
+];
+/// Index finger curled to point down, the others tucked away, the thumb at home.
+pub(crate) const POINT_HAND: [f64; HAND_DOF] = [
+    0.0, 1.3, 0.9, 0.3, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 0.263, 0.0, 0.0, 0.0,
+];
 /// Hand targets (ff, mf, rf, th) with straight fingers and the thumb at home.
 pub(crate) const FLAT_HAND: [f64; HAND_DOF] = [
     0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.263, 0.0, 0.0, 0.0,

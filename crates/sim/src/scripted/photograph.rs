@@ -2,25 +2,11 @@
 //! across the lens), lifts it and turns it so the lens faces the logo, levelled in a
 //! closed loop; the right index finger then presses the shutter with a guarded move.
 
-use dexjoco_core::HAND_DOF;
-
 use super::kin::{self, V3};
-use super::{Goal, Planned, Recorder, debug};
+use super::{CLOSE, Goal, OPEN, POINT_HAND as POINT, Planned, Recorder, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
-/// Fingers half curled, thumb turned under the palm but open: the approach pose.
-const OPEN: [f64; HAND_DOF] = [
-    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.8, 0.0, 0.2, 0.2,
-];
-/// Fingers and thumb closed on each other.
-const CLOSE: [f64; HAND_DOF] = [
-    0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
-];
-/// Index finger curled to point down, the others tucked away, the thumb at home.
-const POINT: [f64; HAND_DOF] = [
-    0.0, 1.3, 0.9, 0.3, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 0.263, 0.0, 0.0, 0.0,
-];
 /// Where the lens goes, from the TCP along the thumb-to-fingers axis.
 const GRIP_X: f64 = 0.075;
 /// The TCP above the lens's axis while pinching.
@@ -33,11 +19,6 @@ const RIGHT: usize = 0;
 const LEFT: usize = 1;
 /// Extra yaw of the left hand (mirrored) for the pinch.
 const LEFT_YAW: f64 = 0.0;
-
-fn horizontal(v: V3) -> V3 {
-    let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
-    [v[0] / n, v[1] / n, 0.0]
-}
 
 /// The camera's optical axis (world) and the point in front of its lens.
 fn optics(e: &TaskEnv) -> Result<(V3, V3), SimError> {
@@ -54,7 +35,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let e = rec.env();
     let (lens_axis, _) = optics(e)?;
     let lens = kin::geom(e, "camera_lens_collision")?;
-    let along = horizontal(lens_axis);
+    let along = kin::horizontal(lens_axis);
     // The pinch across the lens: D perpendicular to it, horizontal.
     let d = [along[1], -along[0], 0.0];
     let yaw = d[1].atan2(d[0]) + LEFT_YAW;

@@ -5,18 +5,10 @@
 use dexjoco_core::HAND_DOF;
 
 use super::kin::{self, V3};
-use super::{Planned, Recorder, debug};
+use super::{CLOSE, OPEN, Planned, Recorder, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
-/// Fingers half curled, thumb turned under the palm but open: the approach pose.
-const OPEN: [f64; HAND_DOF] = [
-    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.8, 0.0, 0.2, 0.2,
-];
-/// Fingers and thumb closed on each other.
-const CLOSE: [f64; HAND_DOF] = [
-    0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
-];
 /// The fingers closed, the thumb still open.
 const HOOK: [f64; HAND_DOF] = [
     0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.8, 0.0, 0.2, 0.2,
@@ -107,7 +99,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let e = rec.env();
     let bar = kin::geom(e, "handle1")?.0;
     let (_, bx, _) = basket(e)?;
-    let d = kin::scale(horizontal(bx), 1.0);
+    let d = kin::scale(kin::horizontal(bx), 1.0);
     let yaw = d[1].atan2(d[0]);
     let q = kin::qmul(kin::yaw(yaw), home);
     // The hand spans from its ring finger to its thumb (the +y side at home yaw): centre
@@ -141,9 +133,4 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     rec.wait(30)?;
     show(&rec, "end");
     rec.finish(id)
-}
-
-fn horizontal(v: V3) -> V3 {
-    let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
-    [v[0] / n, v[1] / n, 0.0]
 }

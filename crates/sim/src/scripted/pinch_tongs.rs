@@ -3,21 +3,11 @@
 //! times on the table (opening the hand between squeezes so the spring reopens them),
 //! then keeps them squeezed and lifts them.
 
-use dexjoco_core::HAND_DOF;
-
 use super::kin::{self, V3};
-use super::{Planned, Recorder, debug};
+use super::{CLOSE, OPEN, Planned, Recorder, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
-/// Fingers half curled, thumb turned under the palm but open: the approach pose.
-const OPEN: [f64; HAND_DOF] = [
-    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.8, 0.0, 0.2, 0.2,
-];
-/// Fingers and thumb closed on each other: the squeeze.
-const CLOSE: [f64; HAND_DOF] = [
-    0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
-];
 /// Where the squeeze closes, from the TCP (home orientation, world axes): between the
 /// thumb tip and the middle fingertip of [`CLOSE`].
 const GRIP: V3 = [0.045, 0.011, -0.126];

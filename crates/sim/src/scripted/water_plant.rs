@@ -42,8 +42,9 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     let e = rec.env();
     let (bp, m) = kin::body(e, "link_2")?;
     let front = [m[2], m[5], m[8]];
-    // At home yaw the fingers close toward -x and lie along y (index at +y): turn the
-    // bottle's front (+z) toward the fingers, its head (+y) toward the index finger.
+    // With the hand yawed to the bottle's front (+z) the grasp (measured) has the middle
+    // and ring fingers on the front, the thumb on the back and the straight index finger
+    // along the bottle toward its head, over the trigger lever.
     let yaw = front[1].atan2(front[0]);
     let q = kin::qmul(kin::yaw(yaw), home);
     let table = kin::site(e, "table_top")?[2];
@@ -70,7 +71,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     rec.go(0, at, q, HOLD, 30)?;
     rec.wait(20)?;
     show(&rec, "held");
-    frame_debug(&rec)?;
+    frame_debug(&rec);
     rec.snap(0, "water_held");
     let up = kin::add(at, [0.0, 0.0, 0.15]);
     rec.go(0, up, q, HOLD, 80)?;
@@ -92,19 +93,26 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     rec.go(0, kin::sub(target, nozzle), q, HOLD, 90)?;
     rec.settle(0.004, 80)?;
     show(&rec, "over the plant");
-    frame_debug(&rec)?;
+    frame_debug(&rec);
     // Guarded press: curl the index finger until the trigger latches, then keep it there.
     let goal = Goal::new(0, kin::sub(target, nozzle), q, PULL);
     rec.go_many(&[goal], 60, latched)?;
     show(&rec, "pulled");
-    frame_debug(&rec)?;
+    frame_debug(&rec);
     rec.snap(0, "water_pulled");
     rec.wait(80)?;
     show(&rec, "end");
     rec.finish(id)
 }
 
-fn frame_debug(rec: &Recorder) -> Result<(), SimError> {
+/// Diagnostics: the hand joints and the fingertips in the bottle's frame.
+fn frame_debug(rec: &Recorder) {
+    if let Err(e) = frame_debug_inner(rec) {
+        eprintln!("  ({e})");
+    }
+}
+
+fn frame_debug_inner(rec: &Recorder) -> Result<(), SimError> {
     if debug() {
         let e = rec.env();
         let (bp, m) = kin::body(e, "link_2")?;
