@@ -77,12 +77,26 @@ impl Recorder {
         if self.done() {
             return Ok(false);
         }
-        self.states.push(self.env.state());
-        let v = self.env.step(&action)?;
+        // Motions blend from the hand targets as commanded; the recorded (and applied)
+        // targets are clamped to the actuators' ranges, which is what MuJoCo applies
+        // anyway, so every recorded action is within range and the physics is the same.
         for (arm, hand) in self.hands.iter_mut().enumerate() {
             let o = arm * 23;
             hand.copy_from_slice(&action[o + 7..o + 23]);
         }
+        let mut action = action;
+        {
+            let m = self.env.data().model();
+            for (arm, a) in self.env.robot().arms.iter().enumerate() {
+                for (i, &act) in a.hand_actuators.iter().enumerate() {
+                    let [lo, hi] = m.actuator_ctrlrange()[act];
+                    let v = &mut action[arm * 23 + 7 + i];
+                    *v = v.clamp(lo, hi);
+                }
+            }
+        }
+        self.states.push(self.env.state());
+        let v = self.env.step(&action)?;
         self.actions.push(action);
         if v.success {
             self.success_at = Some(self.actions.len() - 1);
