@@ -16,15 +16,17 @@ BIN="$ROOT/target/release/dexjoco-data"
 # with depth and a contact sheet; then a 2 s H.264 clip of the fall from the front camera.
 "$BIN" render --depth --steps 600
 "$BIN" render --video --steps 1000 --camera front --quality fast
-# The embedded sample demonstrations (datasets/demos: scripted click_mouse and
-# bimanual_unlock_ipad episodes, recorded on the built-in scenes): validated into the
-# episode store; replayed 10 times each under camera/light/table randomization (224 px,
-# fast preset, so it takes minutes on a 2-core CPU; drop the flags for the reference's
-# 640 px multisampled look); converted to LeRobot v3.0 and a Diffusion Policy replay
-# buffer with openpi norm stats; dataset statistics of the augmented set, with the replay
-# success rates from the augment report.
-"$BIN" ingest datasets/demos
-"$BIN" augment dexjoco-work/ingest --replays 10 --size 224 --quality fast
+# The embedded sample demonstrations (datasets/demos: one scripted demonstration per task
+# with a planner, made by `dexjoco-data scripted` on the built-in scenes): the first
+# episode of each task validated into the episode store; replayed 4 times each under
+# camera/light/table randomization (224 px, fast preset, so it takes minutes on a 2-core
+# CPU; `--replays 10` is the reference's count, about 2.5 times as long; drop the size and
+# quality flags for the reference's 640 px multisampled look); the contact sheet has one
+# row per task. Then converted to LeRobot v3.0 and a Diffusion Policy replay buffer with
+# openpi norm stats; dataset statistics of the augmented set, with the replay success
+# rates from the augment report.
+"$BIN" ingest datasets/demos/*/episode_000000
+"$BIN" augment dexjoco-work/ingest --replays 4 --size 224 --quality fast
 "$BIN" convert --overwrite --merge-bimanual
 "$BIN" convert --format diffusion-policy --norm-stats --overwrite --merge-bimanual
 "$BIN" stats --dataset dexjoco-work/augment

@@ -29,6 +29,7 @@ fn main() -> ExitCode {
         Command::Cameras(args) => commands::cameras::run(&cli.global, args),
         Command::Convert(args) => commands::convert::run(&cli.global, args),
         Command::Stats(args) => commands::stats::run(&cli.global, args),
+        Command::Scripted(args) => commands::scripted::run(&cli.global, &args),
     };
     match result {
         Ok(status) => status.into(),

@@ -113,7 +113,10 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
         }
         let out = augment(&dir).output().unwrap();
         assert!(out.status.success(), "point {point}: {out:?}");
-        assert!(!dir.join(".staging").exists(), "point {point}: staging left");
+        assert!(
+            !dir.join(".staging").exists(),
+            "point {point}: staging left"
+        );
         assert_eq!(
             dexjoco_testkit::file_tree(&dir),
             b,
@@ -169,7 +172,10 @@ fn killed_at(out: &Path, point: usize) -> usize {
             break;
         }
         assert!(child.try_wait().unwrap().is_none(), "ended before the kill");
-        assert!(start.elapsed() < Duration::from_secs(300), "never reached {point}");
+        assert!(
+            start.elapsed() < Duration::from_secs(300),
+            "never reached {point}"
+        );
         std::thread::sleep(Duration::from_millis(5));
     }
     child.kill().unwrap();

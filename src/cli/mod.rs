@@ -21,6 +21,7 @@ Examples:
   dexjoco-data bench render --frames 20       # rendering frames/s per quality preset
   dexjoco-data ingest recordings/             # validate and store MCAP logs and raw folders
   dexjoco-data export --to mcap               # stored episodes -> MCAP teleop logs
+  dexjoco-data scripted --task pinch_tongs --episodes 5 --out demos/
   dexjoco-data augment --replays 10           # randomized replays of the sample demos
   dexjoco-data convert                        # augment output -> LeRobot v3.0
   dexjoco-data stats --language-eval
@@ -103,6 +104,9 @@ pub enum Command {
     /// A worker process of `augment` (started by it; speaks JSON lines on stdin/stdout).
     #[command(hide = true)]
     AugmentWorker(AugmentWorkerArgs),
+    /// Plan scripted demonstrations of a task from random resets and write the
+    /// successful ones in the DexJoCo raw layout.
+    Scripted(crate::commands::scripted::ScriptedArgs),
     /// Build a third-person camera pose pool for a task: sample poses on a sphere, keep the
     /// least occluded (the DexJoCo paper's way); `augment --camera-pool` reads it.
     Cameras(CamerasArgs),

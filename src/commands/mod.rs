@@ -10,6 +10,7 @@ pub mod doctor;
 pub mod export;
 pub mod ingest;
 pub mod render;
+pub mod scripted;
 pub mod stats;
 
 /// The built-in tabletop scene (also the default of `render` and `bench render`).

@@ -284,9 +284,14 @@ pub(crate) fn render_unit(
                 .map(|c| format!("{}/{c}_depth.npz", raw::VIDEOS))
                 .collect();
         }
-        commit_replay(out, &p.staging, &ep, &record, p.preview.as_ref(), &mut || {
-            frames_done(0)
-        })?;
+        commit_replay(
+            out,
+            &p.staging,
+            &ep,
+            &record,
+            p.preview.as_ref(),
+            &mut || frames_done(0),
+        )?;
         outcomes.push(Outcome::Kept(record));
     }
     Ok(outcomes)

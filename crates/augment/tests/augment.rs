@@ -65,7 +65,11 @@ fn every_sample_demo_replays_to_success_with_zero_deviation() {
     c.replays = 0;
     c.max_frames = None;
     let report = run(&c, 2);
-    assert_eq!(report.episodes.len(), 4);
+    // One scripted demonstration per planned task, two of click_mouse.
+    assert_eq!(
+        report.episodes.len(),
+        dexjoco_sim::scripted::PLANNED_TASKS.len() + 1
+    );
     for e in &report.episodes {
         assert!(
             e.success,

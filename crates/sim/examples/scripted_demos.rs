@@ -1,21 +1,21 @@
-//! Plans scripted demonstrations on the reference scene for several random initial
-//! states and replays each:
+//! Plans scripted demonstrations for several random initial states and reports the
+//! planner's success rate (no files written; `dexjoco-data scripted` writes them):
 //! `cargo run -p dexjoco-sim --example scripted_demos -- TASK [SEEDS] [SCENE_DIR]`
-//! with TASK `click_mouse` or `bimanual_unlock_ipad`.
+//! (built-in scenes without SCENE_DIR or with `-`; a 4th argument `wrong` plans the
+//! deliberately wrong variant).
 
-use dexjoco_core::{Episode, TaskSpec};
-use dexjoco_sim::{EnvOptions, TaskEnv, load_task_scene, scripted};
+use dexjoco_core::TaskSpec;
+use dexjoco_sim::scripted::{self, Variant};
+use dexjoco_sim::{SceneSource, TaskEnv, load_task_scene};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let mut args = std::env::args().skip(1);
     let task = args.next().unwrap_or_else(|| "click_mouse".into());
     let seeds: u64 = args.next().map_or(Ok(4), |s| s.parse())?;
-    let dir = args
-        .next()
-        .map_or_else(|| root.join("../shared/dexjoco-upstream/xmls"), Into::into);
-    let spec = TaskSpec::from_file(&root.join(format!("schemas/tasks/{task}.toml")))?;
-    let scene = load_task_scene(&dexjoco_sim::SceneSource::Dir(dir), &spec)?;
+    let source = SceneSource::from_option(args.next().filter(|a| a != "-").map(Into::into));
+    let wrong = args.next().is_some_and(|a| a == "wrong");
+    let spec = TaskSpec::builtin(&task).ok_or("unknown task")?;
+    let scene = load_task_scene(&source, &spec)?;
     let mut ok = 0;
     for seed in 0..seeds {
         // xorshift64* draws in [0, 1), warmed up.
@@ -30,26 +30,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             uniform();
         }
         let s0 = TaskEnv::sample_initial_state(&scene, &spec, &mut uniform)?;
-        let id = format!("{task}_{seed}");
-        let ep = match task.as_str() {
-            "click_mouse" => scripted::click_mouse_demo(&scene, &spec, &s0, &id)?,
-            "bimanual_unlock_ipad" => scripted::unlock_ipad_demo(&scene, &spec, &s0, &id)?,
-            other => return Err(format!("no scripted planner for '{other}'").into()),
-        };
-        let actions = ep.array(Episode::ACTION).expect("actions");
-        let mut env = TaskEnv::from_initial_state(&scene, &spec, &s0, EnvOptions::default())?;
-        let r = env.rollout(actions)?;
-        ok += usize::from(r.succeeded());
-        let p = spec.setup.proprio_dim();
+        let t = std::time::Instant::now();
+        let variant = if wrong { Variant::Wrong } else { Variant::Demo };
+        let p = scripted::plan(&scene, &spec, &s0, &format!("{task}_{seed}"), variant)?;
+        ok += usize::from(p.success_at.is_some());
         println!(
-            "seed {seed}: first object at ({:.3}, {:.3}), dh {:.3}: {} steps, replay success at {:?}",
-            s0[p],
-            s0[p + 1],
-            s0[s0.len() - 1],
-            ep.len(),
-            r.first_success()
+            "seed {seed}: {} steps, success at {:?}, failed {} ({:.1} s)",
+            p.episode.len(),
+            p.success_at,
+            p.failed,
+            t.elapsed().as_secs_f64()
         );
     }
-    println!("{task}: {ok}/{seeds} replays succeeded");
+    println!("{task}: {ok}/{seeds} plans succeeded");
     Ok(())
 }

@@ -1,0 +1,146 @@
+//! Geometry for the planners: wxyz quaternions, rotations, and the privileged poses
+//! (bodies, geoms, sites, joints, TCPs) read from the simulation.
+
+use dexjoco_core::NameKind;
+
+use crate::checker::name_id;
+use crate::env::TaskEnv;
+use crate::error::SimError;
+
+/// A 3-vector.
+pub(crate) type V3 = [f64; 3];
+/// A wxyz quaternion.
+pub(crate) type Q = [f64; 4];
+
+/// Hamilton product a * b of wxyz quaternions.
+pub(crate) fn qmul(a: Q, b: Q) -> Q {
+    [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ]
+}
+
+/// The rotation by `angle` (rad) about the unit `axis`.
+pub(crate) fn axis_angle(axis: V3, angle: f64) -> Q {
+    let (s, c) = (angle / 2.0).sin_cos();
+    [c, axis[0] * s, axis[1] * s, axis[2] * s]
+}
+
+/// The rotation by `angle` (rad) about world z.
+pub(crate) fn yaw(angle: f64) -> Q {
+    axis_angle([0.0, 0.0, 1.0], angle)
+}
+
+/// `q` normalized.
+pub(crate) fn qnorm(q: Q) -> Q {
+    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    [q[0] / n, q[1] / n, q[2] / n, q[3] / n]
+}
+
+/// Normalized linear interpolation from `a` to `b` (the shorter way round).
+pub(crate) fn nlerp(a: Q, b: Q, t: f64) -> Q {
+    let dot: f64 = (0..4).map(|i| a[i] * b[i]).sum();
+    let s = if dot < 0.0 { -1.0 } else { 1.0 };
+    qnorm([
+        a[0] + (s * b[0] - a[0]) * t,
+        a[1] + (s * b[1] - a[1]) * t,
+        a[2] + (s * b[2] - a[2]) * t,
+        a[3] + (s * b[3] - a[3]) * t,
+    ])
+}
+
+/// The row-major rotation matrix of `q`.
+pub(crate) fn qmat(q: Q) -> [f64; 9] {
+    let [w, x, y, z] = qnorm(q);
+    [
+        1.0 - 2.0 * (y * y + z * z),
+        2.0 * (x * y - w * z),
+        2.0 * (x * z + w * y),
+        2.0 * (x * y + w * z),
+        1.0 - 2.0 * (x * x + z * z),
+        2.0 * (y * z - w * x),
+        2.0 * (x * z - w * y),
+        2.0 * (y * z + w * x),
+        1.0 - 2.0 * (x * x + y * y),
+    ]
+}
+
+/// `m * v` for a row-major 3x3 matrix.
+pub(crate) fn mulv(m: &[f64; 9], v: V3) -> V3 {
+    [
+        m[0] * v[0] + m[1] * v[1] + m[2] * v[2],
+        m[3] * v[0] + m[4] * v[1] + m[5] * v[2],
+        m[6] * v[0] + m[7] * v[1] + m[8] * v[2],
+    ]
+}
+
+/// `a + b`.
+pub(crate) fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+/// `a - b`.
+pub(crate) fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// `a * k`.
+pub(crate) fn scale(a: V3, k: f64) -> V3 {
+    [a[0] * k, a[1] * k, a[2] * k]
+}
+
+/// The horizontal direction of `v` (its xy part, normalized; z = 0).
+pub(crate) fn horizontal(v: V3) -> V3 {
+    let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
+    [v[0] / n, v[1] / n, 0.0]
+}
+
+/// The length of `a`.
+pub(crate) fn norm(a: V3) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+fn id(env: &TaskEnv, kind: NameKind, name: &str) -> Result<usize, SimError> {
+    name_id(env.data().model(), kind, name)
+        .ok_or_else(|| SimError::Spec(format!("the scene has no {kind:?} '{name}'")))
+}
+
+/// A body's world position and rotation matrix.
+pub(crate) fn body(env: &TaskEnv, name: &str) -> Result<(V3, [f64; 9]), SimError> {
+    let b = id(env, NameKind::Body, name)?;
+    let d = env.data();
+    Ok((d.xpos()[b], d.xmat()[b]))
+}
+
+/// A geom's world position and rotation matrix.
+pub(crate) fn geom(env: &TaskEnv, name: &str) -> Result<(V3, [f64; 9]), SimError> {
+    let g = id(env, NameKind::Geom, name)?;
+    let d = env.data();
+    Ok((d.geom_xpos()[g], d.geom_xmat()[g]))
+}
+
+/// A site's world position.
+pub(crate) fn site(env: &TaskEnv, name: &str) -> Result<V3, SimError> {
+    let s = id(env, NameKind::Site, name)?;
+    Ok(env.data().site_xpos()[s])
+}
+
+/// A joint's (first) qpos value.
+pub(crate) fn joint(env: &TaskEnv, name: &str) -> Result<f64, SimError> {
+    let j = id(env, NameKind::Joint, name)?;
+    let a = env.data().model().jnt_qposadr()[j] as usize;
+    Ok(env.data().qpos()[a])
+}
+
+/// A joint's anchor in the world.
+pub(crate) fn anchor(env: &TaskEnv, name: &str) -> Result<V3, SimError> {
+    let j = id(env, NameKind::Joint, name)?;
+    Ok(env.data().xanchor()[j])
+}
+
+/// Arm `arm`'s TCP position and orientation now.
+pub(crate) fn tcp(env: &TaskEnv, arm: usize) -> (V3, Q) {
+    env.robot().tcp_pose(env.data(), &env.robot().arms[arm])
+}

@@ -1,0 +1,148 @@
+//! The water_plant planner: hold the spray bottle from above, middle and ring fingers on
+//! the front of the body and the thumb on its back (a pinch near the centre of mass),
+//! the index finger straight along the bottle over the trigger lever on the spray head;
+//! carry the nozzle beside the plant, then curl the index finger to press the lever
+//! down and keep it pressed.
+
+use dexjoco_core::HAND_DOF;
+
+use super::kin::{self, V3};
+use super::{Goal, Planned, Recorder, Variant, debug};
+use crate::env::TaskEnv;
+use crate::error::SimError;
+
+/// Fingers half curled, thumb turned under the palm but open: the approach pose.
+const OPEN: [f64; HAND_DOF] = [
+    0.0, 0.0, 0.0, 0.0, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.8, 0.0, 0.2, 0.2,
+];
+/// Middle, ring and thumb closed on the body; the index finger straight.
+const HOLD: [f64; HAND_DOF] = [
+    0.0, 0.0, 0.0, 0.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
+];
+/// As [`HOLD`], the index finger curled onto the trigger.
+const PULL: [f64; HAND_DOF] = [
+    0.0, 0.9, 0.1, 0.1, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
+];
+/// Where the bottle's axis goes, from the TCP (home orientation, world axes): the
+/// thumb closes on its back at x ~ 0.04, the fingers on its front.
+const GRIP: V3 = [GRIP_X, 0.0, 0.0];
+const GRIP_X: f64 = 0.075;
+/// The TCP's height above the table while holding.
+const TCP_Z: f64 = 0.16;
+/// The pinch in the bottle's frame: along it (y, toward the head) and across it (z).
+const GRIP_Y: f64 = -0.05;
+
+/// Plans water_plant on an environment just restored from its initial state; the wrong
+/// plan pulls the trigger right after lifting the bottle, far from the plant.
+pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, SimError> {
+    let s = env.state();
+    let home = [s[3], s[4], s[5], s[6]];
+    let mut rec = Recorder::new(env);
+    rec.wait(20)?;
+    let e = rec.env();
+    let (bp, m) = kin::body(e, "link_2")?;
+    let front = [m[2], m[5], m[8]];
+    // With the hand yawed to the bottle's front (+z) the grasp (measured) has the middle
+    // and ring fingers on the front, the thumb on the back and the straight index finger
+    // along the bottle toward its head, over the trigger lever.
+    let yaw = front[1].atan2(front[0]);
+    let q = kin::qmul(kin::yaw(yaw), home);
+    let table = kin::site(e, "table_top")?[2];
+    let grip = kin::add(bp, kin::mulv(&m, [0.0, GRIP_Y, -0.01]));
+    let mut at = kin::sub(grip, kin::mulv(&kin::qmat(kin::yaw(yaw)), GRIP));
+    at[2] = table + TCP_Z;
+    let show = |rec: &Recorder, what: &str| {
+        if debug() {
+            let e = rec.env();
+            eprintln!(
+                "{what}: step {} trigger {:.3} ref {:.3?} bottle {:.3?}",
+                e.steps(),
+                kin::joint(e, "joint_0").unwrap_or(f64::NAN),
+                kin::site(e, "ref_point").unwrap_or_default(),
+                kin::body(e, "link_2").map(|b| b.0).unwrap_or_default(),
+            );
+        }
+    };
+    rec.go(0, kin::add(at, [0.0, 0.0, 0.12]), q, OPEN, 90)?;
+    rec.settle(0.004, 60)?;
+    rec.go(0, at, q, OPEN, 50)?;
+    rec.settle(0.002, 60)?;
+    rec.snap(0, "water_open");
+    rec.go(0, at, q, HOLD, 30)?;
+    rec.wait(20)?;
+    show(&rec, "held");
+    frame_debug(&rec);
+    rec.snap(0, "water_held");
+    let up = kin::add(at, [0.0, 0.0, 0.15]);
+    rec.go(0, up, q, HOLD, 80)?;
+    rec.settle(0.004, 60)?;
+    show(&rec, "lifted");
+    let latched = |e: &TaskEnv| e.checker().value("trigger") == Some(true);
+    if variant == Variant::Wrong {
+        rec.go_many(&[Goal::new(0, up, q, PULL)], 60, latched)?;
+        rec.wait(30)?;
+        return rec.finish(id);
+    }
+    // Nozzle 0.15 m from the plant's axis on the robot's side, at the plant's height.
+    let e = rec.env();
+    let nozzle = kin::sub(kin::site(e, "ref_point")?, kin::tcp(e, 0).0);
+    let plant = kin::body(e, "plant")?.0;
+    let target = [plant[0] - 0.15, plant[1], plant[2] + 0.02];
+    let mid = kin::scale(kin::add(kin::add(up, kin::sub(target, nozzle)), up), 0.5);
+    rec.go(0, [mid[0], mid[1], up[2] + 0.05], q, HOLD, 90)?;
+    rec.go(0, kin::sub(target, nozzle), q, HOLD, 90)?;
+    rec.settle(0.004, 80)?;
+    show(&rec, "over the plant");
+    frame_debug(&rec);
+    // Guarded press: curl the index finger until the trigger latches, then keep it there.
+    let goal = Goal::new(0, kin::sub(target, nozzle), q, PULL);
+    rec.go_many(&[goal], 60, latched)?;
+    show(&rec, "pulled");
+    frame_debug(&rec);
+    rec.snap(0, "water_pulled");
+    rec.wait(80)?;
+    show(&rec, "end");
+    rec.finish(id)
+}
+
+/// Diagnostics: the hand joints and the fingertips in the bottle's frame.
+fn frame_debug(rec: &Recorder) {
+    if let Err(e) = frame_debug_inner(rec) {
+        eprintln!("  ({e})");
+    }
+}
+
+fn frame_debug_inner(rec: &Recorder) -> Result<(), SimError> {
+    if debug() {
+        let e = rec.env();
+        let (bp, m) = kin::body(e, "link_2")?;
+        let local = |w: V3| {
+            let d = kin::sub(w, bp);
+            [
+                m[0] * d[0] + m[3] * d[1] + m[6] * d[2],
+                m[1] * d[0] + m[4] * d[1] + m[7] * d[2],
+                m[2] * d[0] + m[5] * d[1] + m[8] * d[2],
+            ]
+        };
+        let st = e.state();
+        eprintln!(
+            "  hand ff {:.2?} mf {:.2?} th {:.2?}",
+            &st[7..11],
+            &st[11..15],
+            &st[19..23]
+        );
+        eprintln!(
+            "  trigger (bottle frame) {:.3?}",
+            local(kin::geom(e, "spray_trigger")?.0)
+        );
+        for b in ["ff_tip", "mf_tip", "rf_tip", "th_tip"] {
+            if let Some(g) = super::geom_of_body(e, b) {
+                eprintln!(
+                    "  {b} (bottle frame) {:.3?}",
+                    local(e.data().geom_xpos()[g])
+                );
+            }
+        }
+    }
+    Ok(())
+}
