@@ -57,15 +57,15 @@ pub fn run(global: &GlobalArgs, args: &ScriptedArgs) -> anyhow::Result<ExitStatu
         }
         .into());
     }
-    let scene = load_task_scene(&SceneSource::from_option(args.scene_dir.clone()), &spec)?;
+    let scene = load_task_scene(&SceneSource::from_option(args.scene_dir.clone()), spec)?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(global.seed);
     let task_dir = args.out.join(&spec.id);
     let pb = crate::progress::bar(args.episodes as u64, "scripted", global.quiet);
     let mut written = 0usize;
     for k in 0..args.episodes {
-        let s0 = TaskEnv::sample_initial_state(&scene, &spec, &mut || rng.random::<f64>())?;
+        let s0 = TaskEnv::sample_initial_state(&scene, spec, &mut || rng.random::<f64>())?;
         let id = format!("{}_scripted_seed{}_{k}", spec.id, global.seed);
-        let plan = scripted::plan(&scene, &spec, &s0, &id, Variant::Demo)?;
+        let plan = scripted::plan(&scene, spec, &s0, &id, Variant::Demo)?;
         match plan.success_at {
             Some(step) => {
                 let dir = task_dir.join(format!("episode_{written:06}"));

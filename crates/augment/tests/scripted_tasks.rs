@@ -14,9 +14,9 @@ use rand::{Rng, SeedableRng};
 /// A random reset of `task` (seeded), its scene and spec.
 fn reset(task: &str, seed: u64) -> (dexjoco_sim::Scene, TaskSpec, Vec<f64>) {
     let spec = TaskSpec::builtin(task).expect("a built-in task");
-    let scene = load_task_scene(&SceneSource::BuiltIn, &spec).unwrap();
+    let scene = load_task_scene(&SceneSource::BuiltIn, spec).unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let s0 = TaskEnv::sample_initial_state(&scene, &spec, &mut || rng.random::<f64>()).unwrap();
+    let s0 = TaskEnv::sample_initial_state(&scene, spec, &mut || rng.random::<f64>()).unwrap();
     (scene, spec.clone(), s0)
 }
 

@@ -15,7 +15,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let source = SceneSource::from_option(args.next().filter(|a| a != "-").map(Into::into));
     let wrong = args.next().is_some_and(|a| a == "wrong");
     let spec = TaskSpec::builtin(&task).ok_or("unknown task")?;
-    let scene = load_task_scene(&source, &spec)?;
+    let scene = load_task_scene(&source, spec)?;
     let mut ok = 0;
     for seed in 0..seeds {
         // xorshift64* draws in [0, 1), warmed up.
@@ -29,10 +29,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for _ in 0..8 {
             uniform();
         }
-        let s0 = TaskEnv::sample_initial_state(&scene, &spec, &mut uniform)?;
+        let s0 = TaskEnv::sample_initial_state(&scene, spec, &mut uniform)?;
         let t = std::time::Instant::now();
         let variant = if wrong { Variant::Wrong } else { Variant::Demo };
-        let p = scripted::plan(&scene, &spec, &s0, &format!("{task}_{seed}"), variant)?;
+        let p = scripted::plan(&scene, spec, &s0, &format!("{task}_{seed}"), variant)?;
         ok += usize::from(p.success_at.is_some());
         println!(
             "seed {seed}: {} steps, success at {:?}, failed {} ({:.1} s)",
