@@ -159,17 +159,8 @@ fn calibrate(
 ) -> Result<f64, AugmentError> {
     let id = &src.episode.id;
     let assets = load_assets(config, &src.spec)?;
-    let fixed: Vec<usize> = config
-        .cameras
-        .iter()
-        .map(|c| assets.scene.camera_id(c).map_err(sim_err(id)))
-        .collect::<Result<_, _>>()?;
-    let sample = VisualSample::sample(
-        crate::randomize::replay_seed(config.seed, &src.key(), 0),
-        &assets.pool,
-        &assets.table,
-        assets.nlight,
-    );
+    let fixed = assets.fixed_cameras(&config.cameras, id)?;
+    let sample = assets.sample(config.seed, &src.key(), 0);
     let mut renderer = Renderer::new(
         &assets.scene.model,
         RenderSettings {
@@ -234,22 +225,11 @@ pub fn render_only(
         .ok_or_else(|| AugmentError::Input("no episode to render".into()))?;
     let id = &src.episode.id;
     let assets = load_assets(config, &src.spec)?;
-    let fixed: Vec<usize> = config
-        .cameras
-        .iter()
-        .map(|c| assets.scene.camera_id(c).map_err(sim_err(id)))
-        .collect::<Result<_, _>>()?;
+    let fixed = assets.fixed_cameras(&config.cameras, id)?;
     let mut renderer = Renderer::new(&assets.scene.model, config.settings).map_err(sim_err(id))?;
     let mut env = new_env(src, &assets.scene, &src.spec)?;
     let samples: Vec<VisualSample> = (0..config.replays.max(1))
-        .map(|r| {
-            VisualSample::sample(
-                crate::randomize::replay_seed(config.seed, &src.key(), r),
-                &assets.pool,
-                &assets.table,
-                assets.nlight,
-            )
-        })
+        .map(|r| assets.sample(config.seed, &src.key(), r))
         .collect();
     let mut draw = |k: usize| -> Result<usize, AugmentError> {
         let sample = &samples[k % samples.len()];

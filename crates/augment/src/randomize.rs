@@ -276,6 +276,10 @@ fn rgb(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> [f64; 3] {
 }
 
 impl VisualSample {
+    /// The views a replay renders: this sample's third-person view, then the fixed cameras.
+    pub fn views<'a>(&self, fixed: &'a [usize]) -> impl Iterator<Item = CameraView> + 'a {
+        std::iter::once(self.camera.view()).chain(fixed.iter().map(|i| CameraView::Fixed(*i)))
+    }
     /// Samples a replay's randomization from its seed.
     pub fn sample(seed: u64, pool: &CameraPool, table: &TableLibrary, nlight: usize) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -11,7 +11,7 @@ use dexjoco_formats::SourceKind;
 use dexjoco_formats::npz::DepthWriter;
 use dexjoco_formats::raw;
 use dexjoco_sim::mujoco_rs::prelude::MjModel;
-use dexjoco_sim::{CameraView, RenderSettings, Renderer, Scene};
+use dexjoco_sim::{RenderSettings, Renderer, Scene};
 use dexjoco_video::{Codec, VideoSpec, VideoWriter};
 use serde::{Deserialize, Serialize};
 
@@ -136,11 +136,7 @@ pub(crate) fn render_unit(
     } = *inputs;
     let id = &src.episode.id;
     let ep_key = job.key();
-    let fixed: Vec<usize> = config
-        .cameras
-        .iter()
-        .map(|c| assets.scene.camera_id(c).map_err(sim_err(id)))
-        .collect::<Result<_, _>>()?;
+    let fixed = assets.fixed_cameras(&config.cameras, id)?;
     let cameras = replay_cameras(&config.cameras);
 
     // The simulation to render: the validated one, or with --dynamics the replay's own on
@@ -158,7 +154,7 @@ pub(crate) fn render_unit(
         let physics = replay(src, &mut env, config, |_, _| Ok(()))?;
         if physics.summary.first_success.is_none() && !config.keep_failed {
             // The task failed under these dynamics: only the record of the draw is kept.
-            let sample = VisualSample::sample(seed, &assets.pool, &assets.table, assets.nlight);
+            let sample = assets.sample(config.seed, &ep_key, r);
             let record = record_of(job, r, sample, Some(values), &physics.summary);
             frames_done(0)?;
             write_dropped(out, &record)?;
@@ -185,7 +181,7 @@ pub(crate) fn render_unit(
         let videos = staging.join(raw::VIDEOS);
         fs_err::create_dir_all(&videos).map_err(io_err("create", &videos))?;
         let seed = crate::randomize::replay_seed(config.seed, &ep_key, r);
-        let sample = VisualSample::sample(seed, &assets.pool, &assets.table, assets.nlight);
+        let sample = assets.sample(config.seed, &ep_key, r);
         let dynamics = if config.dynamics {
             Some(sample_dynamics(
                 &src.spec,
@@ -233,8 +229,7 @@ pub(crate) fn render_unit(
         |renderer| {
             replay(src, &mut env, config, |env, k| {
                 for p in &mut pending {
-                    let views = std::iter::once(p.sample.camera.view())
-                        .chain(fixed.iter().map(|i| CameraView::Fixed(*i)));
+                    let views = p.sample.views(&fixed);
                     for (c, (view, writer)) in views.zip(p.writers.iter_mut()).enumerate() {
                         renderer.update_scene(env.data_mut(), view);
                         apply_visuals(renderer, &p.sample, &assets.table);

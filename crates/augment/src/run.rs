@@ -31,6 +31,30 @@ pub(crate) struct TaskAssets {
     pub(crate) key: String,
 }
 
+impl TaskAssets {
+    /// The scene ids of the fixed cameras a replay renders besides its third-person view.
+    pub(crate) fn fixed_cameras(
+        &self,
+        names: &[String],
+        episode: &str,
+    ) -> Result<Vec<usize>, AugmentError> {
+        names
+            .iter()
+            .map(|c| self.scene.camera_id(c).map_err(sim_err(episode)))
+            .collect()
+    }
+
+    /// The randomization of replay `r` of the episode `key` (`<task>/<episode>`).
+    pub(crate) fn sample(&self, seed: u64, key: &str, r: usize) -> crate::randomize::VisualSample {
+        crate::randomize::VisualSample::sample(
+            crate::randomize::replay_seed(seed, key, r),
+            &self.pool,
+            &self.table,
+            self.nlight,
+        )
+    }
+}
+
 fn pool_for(config: &AugmentConfig, spec: &TaskSpec) -> Result<CameraPool, AugmentError> {
     if let Some(p) = &config.camera_pool {
         return CameraPool::load(p);
