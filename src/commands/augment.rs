@@ -42,7 +42,7 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
     bar.finish();
     let failed = report.failed_episodes();
     let ok = report.episodes.len() - failed;
-    println!(
+    outln!(
         "augment: {} episode(s) replayed to success, {failed} failed; {} replay(s) in {} ({} rendered now, {:.1} s)",
         ok,
         report.replays.len(),
@@ -51,21 +51,23 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
         started.elapsed().as_secs_f64()
     );
     if !report.dropped.is_empty() {
-        println!(
+        outln!(
             "  {} replay(s) failed under their --dynamics draw and were dropped (--keep-failed keeps them)",
             report.dropped.len()
         );
     }
     for k in &report.skipped {
-        println!("  SKIPPED: {}: {}", k.source, k.reason);
+        outln!("  SKIPPED: {}: {}", k.source, k.reason);
     }
     for e in report.episodes.iter().filter(|e| !e.success) {
-        println!(
+        outln!(
             "  FAILED: {}/{} (max state deviation {:e})",
-            e.task, e.episode, e.max_state_deviation
+            e.task,
+            e.episode,
+            e.max_state_deviation
         );
     }
-    println!("report: {}", out.join(dexjoco_augment::REPORT_MD).display());
+    outln!("report: {}", out.join(dexjoco_augment::REPORT_MD).display());
     Ok(if failed > 0 || !report.skipped.is_empty() {
         ExitStatus::Partial
     } else {

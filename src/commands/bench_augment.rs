@@ -125,18 +125,19 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
     bar.finish_and_clear();
 
     let episodes = runs.first().map_or(0, |r| r.replays / args.replays.max(1));
-    println!(
+    outln!(
         "Augment of {episodes} episode(s) x {} replays x {} frames (third-person view, H.264 \
          encode included); device: {device}",
-        args.replays, args.max_frames
+        args.replays,
+        args.max_frames
     );
-    println!();
-    println!(
+    outln!();
+    outln!(
         "| size | preset | approach | threads | rendered frames/s | replays/min | seconds | speed-up vs reference |"
     );
-    println!("|---:|---|---|---:|---:|---:|---:|---:|");
+    outln!("|---:|---|---|---:|---:|---:|---:|---:|");
     for r in &runs {
-        println!(
+        outln!(
             "| {0}x{0} | {1} | {2} | {3} | {4:.1} | {5:.1} | {6:.1} | {7:.2}x |",
             r.size,
             r.preset,
@@ -161,6 +162,6 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
         }))?
         .as_bytes(),
     )?;
-    eprintln!("wrote {}", json.display());
+    errln!("wrote {}", json.display());
     Ok(ExitStatus::Success)
 }

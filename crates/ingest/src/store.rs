@@ -26,7 +26,7 @@ use std::time::Instant;
 use dexjoco_core::{Location, Progress, TaskSet};
 use dexjoco_formats::episodes::{ReadOptions, Source};
 use dexjoco_formats::error::io_err;
-use dexjoco_formats::fs::{copy_tree, replace_dir, write_atomic};
+use dexjoco_formats::fs::{self as fs_replace, copy_tree, replace_dir, write_atomic};
 use dexjoco_formats::manifest::{
     ENTRY_FILE, MANIFEST, Manifest, ManifestEntry, SourceKind, Status,
 };
@@ -83,6 +83,9 @@ pub enum Outcome {
     Duplicate,
     /// Rejected and quarantined (now or in an earlier run).
     Quarantined,
+    /// Already stored, redone under `force`, and failed its re-check (e.g. under tighter
+    /// tolerances): the stored episode is kept as it was, the problems are reported.
+    RecheckFailed,
 }
 
 /// The result for one source.
@@ -119,9 +122,9 @@ impl IngestSummary {
         self.sources.iter().filter(|s| s.outcome == outcome).count()
     }
 
-    /// Sources rejected (now or before).
+    /// Sources rejected (now or before), and stored episodes that failed their re-check.
     pub fn rejected(&self) -> usize {
-        self.count(Outcome::Quarantined)
+        self.count(Outcome::Quarantined) + self.count(Outcome::RecheckFailed)
     }
 }
 
@@ -175,6 +178,16 @@ impl Store {
         let root = root.into();
         fs_err::create_dir_all(&root).map_err(io_err("create", &root))?;
         let lock = DirLock::acquire(&root)?;
+        // A run killed while replacing a folder (under force) left its old copy aside.
+        fs_replace::recover_replaced_in(&root)?;
+        for e in fs_err::read_dir(&root)
+            .map_err(io_err("list", &root))?
+            .flatten()
+        {
+            if e.path().is_dir() && !e.file_name().to_string_lossy().starts_with('.') {
+                fs_replace::recover_replaced_in(&e.path())?;
+            }
+        }
         let staging = root.join(STAGING);
         if staging.exists() {
             fs_err::remove_dir_all(&staging).map_err(io_err("remove", &staging))?;
@@ -219,7 +232,7 @@ impl Store {
             .flatten()
         {
             let name = e.file_name();
-            if name == STAGING || !e.path().is_dir() {
+            if name.to_string_lossy().starts_with('.') || !e.path().is_dir() {
                 continue;
             }
             let file = if name == QUARANTINE {
@@ -231,6 +244,9 @@ impl Store {
                 continue;
             };
             for sub in rd.flatten() {
+                if sub.file_name().to_string_lossy().starts_with('.') {
+                    continue;
+                }
                 let f = sub.path().join(file);
                 if f.is_file() {
                     out.push(f);
@@ -557,8 +573,36 @@ impl Store {
             });
         }
         seen.insert(entry.id.clone(), source.path.clone());
+        let previous = self.manifest.get(&entry.id).cloned();
+        if let Some(prev) = previous.as_ref().filter(|prev| {
+            prev.status == Status::Ok
+                && entry.status == Status::Quarantined
+                && self.root.join(&prev.path).is_dir()
+        }) {
+            // A stored episode redone under force that fails its re-check is never
+            // removed: it stays as it was, and the problems are reported.
+            if let Some(dir) = &staged {
+                let _ = fs_err::remove_dir_all(dir);
+            }
+            tracing::warn!(
+                "{}: the stored episode failed its re-check and is kept as it was: {}",
+                prev.path.display(),
+                entry
+                    .problems
+                    .first()
+                    .map(ToString::to_string)
+                    .unwrap_or_default()
+            );
+            return Ok(SourceReport {
+                source: source.path,
+                id: entry.id,
+                outcome: Outcome::RecheckFailed,
+                path: prev.path.clone(),
+                problems: entry.problems,
+                notes: entry.notes,
+            });
+        }
         if let Some(staged) = staged {
-            let previous = self.manifest.get(&entry.id).cloned();
             if entry.status == Status::Ok {
                 // Force re-uses the episode's folder; otherwise the task's next index.
                 let reuse = previous
@@ -580,6 +624,9 @@ impl Store {
                     &serde_json::to_vec_pretty(&entry).expect("entry serializes"),
                 )?;
             }
+            if entry.status == Status::Quarantined {
+                keep_quarantined_copy(&staged, &self.root.join(&entry.path))?;
+            }
             if let Some(prev) = previous.filter(|prev| prev.path != entry.path) {
                 // A quarantined input that now passes (or the reverse, under force).
                 let old = self.root.join(&prev.path);
@@ -599,6 +646,19 @@ impl Store {
             notes: entry.notes,
         })
     }
+}
+
+/// A quarantine folder being replaced whose new copy of the input could not be made
+/// (the input is gone or unreadable) keeps the copy made by an earlier run.
+fn keep_quarantined_copy(staged: &Path, old: &Path) -> Result<()> {
+    let (new_copy, old_copy) = (staged.join("source"), old.join("source"));
+    if !dexjoco_formats::fs::is_non_empty_dir(&new_copy) && old_copy.is_dir() {
+        if new_copy.exists() {
+            fs_err::remove_dir_all(&new_copy).map_err(io_err("remove", &new_copy))?;
+        }
+        fs_err::rename(&old_copy, &new_copy).map_err(io_err("rename", &old_copy))?;
+    }
+    Ok(())
 }
 
 /// `sha256` hex of a source and its size; MCAP files' bytes are returned for reading.
