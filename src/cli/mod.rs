@@ -32,7 +32,7 @@ The same words everywhere: inputs are positional, --out is the output folder,
 --overwrite replaces what a command wrote before, -c/--camera a camera, --size and
 --quality the rendering.
 
-Exit codes (the same error gives the same code in every command):
+Exit codes (the same for the same error in every command):
   0  success
   1  the command failed: an input is missing or unreadable, the output is in use by
      another run or may not be replaced, writing failed, rendering is unavailable

@@ -25,7 +25,7 @@ pub(crate) fn sample_data() -> anyhow::Result<PathBuf> {
         CliError {
             message: format!("no input given and the sample data {DEMOS} is not here"),
             hint: Some("pass raw episode folders, an episode store or MCAP files".into()),
-            status: ExitStatus::Usage,
+            status: ExitStatus::Failure,
         }
         .into()
     })

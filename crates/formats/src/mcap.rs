@@ -275,32 +275,69 @@ fn mcap_problem(e: &mcap::McapError, at: &Location) -> FormatError {
     FormatError::input(code, at, detail)
 }
 
+/// The records of an MCAP file, chunks unpacked, chunk CRCs checked, and no record
+/// longer than the file could hold (so a damaged length field cannot make the reader
+/// allocate without bound).
+fn flat_records(bytes: &[u8]) -> impl Iterator<Item = mcap::McapResult<Record<'static>>> + '_ {
+    use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    // A record inside a chunk is at most its uncompressed chunk: bounded by the file's
+    // size times a compression ratio no JSON teleop log reaches.
+    let limit = bytes.len().saturating_mul(64).max(16 << 20);
+    let mut reader = LinearReader::new_with_options(
+        LinearReaderOptions::default()
+            .with_record_length_limit(limit)
+            .with_validate_chunk_crcs(true),
+    );
+    let mut rest = bytes;
+    std::iter::from_fn(move || {
+        while let Some(event) = reader.next_event() {
+            match event {
+                Ok(LinearReadEvent::ReadRequest(need)) => {
+                    let len = need.min(rest.len());
+                    reader.insert(len).copy_from_slice(&rest[..len]);
+                    reader.notify_read(len);
+                    rest = &rest[len..];
+                }
+                Ok(LinearReadEvent::Record { data, opcode }) => {
+                    return Some(mcap::parse_record(opcode, data).map(Record::into_owned));
+                }
+                Err(e) => return Some(Err(e)),
+            }
+        }
+        None
+    })
+    .fuse()
+}
+
 /// Reads an MCAP file's bytes (`path` only names it in problems); the episode's task
 /// must be one of `tasks`.
 pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<TeleopEpisode> {
     let base = Location::default().path(path);
+    // Whole-file problems name the part of the file: its magic, or its records.
+    let magic = base.clone().field("magic");
+    let records = base.clone().field("records");
     if bytes.is_empty() {
         return Err(FormatError::input(
             ProblemCode::EmptyFile,
-            &base,
+            &magic,
             "the file is empty",
         ));
     }
     if !bytes.starts_with(mcap::MAGIC) {
         return Err(FormatError::input(
             ProblemCode::Corrupt,
-            &base,
+            &magic,
             "not an MCAP file (no MCAP magic at the start)",
         ));
     }
-    let reader = mcap::read::ChunkFlattener::new(bytes).map_err(|e| mcap_problem(&e, &base))?;
+    let reader = flat_records(bytes);
     let mut metadata: Option<BTreeMap<String, String>> = None;
     let mut schemas: HashMap<u16, String> = HashMap::new();
     let mut channels: HashMap<u16, (String, u16)> = HashMap::new();
     let mut by_channel: HashMap<u16, Vec<Msg>> = HashMap::new();
     let mut order = 0usize;
     for rec in reader {
-        match rec.map_err(|e| mcap_problem(&e, &base))? {
+        match rec.map_err(|e| mcap_problem(&e, &records))? {
             Record::Metadata(m) if m.name == EPISODE_METADATA => metadata = Some(m.metadata),
             Record::Schema { header, .. } => {
                 schemas.insert(header.id, header.name);
@@ -374,7 +411,7 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<T
         let (topic, schema_id) = channels.get(&ch).cloned().ok_or_else(|| {
             FormatError::input(
                 ProblemCode::Corrupt,
-                &base,
+                &base.clone().field(format!("channel {ch}")),
                 format!("messages on channel {ch}, which has no channel record"),
             )
         })?;
