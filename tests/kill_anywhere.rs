@@ -94,14 +94,18 @@ fn ingest_killed_anywhere_then_rerun_equals_an_uninterrupted_run() {
     }
     // A rejected input too: its quarantine copy is part of the store.
     fs_err::write(input.join("broken.mcap"), b"not an mcap file").unwrap();
-    let ingest = |store: &Path| {
+    let ingest_with = |store: &Path, overwrite: bool| {
         let mut c = bin();
         c.args(["-j", "1", "ingest"])
             .arg(&input)
             .arg("--out")
             .arg(store);
+        if overwrite {
+            c.arg("--overwrite");
+        }
         c
     };
+    let ingest = |store: &Path| ingest_with(store, false);
 
     let clean = tmp.path().join("clean");
     let t0 = Instant::now();
@@ -174,6 +178,29 @@ fn ingest_killed_anywhere_then_rerun_equals_an_uninterrupted_run() {
     assert!(
         got == expected,
         "the store differs from an uninterrupted run"
+    );
+
+    // Killed between the two renames of a replacement (--overwrite): the stored episode
+    // is aside, its folder missing. The next run puts it back.
+    let task_dir = store.join(&tasks[0].id);
+    fs_err::rename(
+        task_dir.join("episode_000000"),
+        task_dir.join(".episode_000000.old"),
+    )
+    .unwrap();
+    assert_eq!(finish(ingest(&store)), 3);
+    assert!(
+        file_tree(&store) == expected,
+        "the aside episode is put back"
+    );
+
+    // An --overwrite run killed midway, then completed: the same store.
+    assert!(kill_when(ingest_with(&store, true), &|| false, whole / 2));
+    assert_eq!(finish(ingest_with(&store, true)), 3);
+    assert_eq!(leftovers(&store), Vec::<PathBuf>::new());
+    assert!(
+        file_tree(&store) == expected,
+        "redone in place, byte for byte"
     );
 }
 

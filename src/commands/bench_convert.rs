@@ -111,7 +111,6 @@ fn ours(
         &[
             "-q",
             "convert",
-            "--input",
             &input.to_string_lossy(),
             "--out",
             &out.to_string_lossy(),
