@@ -28,6 +28,9 @@ fn finish(mut c: Command) -> i32 {
     c.status().unwrap().code().unwrap_or(-1)
 }
 
+/// When to kill a run, given the episodes landed before it started.
+type KillPoint = Box<dyn Fn(usize) -> Box<dyn Fn() -> bool>>;
+
 /// Starts a run and SIGKILLs it when `when` holds (polled every millisecond) or after
 /// `deadline`; returns whether it was killed before it ended by itself.
 fn kill_when(mut c: Command, when: &dyn Fn() -> bool, deadline: Duration) -> bool {
@@ -116,7 +119,7 @@ fn ingest_killed_anywhere_then_rerun_equals_an_uninterrupted_run() {
     let store = tmp.path().join("store");
     let s = store.clone();
     let staging = store.join(".staging");
-    let points: Vec<(&str, Box<dyn Fn(usize) -> Box<dyn Fn() -> bool>>)> = vec![
+    let points: Vec<(&str, KillPoint)> = vec![
         (
             "as soon as the store is locked",
             Box::new(move |_| {

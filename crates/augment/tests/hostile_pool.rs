@@ -27,8 +27,10 @@ fn check(dir: &Path, bytes: &[u8]) -> Result<(), String> {
             ACCEPTED.fetch_add(1, Ordering::Relaxed);
             if pool.poses.is_empty()
                 || pool.poses.iter().any(|p| {
-                    !(p.azimuth.is_finite() && p.elevation.is_finite() && p.distance > 0.0)
-                        || !p.distance.is_finite()
+                    !(p.azimuth.is_finite()
+                        && p.elevation.is_finite()
+                        && p.distance.is_finite()
+                        && p.distance > 0.0)
                 })
             {
                 Err(format!(
