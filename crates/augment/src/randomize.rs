@@ -467,6 +467,6 @@ mod tests {
         let bad = std::env::temp_dir().join("dexjoco-augment-bad-pool.json");
         fs_err::write(&bad, r#"{"rows": [[1.0, 2.0]]}"#).unwrap();
         let e = CameraPool::load(&bad).unwrap_err().to_string();
-        assert!(e.contains("row 0"), "{e}");
+        assert!(e.contains("rows[0]"), "{e}");
     }
 }

@@ -155,6 +155,14 @@ impl StagedDir {
     /// staging folders of earlier runs and creates this run's. Nothing at `to` is
     /// touched until [`StagedDir::commit`].
     pub fn begin(to: &Path) -> Result<Self> {
+        // `.`, `..` or `/` name no folder to put a staging folder beside: resolved first.
+        let resolved;
+        let to = if to.file_name().is_none() || to.ends_with("..") {
+            resolved = resolve(to);
+            resolved.as_path()
+        } else {
+            to
+        };
         let parent = match to.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),

@@ -93,6 +93,11 @@ fn paths_are_compared_resolved() {
     assert!(is_within(&tmp.path().join("link/ingest/new/deeper"), &w));
     assert!(!overlaps(&w.join("ingest"), &w.join("convert")));
     assert_eq!(resolve(&tmp.path().join("link/x/..")), resolve(&w));
+    // A target that names no folder (`..`, `.`) is resolved before staging beside it.
+    let staged = StagedDir::begin(&w.join("ingest/..")).unwrap();
+    assert_eq!(staged.target(), resolve(&w));
+    assert!(staged.path().starts_with(resolve(tmp.path())));
+    drop(staged);
     // A lock of another name in the folder does not block a staged folder.
     let _lock = DirLock::acquire(&w).unwrap();
     drop(StagedDir::begin(&w.join("convert")).unwrap());
