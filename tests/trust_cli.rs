@@ -481,7 +481,8 @@ fn a_raw_episode_whose_timestamps_stop_early_is_named_not_a_panic() {
         serde_json::from_slice(&fs_err::read(&zarray).unwrap()).unwrap();
     meta["shape"][0] = 8.into();
     fs_err::write(&zarray, meta.to_string()).unwrap();
-    // augment indexed the timestamps by the action's length inside its worker pool.
+    // augment indexed the timestamps by the action's length (its replays of failed
+    // episodes too, kept with --keep-failed) and panicked.
     let out = run(
         tmp.path(),
         &[
@@ -491,7 +492,8 @@ fn a_raw_episode_whose_timestamps_stop_early_is_named_not_a_panic() {
             "--replays",
             "1",
             "--max-frames",
-            "2",
+            "12",
+            "--keep-failed",
             "--size",
             "32",
             "--quality",
