@@ -12,10 +12,8 @@ pub enum ExitStatus {
     Failure = 1,
     /// Bad flags or values (clap exits with 2 itself for what it parses).
     Usage = 2,
-    /// Done, but some episodes were rejected.
+    /// Done, but some inputs (episodes, replays, tasks) were left out; each is named.
     Partial = 3,
-    /// The subcommand is not built yet.
-    NotAvailable = 4,
 }
 
 impl From<ExitStatus> for ExitCode {
@@ -42,3 +40,23 @@ impl fmt::Display for CliError {
 }
 
 impl std::error::Error for CliError {}
+
+/// Whether an error (or one of its causes) is a folder locked by another run.
+pub fn is_locked(err: &anyhow::Error) -> bool {
+    use dexjoco_formats::FormatError;
+    err.chain().any(|e| {
+        matches!(e.downcast_ref(), Some(FormatError::Locked { .. }))
+            || matches!(
+                e.downcast_ref(),
+                Some(dexjoco_ingest::IngestError::Format(
+                    FormatError::Locked { .. }
+                ))
+            )
+            || matches!(
+                e.downcast_ref(),
+                Some(dexjoco_convert::ConvertError::Format(
+                    FormatError::Locked { .. }
+                ))
+            )
+    })
+}

@@ -1,6 +1,8 @@
 //! The `dexjoco-data` command line: a thin layer that turns arguments into settings,
 //! runs a stage from the library crates, and reports errors with documented exit codes.
 
+#[macro_use]
+mod out;
 mod cli;
 mod commands;
 mod exit;
@@ -53,16 +55,18 @@ fn init_worker_pool(jobs: Option<usize>) {
 /// Prints an error as `error:` / `Caused by:` / `hint:` and picks the exit status.
 fn report(err: &anyhow::Error) -> ExitStatus {
     let cli_error = err.chain().find_map(|e| e.downcast_ref::<CliError>());
-    eprintln!("error: {err}");
+    errln!("error: {err}");
     let causes: Vec<String> = err.chain().skip(1).map(ToString::to_string).collect();
     if !causes.is_empty() {
-        eprintln!("Caused by:");
+        errln!("Caused by:");
         for c in causes {
-            eprintln!("  {c}");
+            errln!("  {c}");
         }
     }
     if let Some(hint) = cli_error.and_then(|e| e.hint.as_deref()) {
-        eprintln!("hint: {hint}");
+        errln!("hint: {hint}");
+    } else if exit::is_locked(err) {
+        errln!("hint: another run is writing this folder: wait for it to end, or write elsewhere");
     }
     cli_error.map_or(ExitStatus::Failure, |e| e.status)
 }

@@ -66,8 +66,8 @@ impl IngestSettings {
     pub fn resolve(args: IngestArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
         let IngestArgs {
             inputs,
-            store,
-            force,
+            out,
+            overwrite,
             task,
             quat_tolerance,
             timestep_tolerance,
@@ -77,11 +77,13 @@ impl IngestSettings {
         if let Some(t) = &task {
             known_task(&tasks, t)?;
         }
+        non_negative("--quat-tolerance", quat_tolerance)?;
+        non_negative("--timestep-tolerance", timestep_tolerance)?;
         Ok(Self {
             inputs,
-            store: store.unwrap_or_else(|| global.work_dir.join("ingest")),
+            store: out.unwrap_or_else(|| global.work_dir.join("ingest")),
             options: IngestOptions {
-                force,
+                force: overwrite,
                 task,
                 validation: ValidationOptions {
                     quat_norm_tolerance: quat_tolerance,
@@ -95,6 +97,18 @@ impl IngestSettings {
     }
 }
 
+/// A usage error unless `value` is a finite number >= 0.
+fn non_negative(flag: &str, value: f64) -> anyhow::Result<()> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(usage(
+            format!("{flag} {value} must be a number >= 0"),
+            "tolerances are distances: 0 or more",
+        ))
+    }
+}
+
 /// `export`.
 pub struct ExportSettings {
     /// Episode folders or stores.
@@ -103,21 +117,36 @@ pub struct ExportSettings {
     pub out: PathBuf,
     /// Container.
     pub to: ExportFormat,
+    /// Replace files already in `out`.
+    pub overwrite: bool,
 }
 
 impl ExportSettings {
     /// Resolves `export`'s arguments.
-    pub fn resolve(args: ExportArgs, global: &GlobalArgs) -> Self {
-        let ExportArgs { to, episodes, out } = args;
-        Self {
-            inputs: if episodes.is_empty() {
-                vec![global.work_dir.join("ingest")]
-            } else {
-                episodes
-            },
+    pub fn resolve(args: ExportArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let ExportArgs {
+            to,
+            inputs,
+            out,
+            overwrite,
+        } = args;
+        let inputs = if inputs.is_empty() {
+            vec![global.work_dir.join("ingest")]
+        } else {
+            inputs
+        };
+        for input in &inputs {
+            must_exist(
+                input,
+                "give episode folders or stores made by `dexjoco-data ingest`",
+            )?;
+        }
+        Ok(Self {
+            inputs,
             out: out.unwrap_or_else(|| global.work_dir.join("export")),
             to,
-        }
+            overwrite,
+        })
     }
 }
 
@@ -160,6 +189,12 @@ impl AugmentSettings {
             egl_devices,
             overwrite,
         } = args;
+        if replays == 0 {
+            return Err(usage(
+                "--replays 0 makes nothing".into(),
+                "ask for 1 or more replays per episode",
+            ));
+        }
         if size == 0 || !size.is_multiple_of(2) {
             return Err(usage(
                 format!("--size {size} must be even and positive (H.264 yuv420p)"),
@@ -184,6 +219,12 @@ impl AugmentSettings {
                     .map_err(|e| usage(format!("--shard {e}"), "for example --shard 0/4"))?,
             ),
         };
+        if shard.is_some() && overwrite {
+            return Err(usage(
+                "--overwrite cannot be combined with --shard: the shards share the folder, and one would remove the others' replays".into(),
+                "remove the output folder (or run `dexjoco-data augment --overwrite` once, unsharded) before starting the shards",
+            ));
+        }
         let workers = global.jobs.unwrap_or_else(|| {
             std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
         });
@@ -244,6 +285,18 @@ impl CamerasSettings {
             preview,
         } = args;
         let spec = known_task(TaskSet::builtin(), &task)?;
+        if candidates < count {
+            return Err(usage(
+                format!("--candidates {candidates} is fewer than --count {count}"),
+                "sample at least as many poses as are kept",
+            ));
+        }
+        if let Some(d) = distance.filter(|d| !(d.is_finite() && *d > 0.0)) {
+            return Err(usage(
+                format!("--distance {d} must be a positive number of metres"),
+                "for example --distance 1.4",
+            ));
+        }
         let mut options = dexjoco_augment::PoolOptions::for_setup(spec.setup);
         options.count = count;
         options.candidates = candidates;
@@ -270,8 +323,8 @@ impl CamerasSettings {
 
 /// `convert`.
 pub struct ConvertSettings {
-    /// Episode store or folder.
-    pub input: PathBuf,
+    /// Episode stores or folders.
+    pub inputs: Vec<PathBuf>,
     /// Dataset folder.
     pub out: PathBuf,
     /// Library options.
@@ -282,11 +335,13 @@ impl ConvertSettings {
     /// Resolves `convert`'s arguments.
     pub fn resolve(args: ConvertArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
         let ConvertArgs {
-            input,
+            inputs,
+            input_flag,
             out,
             format,
             config,
             overwrite,
+            include_failed,
             no_skip_static,
             merge_bimanual,
             exclude,
@@ -297,28 +352,33 @@ impl ConvertSettings {
             norm_stats,
             norm_stats_horizon,
         } = args;
-        let input = match input {
-            Some(p) => p,
-            None => {
-                let default = global.work_dir.join("augment");
-                if !default.is_dir() {
-                    return Err(CliError {
-                        message: format!(
-                            "no input: the augment stage's output {} does not exist",
-                            default.display()
-                        ),
-                        hint: Some(
-                            "pass --input DIR: an episode store (`dexjoco-data ingest` makes one) or a folder of \
-                             DexJoCo raw episode folders (replay.zarr + videos/)"
-                                .into(),
-                        ),
-                        status: ExitStatus::Failure,
-                    }
-                    .into());
+        let mut inputs = inputs;
+        inputs.extend(input_flag);
+        if inputs.is_empty() {
+            let default = global.work_dir.join("augment");
+            if !default.is_dir() {
+                return Err(CliError {
+                    message: format!(
+                        "no input: the augment stage's output {} does not exist",
+                        default.display()
+                    ),
+                    hint: Some(
+                        "pass INPUT (or --input INPUT): an episode store (`dexjoco-data ingest` makes one) or a \
+                         folder of DexJoCo raw episode folders (replay.zarr + videos/)"
+                            .into(),
+                    ),
+                    status: ExitStatus::Failure,
                 }
-                default
+                .into());
             }
-        };
+            inputs.push(default);
+        }
+        for input in &inputs {
+            must_exist(
+                input,
+                "give an episode store or a folder of DexJoCo raw episode folders",
+            )?;
+        }
         let (format, format_dir) = match format {
             ConvertFormatArg::DiffusionPolicy => {
                 (OutputFormat::DiffusionPolicy, "diffusion-policy")
@@ -346,9 +406,11 @@ impl ConvertSettings {
         }
         selection.bad_episodes.extend(exclude);
         Ok(Self {
-            input,
             out,
             options: ConvertOptions {
+                include_failed,
+                protected_inputs: inputs.clone(),
+                protected_dirs: vec![global.work_dir.clone()],
                 format,
                 videos,
                 norm_stats: norm_stats.then_some(norm_stats_horizon),
@@ -367,6 +429,7 @@ impl ConvertSettings {
                 overwrite,
                 ..ConvertOptions::default()
             },
+            inputs,
         })
     }
 }
@@ -391,9 +454,11 @@ impl StatsSettings {
     /// Resolves `stats`' arguments.
     pub fn resolve(args: StatsArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
         let StatsArgs {
-            language_eval,
-            success_table,
-            dataset,
+            input,
+            input_flag,
+            mut language_eval,
+            mut success_table,
+            mut dataset,
             out,
             js_base,
             alpha,
@@ -406,6 +471,48 @@ impl StatsSettings {
                 "`dexjoco-data stats --language-eval` or `--success-table` (each on the shipped example input \
                  without a path), or `--dataset` (the ingest store)",
             ));
+        }
+        if let Some(input) = input.or(input_flag) {
+            let asked: Vec<&mut Option<Option<PathBuf>>> =
+                [&mut language_eval, &mut success_table, &mut dataset]
+                    .into_iter()
+                    .filter(|a| a.is_some())
+                    .collect();
+            match asked.as_slice() {
+                [Some(Some(given))] => {
+                    return Err(usage(
+                        format!(
+                            "two inputs: '{}' and '{}'",
+                            given.display(),
+                            input.display()
+                        ),
+                        "give the input once, as INPUT or after its flag",
+                    ));
+                }
+                [_] => {}
+                _ => {
+                    return Err(usage(
+                        format!(
+                            "INPUT '{}' with several analyses: which one is it for?",
+                            input.display()
+                        ),
+                        "give each analysis its input after its flag, e.g. --dataset DIR --language-eval FILE",
+                    ));
+                }
+            }
+            for a in asked {
+                *a = Some(Some(input.clone()));
+            }
+        }
+        for p in [&language_eval, &success_table, &dataset]
+            .into_iter()
+            .flatten()
+            .flatten()
+        {
+            must_exist(
+                p,
+                "give an existing file or folder (see `dexjoco-data stats --help`)",
+            )?;
         }
         if !(alpha > 0.0 && alpha < 1.0) {
             return Err(usage(

@@ -8,6 +8,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod common;
+
 fn cli() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
     c.current_dir(dexjoco_testkit::workspace_root())
@@ -259,4 +261,47 @@ fn a_resume_with_other_settings_or_another_dataset_is_refused_and_overwrite_star
     let report: serde_json::Value =
         serde_json::from_slice(&fs_err::read(fresh.join("augment_report.json")).unwrap()).unwrap();
     assert_eq!(report["replays"].as_array().unwrap().len(), 4);
+}
+
+#[test]
+fn one_writer_per_output_folder_but_the_shards_of_one_split_share_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    fs_err::create_dir_all(&out).unwrap();
+    let mut holder = common::sleeper();
+    let pid = holder.id();
+    let refused = |extra: &[&str]| {
+        let o = augment(1, &out, extra).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(1), "{extra:?}: {err}");
+        assert!(err.contains(&format!("{pid}@")), "{extra:?}: {err}");
+    };
+
+    // A running unsharded augment: neither another run nor a shard may write.
+    common::lock_of(&out.join(".lock"), pid);
+    refused(&[]);
+    refused(&["--shard", "0/2"]);
+    fs_err::remove_file(out.join(".lock")).unwrap();
+
+    // A running shard 1/2: shard 0/2 works beside it; an unsharded run, the same shard
+    // twice and a shard of another split are refused.
+    common::lock_of(&out.join(".lock-shard-1-of-2"), pid);
+    refused(&[]);
+    refused(&["--shard", "1/2"]);
+    refused(&["--shard", "0/3"]);
+    ok(&augment(1, &out, &["--shard", "0/2"]).output().unwrap());
+    assert!(!out.join(".lock-shard-0-of-2").exists(), "released");
+
+    // Once the holder has ended, its lock is taken over.
+    holder.kill().unwrap();
+    holder.wait().unwrap();
+    ok(&augment(1, &out, &[]).output().unwrap());
+    assert!(!out.join(".lock").exists(), "released");
+    assert!(out.join("augment_report.json").is_file());
+
+    // --overwrite would remove the other shards' replays: refused with --shard.
+    let o = augment(1, &out, &["--shard", "0/2", "--overwrite"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
 }

@@ -3,6 +3,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod common;
+use common::convert_input;
+
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
     c.env_remove("DEXJOCO_WORK_DIR")
@@ -35,7 +38,7 @@ fn help_shows_examples_and_exit_codes() {
     for needle in [
         "Examples:",
         "augment --replays 10",
-        "Exit codes:",
+        "Exit codes (",
         "doctor",
         "render",
         "--seed",
@@ -359,61 +362,6 @@ fn render_video_streams_an_h264_clip_per_camera() {
             "{cam}: {info:?}"
         );
     }
-}
-
-/// A folder of DexJoCo raw episode folders (replay.zarr + videos/) for `convert`.
-fn convert_input(dir: &Path) -> PathBuf {
-    use dexjoco_core::{ArmSetup, CameraStream, Episode, FrameArray};
-    let input = dir.join("episodes");
-    for e in 0..2usize {
-        let n = 6 + e;
-        let action: Vec<Vec<f64>> = (0..n)
-            .map(|k| {
-                let mut r = vec![0.0; 23];
-                r[0] = k as f64 * 0.01;
-                r[3] = 1.0;
-                r
-            })
-            .collect();
-        let mut arrays = std::collections::BTreeMap::new();
-        arrays.insert(
-            Episode::ACTION.into(),
-            FrameArray::from_rows(&action).unwrap(),
-        );
-        arrays.insert(Episode::STATE.into(), FrameArray::zeros(n, 31));
-        arrays.insert(
-            Episode::TIMESTAMP.into(),
-            Episode::regular_timestamps(n, 30.0),
-        );
-        let mut ep = Episode {
-            id: format!("ep{e}"),
-            task: "click_mouse".into(),
-            prompt: String::new(),
-            fps: 30.0,
-            arrays,
-            cameras: vec![CameraStream {
-                name: "front".into(),
-                video: Some("videos/front.mp4".into()),
-                depth: None,
-            }],
-        };
-        ep.compute_action_rotvec(ArmSetup::SingleArm).unwrap();
-        let d = input.join("click_mouse").join(format!("episode_{e:06}"));
-        fs_err::create_dir_all(d.join("videos")).unwrap();
-        dexjoco_formats::raw::write_replay_zarr(&d, &ep).unwrap();
-        let spec = dexjoco_video::VideoSpec {
-            width: 64,
-            height: 64,
-            fps: 30,
-            codec: dexjoco_video::Codec::DEXJOCO,
-        };
-        let mut w = dexjoco_video::VideoWriter::create(d.join("videos/front.mp4"), spec).unwrap();
-        for k in 0..n {
-            w.write_frame(&vec![(k * 20) as u8; 64 * 64 * 3]).unwrap();
-        }
-        w.finish().unwrap();
-    }
-    input
 }
 
 #[test]

@@ -24,17 +24,21 @@ Examples:
   dexjoco-data scripted --task pinch_tongs --episodes 5 --out demos/
   dexjoco-data augment --replays 10           # randomized replays of the sample demos
   dexjoco-data convert                        # augment output -> LeRobot v3.0
+  dexjoco-data convert dexjoco-work/ingest --out ds/ --overwrite
   dexjoco-data stats --language-eval
 
 Stages chain through the work folder (default ./dexjoco-work, one subfolder per stage),
 so `augment`, `convert` and `stats` need no paths; every path can be overridden.
+The same words everywhere: inputs are positional, --out is the output folder,
+--overwrite replaces what a command wrote before, -c/--camera a camera, --size and
+--quality the rendering.
 
-Exit codes:
+Exit codes (the same for the same error in every command):
   0  success
-  1  the command failed (bad input, missing file, rendering unavailable...)
-  2  usage error (unknown flag, bad value)
-  3  finished, but some episodes were rejected (see the report)
-  4  this subcommand is not available in this version yet";
+  1  the command failed: an input is missing or unreadable, the output is in use by
+     another run or may not be replaced, writing failed, rendering is unavailable
+  2  usage error: unknown flag, bad value (0 replays, a negative tolerance...), unknown task
+  3  finished, but some inputs (episodes, replays, tasks) were left out; each is named";
 
 /// Data pipeline for DexJoCo dexterous-manipulation demonstrations: ingest teleop
 /// episodes, replay them in MuJoCo under randomization, convert to LeRobot / Diffusion

@@ -13,24 +13,29 @@ Examples:
   dexjoco-data ingest recordings/                      # raw folders and *.mcap, recursively
   dexjoco-data ingest teleop.mcap ../raw/click_mouse/episode_000003
   dexjoco-data ingest old_demos/ --task pick_bucket    # folders whose path names no task
-  dexjoco-data ingest recordings/ --force              # redo inputs already in the store
+  dexjoco-data ingest recordings/ --out my_store/      # another store than <work-dir>/ingest
+  dexjoco-data ingest recordings/ --overwrite          # redo inputs already in the store
 
 Good episodes land in the store (<work-dir>/ingest by default) in the DexJoCo raw layout,
 <task>/episode_NNNNNN/{replay.zarr, videos/}; rejected inputs are copied under
 quarantine/<id>/ with reason.json. manifest.json lists both, with every problem's file,
 episode, field and frame. Re-running skips inputs already stored (ids are content
-hashes). Exit code 3 when any input was rejected.")]
+hashes); a killed run is completed by running it again. One run writes a store at a
+time (a second one stops at once, naming the first). With --overwrite, a stored episode
+that fails its re-check is kept as it was and reported. Exit code 3 when any input was
+rejected.")]
 pub struct IngestArgs {
     /// MCAP files and folders; folders are searched recursively for DexJoCo raw episode
     /// folders (holding replay.zarr) and *.mcap files.
     #[arg(required = true)]
     pub inputs: Vec<PathBuf>,
     /// The episode store to add to (default: <work-dir>/ingest).
-    #[arg(long, env = "DEXJOCO_STORE")]
-    pub store: Option<PathBuf>,
-    /// Re-read and rewrite inputs already in the store (they keep their folders and ids).
-    #[arg(long)]
-    pub force: bool,
+    #[arg(short, long, visible_alias = "store", env = "DEXJOCO_STORE")]
+    pub out: Option<PathBuf>,
+    /// Re-read and rewrite inputs already in the store (they keep their folders and ids;
+    /// one that now fails its checks is kept as it was and reported).
+    #[arg(long, visible_alias = "force")]
+    pub overwrite: bool,
     /// Task of raw folders whose path does not name one (<task>/episode_N or <task>_demo_...).
     #[arg(long)]
     pub task: Option<String>,
@@ -57,16 +62,26 @@ pub enum ExportFormat {
 #[command(after_help = "\
 Examples:
   dexjoco-data export --to mcap                        # every episode of <work-dir>/ingest
-  dexjoco-data export --to mcap store/click_mouse/episode_000002 --out logs/")]
+  dexjoco-data export --to mcap store/click_mouse/episode_000002 --out logs/
+  dexjoco-data export --to mcap store_a/ store_b/ --overwrite
+
+Each episode becomes <out>/<task>_<folder>.mcap; two episodes that would get the same
+name (stores with the same folder names) get -2, -3... in input order. A file already
+in <out> is never replaced without --overwrite. Files are written whole (temporary file,
+then rename).")]
 pub struct ExportArgs {
     /// Output container.
     #[arg(long, value_enum)]
     pub to: ExportFormat,
     /// Episode folders, or stores (every landed episode) (default: <work-dir>/ingest).
-    pub episodes: Vec<PathBuf>,
+    #[arg(value_name = "INPUT")]
+    pub inputs: Vec<PathBuf>,
     /// Output folder (default: <work-dir>/export).
     #[arg(short, long)]
     pub out: Option<PathBuf>,
+    /// Replace files already in the output folder.
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// Dataset formats `convert` writes.
@@ -96,15 +111,17 @@ pub enum VideoCodecArg {
 #[derive(Debug, Args)]
 #[command(after_help = "\
 Examples:
-  dexjoco-data convert --input dexjoco-work/ingest --out datasets/click_mouse
-  dexjoco-data convert --input raw/ --config ../shared/dexjoco-upstream/converter-configs/multi_task
-  dexjoco-data convert --input raw/ --config selection.toml --reencode --video-codec h264
-  dexjoco-data convert --input raw/ --overwrite --no-skip-static
-  dexjoco-data convert --input raw/ --format diffusion-policy --videos --norm-stats
+  dexjoco-data convert dexjoco-work/ingest --out datasets/click_mouse
+  dexjoco-data convert raw/ --config ../shared/dexjoco-upstream/converter-configs/multi_task
+  dexjoco-data convert raw/ --config selection.toml --reencode --video-codec h264
+  dexjoco-data convert raw/ --overwrite --no-skip-static
+  dexjoco-data convert raw/ --format diffusion-policy --videos --norm-stats
 
 Input: an episode store (a folder with manifest.json, as `ingest` writes it: its landed
 episodes) or any folder of DexJoCo raw episode folders (replay.zarr + videos/<camera>.mp4),
-searched recursively. Without --input: <work-dir>/augment.
+searched recursively (folders starting with `.`, such as augment's .staging/, are not
+read). Without an input: <work-dir>/augment. Replays whose replay.json says the task
+failed (augment --keep-failed) are left out and named unless --include-failed.
 
 Videos are joined per camera by stream copy when the source codec fits (H.264, HEVC,
 AV1 in yuv420p at the dataset's rate): no re-encode, and static leading frames are
@@ -118,11 +135,21 @@ also keeps <out>/videos/<episode>/<camera>.mp4 with videos/name_map.json.
 
 An episode that cannot be read, lacks what the selection asks for or does not fit the
 dataset's layout is left out and named with its reason; the rest is written and the exit
-code is 3. The dataset appears in <out> only when complete.")]
+code is 3. The dataset appears in <out> only when complete. One run writes <out> at a
+time (lock file .<name>.lock beside it). --overwrite replaces only a dataset convert
+made; never a folder that holds or lies inside an input, or holds the work folder.")]
 pub struct ConvertArgs {
-    /// Episode store or folder of DexJoCo raw episodes (default: <work-dir>/augment).
-    #[arg(short, long, env = "DEXJOCO_CONVERT_INPUT")]
-    pub input: Option<PathBuf>,
+    /// Episode stores or folders of DexJoCo raw episodes (default: <work-dir>/augment).
+    #[arg(value_name = "INPUT")]
+    pub inputs: Vec<PathBuf>,
+    /// The same as INPUT (repeatable).
+    #[arg(
+        short,
+        long = "input",
+        value_name = "INPUT",
+        env = "DEXJOCO_CONVERT_INPUT"
+    )]
+    pub input_flag: Vec<PathBuf>,
     /// Output dataset folder (default: <work-dir>/convert/<format>).
     #[arg(short, long)]
     pub out: Option<PathBuf>,
@@ -131,11 +158,15 @@ pub struct ConvertArgs {
     pub format: ConvertFormatArg,
     /// Selection config: a TOML/YAML file, or a DexJoCo reference converter config
     /// folder (selected_data.yaml, slice_config.yaml, language_instructions.yaml).
-    #[arg(short, long, env = "DEXJOCO_CONVERT_CONFIG")]
+    #[arg(long, env = "DEXJOCO_CONVERT_CONFIG")]
     pub config: Option<PathBuf>,
-    /// Replace a non-empty output folder.
+    /// Replace a non-empty output folder (only a dataset convert made).
     #[arg(long)]
     pub overwrite: bool,
+    /// Also convert replays whose replay.json says the task failed (augment
+    /// --keep-failed); by default they are left out and named (exit code 3).
+    #[arg(long)]
+    pub include_failed: bool,
     /// Keep static leading frames (skipped by default, by the reference converter's rule).
     #[arg(long)]
     pub no_skip_static: bool,
@@ -163,7 +194,8 @@ pub struct ConvertArgs {
     #[arg(long)]
     pub norm_stats: bool,
     /// Action chunk length for --norm-stats (openpi's action_horizon).
-    #[arg(long, default_value_t = 50, value_name = "FRAMES")]
+    #[arg(long, default_value_t = 50, value_name = "FRAMES",
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub norm_stats_horizon: usize,
 }
 
@@ -308,10 +340,12 @@ pub struct CamerasArgs {
     #[arg(long)]
     pub scene_dir: Option<PathBuf>,
     /// Poses kept.
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = 50,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub count: usize,
-    /// Poses sampled and scored.
-    #[arg(long, default_value_t = 2000)]
+    /// Poses sampled and scored (at least --count).
+    #[arg(long, default_value_t = 2000,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub candidates: usize,
     /// Distance from the look-at point in metres (default: 1.4 one arm, 2.4 two arms).
     #[arg(long)]
@@ -361,8 +395,11 @@ Examples:
   dexjoco-data stats --success-table                    # the shipped EXAMPLE runs (not results)
   dexjoco-data stats --language-eval --success-table --out report/ --json
   dexjoco-data stats --dataset                          # the ingest store <work-dir>/ingest
-  dexjoco-data stats --dataset raw_demos/               # any folder of DexJoCo raw episodes
+  dexjoco-data stats raw_demos/ --dataset               # any folder of DexJoCo raw episodes
   dexjoco-data stats --dataset dexjoco-work/augment     # augment output: + replay success rates
+
+The input of one analysis can be given as INPUT or after its flag; with several
+analyses, give each its input after its flag.
 
 Language evaluation input: a folder <config>/<task>_seed<s>/episode_XX_{success|failure}_{<digits>|no_password_input}/
 as the DexJoCo evaluator writes it (instructions.csv at its root names each config's instruction
@@ -370,8 +407,17 @@ and expected answer), or a tidy .csv/.json with instruction, expected, seed, epi
 Writes <out>/language-eval/ (summary.md, language_eval.json, CSVs, heatmap.png/.svg) and
 <out>/success-table/ (success_table.md/.tex/.csv/.json) and <out>/dataset/ (dataset_stats.json,
 summary.md, norm_stats.json, plots; replay_success.md/.json when the folder holds an
-augment_report.json); the summary goes to stdout.")]
+augment_report.json); the summary goes to stdout. Each of these folders is replaced
+whole, so nothing of an earlier run remains in it. An episode that cannot be read, or
+whose array widths differ from the other episodes of its task, is left out and named
+(exit code 3).")]
 pub struct StatsArgs {
+    /// The input of the one analysis asked for (the same as giving it after its flag).
+    #[arg(value_name = "INPUT")]
+    pub input: Option<PathBuf>,
+    /// The same as INPUT.
+    #[arg(long = "input", value_name = "INPUT", conflicts_with = "input")]
+    pub input_flag: Option<PathBuf>,
     /// Language-generalization analysis (DexJoCo paper, appendix A) of an evaluation
     /// folder or a tidy .csv/.json file. Without a value: the example input shipped in
     /// datasets/examples/language-eval (made up, not results).

@@ -34,13 +34,13 @@ pub struct RenderArgs {
     #[arg(short, long = "camera")]
     pub cameras: Vec<String>,
     /// Image width and height in pixels (square); see --width/--height for others.
-    #[arg(long, default_value_t = 640)]
+    #[arg(long, default_value_t = 640, value_parser = positive_u32())]
     pub size: u32,
     /// Image width (overrides --size).
-    #[arg(long)]
+    #[arg(long, value_parser = positive_u32())]
     pub width: Option<u32>,
     /// Image height (overrides --size).
-    #[arg(long)]
+    #[arg(long, value_parser = positive_u32())]
     pub height: Option<u32>,
     /// Quality preset.
     #[arg(long, value_enum, default_value_t = QualityArg::Paper)]
@@ -57,14 +57,15 @@ pub struct RenderArgs {
     #[arg(long)]
     pub video: bool,
     /// Frames per second of --video (one frame per 1/fps of simulated time).
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = 30, value_parser = positive_u32())]
     pub fps: u32,
     /// Output folder (default: <work-dir>/render).
     #[arg(short, long)]
     pub out: Option<PathBuf>,
     /// Render a task's scene at its reset (robot at home) from the task's cameras; `all`:
     /// every task, its built-in scene next to the reference scene (when found) from the
-    /// same camera, on one contact sheet.
+    /// same camera, on one contact sheet (a task that fails to render is a marked tile,
+    /// named on stderr, and the exit code is 3).
     #[arg(long, conflicts_with = "scene")]
     pub task: Option<String>,
     /// With --task: a scene pack folder (e.g. the DexJoCo reference `xmls/`) instead of
@@ -122,16 +123,18 @@ pub struct BenchAugmentArgs {
     #[arg(long)]
     pub scene_dir: Option<PathBuf>,
     /// Replays per episode.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub replays: usize,
     /// Only the first N frames of each episode (0: whole episodes).
     #[arg(long, default_value_t = 120)]
     pub max_frames: usize,
     /// Image sizes (square), comma-separated.
-    #[arg(long = "size", value_delimiter = ',', default_values_t = [224])]
+    #[arg(long = "size", alias = "sizes", value_delimiter = ',', default_values_t = [224],
+          value_parser = positive_u32())]
     pub sizes: Vec<u32>,
     /// Quality presets, comma-separated.
-    #[arg(long = "quality", value_enum, value_delimiter = ',',
+    #[arg(long = "quality", alias = "preset", value_enum, value_delimiter = ',',
           default_values_t = [QualityArg::NoMsaaNoShadows])]
     pub qualities: Vec<QualityArg>,
     /// Skip the reference approach.
@@ -199,23 +202,26 @@ pub struct BenchConvertArgs {
 #[command(after_help = "\
 Examples:
   dexjoco-data bench render
-  dexjoco-data bench render --scene ../shared/dexjoco-upstream/xmls/arena_arm_hand_plant.xml --frames 50")]
+  dexjoco-data bench render --scene ../shared/dexjoco-upstream/xmls/arena_arm_hand_plant.xml --frames 50
+  dexjoco-data bench render --size 224 --quality fast,paper --camera front")]
 pub struct BenchRenderArgs {
     /// Scenes to measure (repeatable; default: the built-in tabletop scene and, when
     /// present, the DexJoCo reference plant scene in ../shared/dexjoco-upstream).
     #[arg(long = "scene")]
     pub scenes: Vec<PathBuf>,
     /// Timed frames per row (after 3 warm-up frames).
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = 30,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub frames: usize,
-    /// Square resolutions to measure.
-    #[arg(long, value_delimiter = ',', default_value = "224,640")]
+    /// Square resolutions to measure, comma-separated.
+    #[arg(long = "size", alias = "sizes", value_delimiter = ',', default_value = "224,640",
+          value_parser = positive_u32())]
     pub sizes: Vec<u32>,
-    /// Presets to measure (default: all).
-    #[arg(long, value_enum, value_delimiter = ',')]
+    /// Presets to measure, comma-separated (default: all).
+    #[arg(long = "quality", alias = "presets", value_enum, value_delimiter = ',')]
     pub presets: Vec<QualityArg>,
     /// Camera to render (default: `front` when the scene has it, else the first camera).
-    #[arg(long)]
+    #[arg(short, long)]
     pub camera: Option<String>,
 }
 
@@ -227,9 +233,16 @@ Examples:
   dexjoco-data bench ingest --episodes 20 --frames 300")]
 pub struct BenchIngestArgs {
     /// Generated episodes per input format (tasks cycle through all 11).
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub episodes: usize,
     /// Frames per episode.
-    #[arg(long, default_value_t = 600)]
+    #[arg(long, default_value_t = 600,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub frames: usize,
+}
+
+/// A parser of whole numbers from 1.
+pub fn positive_u32() -> clap::builder::RangedU64ValueParser<u32> {
+    clap::builder::RangedU64ValueParser::<u32>::new().range(1..)
 }

@@ -25,7 +25,7 @@ pub(crate) fn sample_data() -> anyhow::Result<PathBuf> {
         CliError {
             message: format!("no input given and the sample data {DEMOS} is not here"),
             hint: Some("pass raw episode folders, an episode store or MCAP files".into()),
-            status: ExitStatus::Usage,
+            status: ExitStatus::Failure,
         }
         .into()
     })
@@ -56,14 +56,14 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
     bar.finish();
     let seconds = started.elapsed().as_secs_f64();
     if let Some(shard) = config.shard {
-        println!(
+        outln!(
             "augment shard {shard}: {} replay(s) rendered now into {} ({seconds:.1} s); run the same command without --shard after every shard for the report",
             report.rendered_now,
             out.display(),
         );
     } else {
         let failed = report.failed_episodes();
-        println!(
+        outln!(
             "augment: {} episode(s) replayed to success, {failed} failed; {} replay(s) in {} ({} rendered now, {seconds:.1} s)",
             report.episodes.len() - failed,
             report.replays.len(),
@@ -72,34 +72,39 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
         );
         let extended = report.episodes.iter().filter(|e| e.extended).count();
         if extended > 0 {
-            println!(
+            outln!(
                 "  {extended} episode(s) succeeded only after their recording ended (--extend-steps): see the report's shift column"
             );
         }
     }
     if !report.dropped.is_empty() {
-        println!(
+        outln!(
             "  {} replay(s) failed under their --dynamics draw and were dropped (--keep-failed keeps them)",
             report.dropped.len()
         );
     }
     for k in &report.skipped {
-        println!("  SKIPPED: {}: {}", k.source, k.reason);
+        outln!("  SKIPPED: {}: {}", k.source, k.reason);
     }
     for u in &report.failed_units {
-        println!(
+        outln!(
             "  UNIT FAILED: {}/{} replays {:?}: {} (run again to redo it)",
-            u.task, u.episode, u.replays, u.reason
+            u.task,
+            u.episode,
+            u.replays,
+            u.reason
         );
     }
     for e in report.episodes.iter().filter(|e| !e.success) {
-        println!(
+        outln!(
             "  FAILED: {}/{} (max state deviation {:e})",
-            e.task, e.episode, e.max_state_deviation
+            e.task,
+            e.episode,
+            e.max_state_deviation
         );
     }
     if config.shard.is_none() {
-        println!("report: {}", out.join(dexjoco_augment::REPORT_MD).display());
+        outln!("report: {}", out.join(dexjoco_augment::REPORT_MD).display());
     }
     let partial = report.failed_episodes() > 0
         || !report.skipped.is_empty()
@@ -138,7 +143,7 @@ fn print_plan(config: &AugmentConfig, workers: usize) -> anyhow::Result<ExitStat
     let share = config
         .shard
         .map_or_else(String::new, |s| format!(" (shard {s})"));
-    println!(
+    outln!(
         "Plan{share}: {} task(s), {} camera(s) per replay, {}x{} {}",
         plan.tasks.len(),
         plan.cameras,
@@ -146,13 +151,13 @@ fn print_plan(config: &AugmentConfig, workers: usize) -> anyhow::Result<ExitStat
         config.settings.height,
         config.settings.quality.name()
     );
-    println!();
-    println!(
+    outln!();
+    outln!(
         "| task | episodes | replays | done | frames to render | calibrated frames/s (1 worker) |"
     );
-    println!("|---|---:|---:|---:|---:|---:|");
+    outln!("|---|---:|---:|---:|---:|---:|");
     for t in &plan.tasks {
-        println!(
+        outln!(
             "| {} | {} | {} | {} | {} | {} |",
             t.task,
             t.episodes,
@@ -164,43 +169,43 @@ fn print_plan(config: &AugmentConfig, workers: usize) -> anyhow::Result<ExitStat
     }
     let replays: usize = plan.tasks.iter().map(|t| t.replays).sum();
     let done: usize = plan.tasks.iter().map(|t| t.done).sum();
-    println!(
+    outln!(
         "| **all** | {} | {replays} | {done} | {} | |",
         plan.tasks.iter().map(|t| t.episodes).sum::<usize>(),
         plan.frames_to_render()
     );
     for (source, reason) in &plan.skipped {
-        println!("SKIPPED: {source}: {reason}");
+        outln!("SKIPPED: {source}: {reason}");
     }
     if !plan.settings_differ.is_empty() {
-        println!();
-        println!(
+        outln!();
+        outln!(
             "{} was made with other settings ({}): this run would be refused; pass --overwrite to start clean (the done counts above would be redone)",
             config.out.display(),
             plan.settings_differ.join("; ")
         );
     }
-    println!();
+    outln!();
     if let Some(s) = plan.seconds_one_worker {
         let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
         let here = workers.min(cores).max(1);
-        println!(
+        outln!(
             "Estimate (calibrated: 30 frames of each scene rendered, encoded and stepped here):"
         );
-        println!("  {:<28} {}", "1 worker process:", duration(s));
-        println!(
+        outln!("  {:<28} {}", "1 worker process:", duration(s));
+        outln!(
             "  {:<28} {} (assuming rendering scales over {here} core(s); 2 processes on 2 cores measured 1.88x)",
             format!("-j {workers} on this machine:"),
             duration(s / here as f64)
         );
         for nodes in [4, 16, 64] {
-            println!(
+            outln!(
                 "  {:<28} {} (--shard over {nodes} nodes, -j {here} each)",
                 format!("{nodes} nodes like this one:"),
                 duration(s / (here * nodes) as f64)
             );
         }
-        println!(
+        outln!(
             "  A replay that needs its extension adds up to {} frames per camera.",
             config.extend_steps
         );

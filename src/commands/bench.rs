@@ -102,14 +102,14 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
     }
     pb.finish_and_clear();
 
-    println!(
+    outln!(
         "Offscreen rendering, one camera, update scene + draw + read back RGB; device: {device}"
     );
-    println!();
-    println!("| scene | size | preset | frames/s | ms/frame |");
-    println!("|---|---:|---|---:|---:|");
+    outln!();
+    outln!("| scene | size | preset | frames/s | ms/frame |");
+    outln!("|---|---:|---|---:|---:|");
     for r in &rows {
-        println!(
+        outln!(
             "| {} | {}x{} | {} | {:.1} | {:.1} |",
             r.scene,
             r.size,
@@ -126,7 +126,7 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
         &json,
         serde_json::to_string_pretty(&serde_json::json!({ "device": device, "rows": rows }))?,
     )?;
-    eprintln!("wrote {}", json.display());
+    errln!("wrote {}", json.display());
     Ok(ExitStatus::Success)
 }
 
@@ -199,17 +199,23 @@ fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitSta
     let threads = global.jobs.unwrap_or_else(|| {
         std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
     });
-    println!(
+    outln!(
         "Ingest (read, hash, validate, write Zarr, commit) of {} generated episodes x {} frames, {threads} thread(s)",
-        args.episodes, args.frames
+        args.episodes,
+        args.frames
     );
-    println!();
-    println!("| input | episodes | MB read | seconds | episodes/s | MB/s |");
-    println!("|---|---:|---:|---:|---:|---:|");
+    outln!();
+    outln!("| input | episodes | MB read | seconds | episodes/s | MB/s |");
+    outln!("|---|---:|---:|---:|---:|---:|");
     for r in &rows {
-        println!(
+        outln!(
             "| {} | {} | {:.1} | {:.2} | {:.1} | {:.1} |",
-            r.format, r.episodes, r.megabytes, r.seconds, r.episodes_per_s, r.mb_per_s
+            r.format,
+            r.episodes,
+            r.megabytes,
+            r.seconds,
+            r.episodes_per_s,
+            r.mb_per_s
         );
     }
     let out = global.work_dir.join("bench");
@@ -219,6 +225,6 @@ fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitSta
         &json,
         serde_json::to_string_pretty(&serde_json::json!({ "threads": threads, "rows": rows }))?,
     )?;
-    eprintln!("wrote {}", json.display());
+    errln!("wrote {}", json.display());
     Ok(ExitStatus::Success)
 }

@@ -322,7 +322,7 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
     bar.finish_and_clear();
 
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
-    println!(
+    outln!(
         "Augment of {} x {} replays{}, third-person view, H.264 encode included; {cores} core(s); device: {device}",
         inputs
             .iter()
@@ -336,18 +336,18 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
             String::new()
         }
     );
-    println!();
-    println!(
+    outln!();
+    outln!(
         "| size | quality | approach | processes | frames/s | seconds | vs reference | vs 1 worker | of render-only limit |"
     );
-    println!("|---:|---|---|---:|---:|---:|---:|---:|---:|");
+    outln!("|---:|---|---|---:|---:|---:|---:|---:|---:|");
     let ratio = |x: Option<f64>, pct: bool| match (x, pct) {
         (Some(v), true) => format!("{:.0} %", v * 100.0),
         (Some(v), false) => format!("{v:.2}x"),
         (None, _) => "-".into(),
     };
     for r in &runs {
-        println!(
+        outln!(
             "| {0}x{0} | {1} | {2} | {3} | {4:.1} | {5} | {6} | {7} | {8} |",
             r.size,
             r.quality,
@@ -378,6 +378,6 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
         }))?
         .as_bytes(),
     )?;
-    eprintln!("wrote {}", json.display());
+    errln!("wrote {}", json.display());
     Ok(ExitStatus::Success)
 }

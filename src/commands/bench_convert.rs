@@ -111,7 +111,6 @@ fn ours(
         &[
             "-q",
             "convert",
-            "--input",
             &input.to_string_lossy(),
             "--out",
             &out.to_string_lossy(),
@@ -185,34 +184,43 @@ pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitS
         tracing::info!("memory: {:?}", memory.last());
         fs_err::remove_dir_all(&dir)?;
     }
-    println!(
+    outln!(
         "Convert {} generated click_mouse episodes x {} frames ({}x{} H.264 camera) to LeRobot v3.0",
-        args.episodes, args.frames, args.size, args.size
+        args.episodes,
+        args.frames,
+        args.size,
+        args.size
     );
-    println!();
-    println!("| tool | episodes | seconds | peak RSS MB |");
-    println!("|---|---:|---:|---:|");
+    outln!();
+    outln!("| tool | episodes | seconds | peak RSS MB |");
+    outln!("|---|---:|---:|---:|");
     for r in &runs {
-        println!(
+        outln!(
             "| {} | {} | {:.2} | {:.0} |",
-            r.tool, r.episodes, r.seconds, r.peak_rss_mb
+            r.tool,
+            r.episodes,
+            r.seconds,
+            r.peak_rss_mb
         );
     }
     if runs.len() == 2 {
-        println!();
-        println!(
+        outln!();
+        outln!(
             "lerobot / ours: {:.1}x the wall time, {:.1}x the peak memory",
             runs[1].seconds / runs[0].seconds,
             runs[1].peak_rss_mb / runs[0].peak_rss_mb
         );
     }
-    println!();
-    println!("| our peak memory | episodes | frames each | seconds | peak RSS MB |");
-    println!("|---|---:|---:|---:|---:|");
+    outln!();
+    outln!("| our peak memory | episodes | frames each | seconds | peak RSS MB |");
+    outln!("|---|---:|---:|---:|---:|");
     for r in &memory {
-        println!(
+        outln!(
             "| dexjoco-data convert | {} | {} | {:.2} | {:.0} |",
-            r.episodes, r.frames, r.seconds, r.peak_rss_mb
+            r.episodes,
+            r.frames,
+            r.seconds,
+            r.peak_rss_mb
         );
     }
     let out = global.work_dir.join("bench");
@@ -222,6 +230,6 @@ pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitS
         &json,
         serde_json::to_string_pretty(&serde_json::json!({ "runs": runs, "memory": memory }))?,
     )?;
-    eprintln!("wrote {}", json.display());
+    errln!("wrote {}", json.display());
     Ok(ExitStatus::Success)
 }

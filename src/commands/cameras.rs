@@ -42,7 +42,7 @@ pub fn run(global: &GlobalArgs, args: CamerasArgs) -> anyhow::Result<ExitStatus>
     };
     let all = stats(&mut built.candidates.iter().map(|c| c.occlusion));
     let kept = stats(&mut built.kept.iter().map(|c| c.occlusion));
-    println!(
+    outln!(
         "{}: {} of {} poses kept ({} target points on {})",
         spec.id,
         built.kept.len(),
@@ -50,25 +50,25 @@ pub fn run(global: &GlobalArgs, args: CamerasArgs) -> anyhow::Result<ExitStatus>
         built.targets,
         built.target_bodies.join(", ")
     );
-    println!();
-    println!("| poses | occluded fraction min | mean | max |");
-    println!("|---|---:|---:|---:|");
-    println!(
+    outln!();
+    outln!("| poses | occluded fraction min | mean | max |");
+    outln!("|---|---:|---:|---:|");
+    outln!(
         "| kept ({}) | {:.3} | {:.3} | {:.3} |",
         built.kept.len(),
         kept.0,
         kept.1,
         kept.2
     );
-    println!(
+    outln!(
         "| all candidates ({}) | {:.3} | {:.3} | {:.3} |",
         built.candidates.len(),
         all.0,
         all.1,
         all.2
     );
-    println!();
-    println!("pool: {}", out.display());
+    outln!();
+    outln!("pool: {}", out.display());
 
     if preview {
         let mut env = TaskEnv::new(&scene, spec, EnvOptions::default())?;
@@ -93,7 +93,7 @@ pub fn run(global: &GlobalArgs, args: CamerasArgs) -> anyhow::Result<ExitStatus>
             stem.file_name().unwrap_or_default().to_string_lossy()
         ));
         super::render::contact_sheet(&frames, &sheet)?;
-        println!("preview: {}", sheet.display());
+        outln!("preview: {}", sheet.display());
     }
     Ok(ExitStatus::Success)
 }

@@ -10,27 +10,44 @@ use crate::exit::{CliError, ExitStatus};
 use crate::progress::Bar;
 use crate::settings::ConvertSettings;
 
+/// An output-folder refusal as a user error with a hint.
+fn output_error(e: ConvertError) -> anyhow::Error {
+    let hint = match &e {
+        ConvertError::OutputNotEmpty(_) => {
+            "pass --overwrite to replace it (a dataset convert made), or choose another --out"
+        }
+        ConvertError::OverwriteRefused { .. } => {
+            "choose another --out; remove the folder yourself if it really is to go"
+        }
+        _ => return e.into(),
+    };
+    CliError {
+        message: e.to_string(),
+        hint: Some(hint.into()),
+        status: ExitStatus::Failure,
+    }
+    .into()
+}
+
 /// Runs `convert`.
 pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus> {
     let ConvertSettings {
-        input,
+        inputs,
         out,
         options,
     } = ConvertSettings::resolve(args, global)?;
-    if dexjoco_formats::fs::is_non_empty_dir(&out) && !options.overwrite {
-        return Err(CliError {
-            message: format!("output folder {} is not empty", out.display()),
-            hint: Some("pass --overwrite to replace it, or choose another --out".into()),
-            status: ExitStatus::Failure,
-        }
-        .into());
-    }
-    let sources = dexjoco_formats::discover(std::slice::from_ref(&input), None)?;
+    // Checked again under the output's lock when writing; this fails before any work.
+    dexjoco_convert::check_output(&out, &options).map_err(output_error)?;
+    let sources = dexjoco_formats::discover(&inputs, Some(&out))?;
+    let shown = inputs
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
     if sources.is_empty() {
         return Err(CliError {
             message: format!(
-                "no episodes in {} (no manifest.json, and no folder with replay.zarr below it)",
-                input.display()
+                "no episodes in {shown} (no manifest.json, and no folder with replay.zarr below it)"
             ),
             hint: Some("`dexjoco-data ingest` makes an episode store from recordings".into()),
             status: ExitStatus::Failure,
@@ -38,9 +55,8 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
         .into());
     }
     tracing::info!(
-        "converting {} episode(s) from {} to {}",
+        "converting {} episode(s) from {shown} to {}",
         sources.len(),
-        input.display(),
         out.display()
     );
     let bar = Bar::new("convert", global.quiet);
@@ -48,9 +64,10 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
     let tasks = TaskSet::builtin();
     let inputs = sources.iter().map(|s| read_episode(s, tasks));
     let summary = dexjoco_convert::convert(inputs, &out, &options, &bar)
-        .with_context(|| format!("converting {} into {}", input.display(), out.display()))?;
+        .map_err(output_error)
+        .with_context(|| format!("converting {shown} into {}", out.display()))?;
     bar.finish();
-    println!(
+    outln!(
         "wrote {}: {} episodes, {} frames ({} static leading frames skipped); videos: {} stream-copied, {} encoded{}",
         summary.out.display(),
         summary.episodes,
@@ -67,12 +84,12 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
     if summary.failed.is_empty() {
         return Ok(ExitStatus::Success);
     }
-    println!(
+    outln!(
         "{} episode(s) could not be converted and are not in the dataset:",
         summary.failed.len()
     );
     for f in &summary.failed {
-        println!("  {}: {}", f.episode, f.reason);
+        outln!("  {}: {}", f.episode, f.reason);
     }
     Ok(ExitStatus::Partial)
 }

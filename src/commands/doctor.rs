@@ -157,7 +157,7 @@ pub fn run(_global: &GlobalArgs, args: &DoctorArgs) -> anyhow::Result<ExitStatus
     let mujoco_ok = report.mujoco.version == EXPECTED_MUJOCO;
     let egl_ok = report.egl.as_ref().is_ok_and(|p| p.selected.is_some());
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print_human(&report, mujoco_ok);
     }
@@ -169,23 +169,23 @@ pub fn run(_global: &GlobalArgs, args: &DoctorArgs) -> anyhow::Result<ExitStatus
 }
 
 fn print_human(r: &Report, mujoco_ok: bool) {
-    println!("dexjoco-data {}", r.dexjoco_data);
-    println!();
-    println!("MuJoCo");
-    println!(
+    outln!("dexjoco-data {}", r.dexjoco_data);
+    outln!();
+    outln!("MuJoCo");
+    outln!(
         "  [{}] version {} (built for {})",
         if mujoco_ok { "ok  " } else { "WRONG" },
         r.mujoco.version,
         r.mujoco.expected
     );
     match &r.mujoco.library {
-        Some(p) => println!("         library {}", p.display()),
-        None => println!("         library (not found in the process map)"),
+        Some(p) => outln!("         library {}", p.display()),
+        None => outln!("         library (not found in the process map)"),
     }
-    println!();
-    println!("Offscreen rendering (EGL)");
+    outln!();
+    outln!("Offscreen rendering (EGL)");
     match &r.egl {
-        Err(e) => println!("  [MISSING] {e}"),
+        Err(e) => outln!("  [MISSING] {e}"),
         Ok(probe) => {
             for d in &probe.devices {
                 let chosen = probe.selected == Some(d.index);
@@ -195,7 +195,7 @@ fn print_human(r: &Report, mujoco_ok: bool) {
                     "hardware (GPU)"
                 };
                 match (&d.gl_renderer, &d.error) {
-                    (Some(gl), _) => println!(
+                    (Some(gl), _) => outln!(
                         "  [{}] device {}: {} - {} - {}{}",
                         if chosen { "used" } else { "ok  " },
                         d.index,
@@ -207,7 +207,7 @@ fn print_human(r: &Report, mujoco_ok: bool) {
                             .map(|v| format!(" (OpenGL {v})"))
                             .unwrap_or_default()
                     ),
-                    (None, e) => println!(
+                    (None, e) => outln!(
                         "  [fail] device {}: {} - {} - {}",
                         d.index,
                         d.description,
@@ -217,47 +217,47 @@ fn print_human(r: &Report, mujoco_ok: bool) {
                 }
             }
             if probe.selected.is_none() {
-                println!("  [MISSING] no device opens an offscreen OpenGL context");
-                println!(
+                outln!("  [MISSING] no device opens an offscreen OpenGL context");
+                outln!(
                     "  hint: install Mesa (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri), or the NVIDIA driver's EGL"
                 );
             }
         }
     }
-    println!();
-    println!("Video (ffmpeg)");
+    outln!();
+    outln!("Video (ffmpeg)");
     match &r.ffmpeg {
-        None => println!("  [MISSING] ffmpeg not on PATH (Debian: ffmpeg)"),
+        None => outln!("  [MISSING] ffmpeg not on PATH (Debian: ffmpeg)"),
         Some(f) => {
-            println!("  [ok  ] {} ({})", f.path.display(), f.version);
+            outln!("  [ok  ] {} ({})", f.path.display(), f.version);
             for (e, ok) in &f.encoders {
-                println!("  [{}] encoder {e}", if *ok { "ok  " } else { " -  " });
+                outln!("  [{}] encoder {e}", if *ok { "ok  " } else { " -  " });
             }
         }
     }
-    println!();
-    println!("Python readers (for the tests and interop checks)");
+    outln!();
+    outln!("Python readers (for the tests and interop checks)");
     match &r.python {
-        None => println!("  [ -  ] no Python found (run scripts/setup.sh --python)"),
+        None => outln!("  [ -  ] no Python found (run scripts/setup.sh --python)"),
         Some(p) => {
-            println!(
+            outln!(
                 "  [ok  ] {} (Python {})",
                 p.interpreter.display(),
                 p.version
             );
             for (m, v) in &p.modules {
                 match v {
-                    Some(v) => println!("  [ok  ] {m} {v}"),
-                    None => println!("  [ -  ] {m}"),
+                    Some(v) => outln!("  [ok  ] {m} {v}"),
+                    None => outln!("  [ -  ] {m}"),
                 }
             }
         }
     }
-    println!();
-    println!("DexJoCo reference scenes (for --scene-dir and the tests)");
+    outln!();
+    outln!("DexJoCo reference scenes (for --scene-dir and the tests)");
     match &r.reference_scenes {
-        Some(p) => println!("  [ok  ] {}", p.display()),
-        None => println!(
+        Some(p) => outln!("  [ok  ] {}", p.display()),
+        None => outln!(
             "  [ -  ] not found (looked at $DEXJOCO_UPSTREAM and ../shared/dexjoco-upstream)"
         ),
     }

@@ -1,9 +1,12 @@
 //! `dexjoco-data export --to mcap`: stored episodes as MCAP teleop logs.
 
+use std::collections::HashSet;
+use std::path::PathBuf;
+
 use anyhow::Context;
 use dexjoco_core::TaskSet;
-use dexjoco_formats::SourceKind;
 use dexjoco_formats::mcap::{EpisodeMeta, write_episode_mcap};
+use dexjoco_formats::{Source, SourceKind};
 
 use crate::cli::{ExportArgs, ExportFormat, GlobalArgs};
 use crate::exit::{CliError, ExitStatus};
@@ -11,7 +14,12 @@ use crate::settings::ExportSettings;
 
 /// Runs `export`.
 pub fn run(global: &GlobalArgs, args: ExportArgs) -> anyhow::Result<ExitStatus> {
-    let ExportSettings { inputs, out, to } = ExportSettings::resolve(args, global);
+    let ExportSettings {
+        inputs,
+        out,
+        to,
+        overwrite,
+    } = ExportSettings::resolve(args, global)?;
     let mut sources = Vec::new();
     for input in &inputs {
         let found = dexjoco_formats::discover_input(input, None)
@@ -31,29 +39,98 @@ pub fn run(global: &GlobalArgs, args: ExportArgs) -> anyhow::Result<ExitStatus> 
         sources.extend(raw);
     }
     let tasks = TaskSet::builtin();
-    let pb = crate::progress::bar(sources.len() as u64, "export", global.quiet);
+    // Every file name first: two episodes never share one, and nothing already there
+    // is replaced without --overwrite.
+    let mut planned = Vec::with_capacity(sources.len());
+    let mut taken = HashSet::new();
     for source in &sources {
-        let dir = &source.path;
+        let task = task_of(source, tasks)?;
+        let file = match to {
+            ExportFormat::Mcap => unique_name(&mut taken, &out, &task, source, "mcap"),
+        };
+        planned.push((source, file));
+    }
+    if !overwrite {
+        let existing: Vec<String> = planned
+            .iter()
+            .filter(|(_, f)| fs_err::symlink_metadata(f).is_ok())
+            .map(|(_, f)| f.display().to_string())
+            .collect();
+        if !existing.is_empty() {
+            return Err(CliError {
+                message: format!(
+                    "{} file(s) already exist: {}",
+                    existing.len(),
+                    existing.join(", ")
+                ),
+                hint: Some("pass --overwrite to replace them, or choose another --out".into()),
+                status: ExitStatus::Failure,
+            }
+            .into());
+        }
+    }
+    let pb = crate::progress::bar(planned.len() as u64, "export", global.quiet);
+    for (source, file) in &planned {
         let ep = source
             .read(tasks)
-            .with_context(|| format!("reading the episode '{}'", dir.display()))?
+            .with_context(|| format!("reading the episode '{}'", source.path.display()))?
             .episode;
         let task = tasks.get(&ep.task).context("the episode's task")?;
-        let name = dir
-            .file_name()
-            .map_or_else(|| ep.id.clone(), |n| n.to_string_lossy().into_owned());
-        let file = match to {
-            ExportFormat::Mcap => out.join(format!("{}_{name}.mcap", ep.task)),
-        };
         let meta = EpisodeMeta {
-            source: Some(dir.display().to_string()),
+            source: Some(source.path.display().to_string()),
             ..EpisodeMeta::default()
         };
-        write_episode_mcap(&file, &ep, task, &meta)?;
-        println!("{}", file.display());
+        write_episode_mcap(file, &ep, task, &meta)?;
+        outln!("{}", file.display());
         pb.inc(1);
     }
     pb.finish_and_clear();
-    eprintln!("wrote {} MCAP file(s) to {}", sources.len(), out.display());
+    errln!("wrote {} MCAP file(s) to {}", planned.len(), out.display());
     Ok(ExitStatus::Success)
+}
+
+/// The task of a stored episode as the reader takes it (its store entry, else its
+/// path), without reading its arrays; read when neither says.
+fn task_of(source: &Source, tasks: &TaskSet) -> anyhow::Result<String> {
+    let dir = &source.path;
+    if let Some(t) = dexjoco_formats::ManifestEntry::of_episode_dir(dir)
+        .and_then(|e| e.task)
+        .or_else(|| dexjoco_formats::raw::task_from_path(dir, tasks))
+    {
+        return Ok(t);
+    }
+    Ok(source
+        .read(tasks)
+        .with_context(|| format!("reading the episode '{}'", dir.display()))?
+        .episode
+        .task)
+}
+
+/// `<out>/<task>_<folder>.<ext>`, or `<task>_<folder>-2.<ext>`, `-3`... when an earlier
+/// episode of this run took the name.
+fn unique_name(
+    taken: &mut HashSet<PathBuf>,
+    out: &std::path::Path,
+    task: &str,
+    source: &Source,
+    ext: &str,
+) -> PathBuf {
+    let folder = source
+        .path
+        .file_name()
+        .map_or_else(|| "episode".into(), |n| n.to_string_lossy().into_owned());
+    let mut file = out.join(format!("{task}_{folder}.{ext}"));
+    let mut k = 2;
+    while !taken.insert(file.clone()) {
+        file = out.join(format!("{task}_{folder}-{k}.{ext}"));
+        k += 1;
+    }
+    if k > 2 {
+        tracing::warn!(
+            "'{}' would share its file name with an earlier episode: written as '{}'",
+            source.path.display(),
+            file.display()
+        );
+    }
+    file
 }

@@ -49,12 +49,12 @@ pub fn run(global: &GlobalArgs, args: IngestArgs) -> anyhow::Result<ExitStatus> 
     bar.finish();
 
     if json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        outln!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
         print_summary(&summary, &store_dir);
     }
     if summary.rejected() > 0 {
-        eprintln!(
+        errln!(
             "{} input(s) rejected: see {} and {}",
             summary.rejected(),
             store_dir.join(dexjoco_formats::MANIFEST).display(),
@@ -67,7 +67,7 @@ pub fn run(global: &GlobalArgs, args: IngestArgs) -> anyhow::Result<ExitStatus> 
 }
 
 fn print_summary(summary: &IngestSummary, store: &Path) {
-    println!("| input | id | outcome | where | first problem |\n|---|---|---|---|---|");
+    outln!("| input | id | outcome | where | first problem |\n|---|---|---|---|---|");
     for s in &summary.sources {
         let outcome = match s.outcome {
             Outcome::Landed => "landed",
@@ -75,8 +75,9 @@ fn print_summary(summary: &IngestSummary, store: &Path) {
             Outcome::AlreadyPresent => "already stored",
             Outcome::Duplicate => "duplicate",
             Outcome::Quarantined => "QUARANTINED",
+            Outcome::RecheckFailed => "RE-CHECK FAILED (kept as stored)",
         };
-        println!(
+        outln!(
             "| {} | {} | {} | {} | {} |",
             s.source.display(),
             s.id,
@@ -88,8 +89,8 @@ fn print_summary(summary: &IngestSummary, store: &Path) {
                 .unwrap_or_default()
         );
     }
-    println!();
-    println!(
+    outln!();
+    outln!(
         "{} landed, {} replaced, {} already stored, {} duplicate, {} rejected; {:.1} MB read in {:.2} s; store: {}",
         summary.count(Outcome::Landed),
         summary.count(Outcome::Replaced),

@@ -96,11 +96,11 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
         let frame = renderer.render(&mut data, *view)?;
         let png = out.join(format!("{stem}_{name}.png"));
         frame.save_png(&png)?;
-        println!("{}", png.display());
+        outln!("{}", png.display());
         if args.depth {
             let dpng = out.join(format!("{stem}_{name}_depth.png"));
             if let Some((lo, hi)) = frame.save_depth_png(&dpng)? {
-                println!("{} (depth {lo:.3} m .. {hi:.3} m)", dpng.display());
+                outln!("{} (depth {lo:.3} m .. {hi:.3} m)", dpng.display());
             }
         }
         frames.push(frame);
@@ -108,7 +108,7 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
     if frames.len() > 1 {
         let sheet = out.join(format!("{stem}_contact_sheet.png"));
         contact_sheet(&frames, &sheet)?;
-        println!("{}", sheet.display());
+        outln!("{}", sheet.display());
     }
     Ok(ExitStatus::Success)
 }
@@ -157,7 +157,7 @@ fn video(
     pb.finish_and_clear();
     for (writer, path) in writers {
         let frames = writer.finish()?;
-        println!(
+        outln!(
             "{} ({frames} frames, {} fps, H.264)",
             path.display(),
             args.fps
@@ -248,10 +248,13 @@ fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Resul
     fs_err::create_dir_all(&out)?;
     let settings = render_settings(args);
     if task != "all" {
-        let spec = specs.iter().find(|s| s.id == task).with_context(|| {
+        let Some(spec) = specs.iter().find(|s| s.id == task) else {
             let ids: Vec<_> = specs.iter().map(|s| s.id.as_str()).collect();
-            format!("unknown task '{task}' (tasks: {})", ids.join(", "))
-        })?;
+            return Err(crate::settings::usage(
+                format!("unknown task '{task}'"),
+                format!("known tasks: {}, or all", ids.join(", ")),
+            ));
+        };
         let source = SceneSource::from_option(args.scene_dir.clone());
         let cameras: Vec<String> = if args.cameras.is_empty() {
             spec.cameras.iter().map(|c| c.camera.clone()).collect()
@@ -267,12 +270,12 @@ fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Resul
         for (c, f) in cameras.iter().zip(&frames) {
             let png = out.join(format!("{task}_{kind}_{c}.png"));
             f.save_png(&png)?;
-            println!("{}", png.display());
+            outln!("{}", png.display());
         }
         if frames.len() > 1 {
             let sheet = out.join(format!("{task}_{kind}_contact_sheet.png"));
             contact_sheet(&frames, &sheet)?;
-            println!("{}", sheet.display());
+            outln!("{}", sheet.display());
         }
         return Ok(ExitStatus::Success);
     }
@@ -282,12 +285,14 @@ fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Resul
     if reference.is_none() {
         tracing::warn!("no reference scenes found: the sheet shows the built-in scenes only");
     }
-    let blank = || Frame {
+    // A task that fails to render is a dark red tile, named on stderr, and exit code 3.
+    let failed_tile = || Frame {
         width: settings.width,
         height: settings.height,
-        rgb: vec![64; (settings.width * settings.height * 3) as usize],
+        rgb: [96u8, 0, 0].repeat((settings.width * settings.height) as usize),
         depth: None,
     };
+    let mut failures = Vec::new();
     let mut tiles = Vec::new();
     let pb = crate::progress::bar(specs.len() as u64, "render", global.quiet);
     for spec in &specs {
@@ -313,8 +318,9 @@ fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Resul
                     pair.push(frame);
                 }
                 Err(e) => {
-                    tracing::warn!("{} ({kind}): {e:#}", spec.id);
-                    pair.push(blank());
+                    tracing::debug!("{} ({kind}): {e:#}", spec.id);
+                    failures.push(format!("{} ({kind} scene): {e:#}", spec.id));
+                    pair.push(failed_tile());
                 }
             }
         }
@@ -324,6 +330,17 @@ fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Resul
     pb.finish_and_clear();
     let sheet = out.join("tasks_contact_sheet.png");
     contact_sheet(&tiles, &sheet)?;
-    println!("{}", sheet.display());
-    Ok(ExitStatus::Success)
+    outln!("{}", sheet.display());
+    if failures.is_empty() {
+        return Ok(ExitStatus::Success);
+    }
+    errln!(
+        "{} of {} scene(s) could not be rendered (dark red tiles on the sheet):",
+        failures.len(),
+        tiles.len()
+    );
+    for f in &failures {
+        errln!("  FAILED: {f}");
+    }
+    Ok(ExitStatus::Partial)
 }

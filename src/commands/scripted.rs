@@ -76,7 +76,7 @@ pub fn run(global: &GlobalArgs, args: &ScriptedArgs) -> anyhow::Result<ExitStatu
                     .with_context(|| format!("writing '{}'", dir.display()))?;
                 let line = format!("reset {k}: success at step {step} -> {}", dir.display());
                 if !global.quiet {
-                    pb.suspend(|| eprintln!("{line}"));
+                    pb.suspend(|| errln!("{line}"));
                 }
                 written += 1;
             }
@@ -87,7 +87,7 @@ pub fn run(global: &GlobalArgs, args: &ScriptedArgs) -> anyhow::Result<ExitStatu
                     if plan.failed { ", task failed" } else { "" }
                 );
                 if !global.quiet {
-                    pb.suspend(|| eprintln!("{line}"));
+                    pb.suspend(|| errln!("{line}"));
                 }
             }
         }
@@ -95,7 +95,7 @@ pub fn run(global: &GlobalArgs, args: &ScriptedArgs) -> anyhow::Result<ExitStatu
     }
     pb.finish_and_clear();
     let pct = 100.0 * written as f64 / args.episodes.max(1) as f64;
-    eprintln!(
+    errln!(
         "{}: {written}/{} plans succeeded ({pct:.0}%), written to {}",
         spec.id,
         args.episodes,

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use dexjoco_formats::fs::StagedDir;
 use dexjoco_stats::{LanguageInput, LanguageReport, SuccessTable};
 
 use crate::cli::{GlobalArgs, StatsArgs};
@@ -69,8 +70,7 @@ pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
         }
         let report = LanguageReport::analyze(&input, language);
         let dir = out.join("language-eval");
-        let files = report
-            .write(&dir)
+        let files = write_whole(&dir, |d| Ok(report.write(d)?))
             .with_context(|| format!("writing the language evaluation to {}", dir.display()))?;
         tracing::info!("wrote {} files to {}", files.len(), dir.display());
         json.insert("language_eval".into(), serde_json::to_value(&report)?);
@@ -97,8 +97,7 @@ pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
             tracing::warn!("{w}");
         }
         let dir = out.join("success-table");
-        let files = table
-            .write(&dir)
+        let files = write_whole(&dir, |d| Ok(table.write(d)?))
             .with_context(|| format!("writing the success table to {}", dir.display()))?;
         tracing::info!("wrote {} files to {}", files.len(), dir.display());
         json.insert("success_table".into(), serde_json::to_value(&table)?);
@@ -122,14 +121,35 @@ pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
 
     let mut status = ExitStatus::Success;
     if let Some(path) = &dataset {
-        let (stats, unreadable) = dataset_stats(path, global.quiet)?;
-        if unreadable > 0 {
+        let (stats, left_out) = dataset_stats(path, global.quiet)?;
+        if !left_out.is_empty() {
             status = ExitStatus::Partial;
+            let list: Vec<serde_json::Value> = left_out
+                .iter()
+                .map(|(p, r)| serde_json::json!({"episode": p, "reason": r}))
+                .collect();
+            json.insert("dataset_left_out".into(), list.into());
         }
+        let replays = dexjoco_stats::ReplayStats::read(path)?;
         let dir = out.join("dataset");
-        let files = stats
-            .write(&dir)
-            .with_context(|| format!("writing the dataset statistics to {}", dir.display()))?;
+        let files = write_whole(&dir, |d| {
+            let mut files = stats.write(d)?;
+            // An augment output folder: its report's replay success rates.
+            if let Some(replays) = &replays {
+                for (name, text) in [
+                    ("replay_success.md", replays.to_markdown()),
+                    (
+                        "replay_success.json",
+                        serde_json::to_string_pretty(replays)?,
+                    ),
+                ] {
+                    dexjoco_formats::write_atomic(&d.join(name), text.as_bytes())?;
+                    files.push(d.join(name));
+                }
+            }
+            Ok(files)
+        })
+        .with_context(|| format!("writing the dataset statistics to {}", dir.display()))?;
         tracing::info!("wrote {} files to {}", files.len(), dir.display());
         json.insert("dataset".into(), serde_json::to_value(&stats)?);
         summaries.push(format!(
@@ -137,39 +157,56 @@ pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
             path.display(),
             stats.to_markdown()
         ));
-        // An augment output folder: its report's replay success rates.
-        if let Some(replays) = dexjoco_stats::ReplayStats::read(path)? {
-            let md = replays.to_markdown();
-            dexjoco_formats::write_atomic(&dir.join("replay_success.md"), md.as_bytes())?;
-            dexjoco_formats::write_atomic(
-                &dir.join("replay_success.json"),
-                serde_json::to_string_pretty(&replays)?.as_bytes(),
-            )?;
-            json.insert("replays".into(), serde_json::to_value(&replays)?);
+        if let Some(replays) = &replays {
+            json.insert("replays".into(), serde_json::to_value(replays)?);
             summaries.push(format!(
-                "## Replays (`{}`, {} per episode)\n\n{md}",
+                "## Replays (`{}`, {} per episode)\n\n{}",
                 path.join(dexjoco_stats::AUGMENT_REPORT).display(),
-                replays.replays_per_episode
+                replays.replays_per_episode,
+                replays.to_markdown()
             ));
         }
     }
 
     if as_json {
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(&serde_json::Value::Object(json))?
         );
     } else {
-        println!("{}", summaries.join("\n"));
+        outln!("{}", summaries.join("\n"));
     }
     Ok(status)
 }
 
+/// Writes one output folder whole: into a staging folder beside it (under its lock),
+/// then renamed over it, so no file of an earlier run remains and a killed run leaves
+/// the previous folder as it was. Returns the files, as they are named once in place.
+fn write_whole<F>(dir: &Path, write: F) -> anyhow::Result<Vec<PathBuf>>
+where
+    F: FnOnce(&Path) -> anyhow::Result<Vec<PathBuf>>,
+{
+    let staged = StagedDir::begin(dir)?;
+    let files = write(staged.path())?;
+    let files = files
+        .into_iter()
+        .map(|f| match f.strip_prefix(staged.path()) {
+            Ok(rel) => dir.join(rel),
+            Err(_) => f,
+        })
+        .collect();
+    staged.commit()?;
+    Ok(files)
+}
+
 /// Reads every episode of a store (its landed episodes, from `manifest.json`) or of a
 /// folder tree of DexJoCo raw episodes, and computes their statistics. An episode that
-/// cannot be read is reported and left out (the count is returned); it never stops the
-/// others.
-fn dataset_stats(path: &Path, quiet: bool) -> anyhow::Result<(dexjoco_stats::DatasetStats, usize)> {
+/// cannot be read, or whose array widths differ from the other episodes of its task, is
+/// named and left out (the count is returned); it never stops the others.
+fn dataset_stats(
+    path: &Path,
+    quiet: bool,
+) -> anyhow::Result<(dexjoco_stats::DatasetStats, Vec<(String, String)>)> {
     use rayon::prelude::*;
     let sources = dexjoco_formats::discover(&[path.to_path_buf()], None)?;
     if sources.is_empty() {
@@ -196,17 +233,39 @@ fn dataset_stats(path: &Path, quiet: bool) -> anyhow::Result<(dexjoco_stats::Dat
         .collect();
     pb.finish_and_clear();
     let mut episodes = Vec::with_capacity(read.len());
-    let mut unreadable = 0;
-    for r in read {
+    let mut dirs = Vec::with_capacity(read.len());
+    let mut left_out = Vec::new();
+    for (r, source) in read.into_iter().zip(&sources) {
         match r {
-            Ok(e) => episodes.push(e),
-            Err(e) => {
-                unreadable += 1;
-                tracing::warn!("left out: {e}");
+            Ok(e) => {
+                episodes.push(e);
+                dirs.push(&source.path);
             }
+            Err(e) => left_out.push((source.path.display().to_string(), e.to_string())),
         }
+    }
+    let outliers = dexjoco_stats::width_outliers(&episodes);
+    for (i, e) in outliers.iter().rev() {
+        left_out.push((dirs[*i].display().to_string(), e.to_string()));
+        episodes.remove(*i);
+    }
+    left_out.sort();
+    for (p, r) in &left_out {
+        errln!("left out: '{p}': {r}");
+    }
+    if episodes.is_empty() {
+        return Err(CliError {
+            message: format!(
+                "none of the {} episode(s) in '{}' could be read",
+                left_out.len(),
+                path.display()
+            ),
+            hint: Some("see the reasons above".into()),
+            status: ExitStatus::Failure,
+        }
+        .into());
     }
     let stats = dexjoco_stats::DatasetStats::compute(&episodes)
         .with_context(|| format!("dataset statistics of {}", path.display()))?;
-    Ok((stats, unreadable))
+    Ok((stats, left_out))
 }

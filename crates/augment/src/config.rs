@@ -13,7 +13,7 @@ pub const REPORT_JSON: &str = "augment_report.json";
 /// The report, readable.
 pub const REPORT_MD: &str = "augment_report.md";
 /// The per-replay record inside each replay folder (written last, before the rename).
-pub(crate) const RECORD: &str = "replay.json";
+pub(crate) const RECORD: &str = dexjoco_formats::raw::REPLAY_RECORD;
 /// The table-top geom randomized by texture, in every DexJoCo scene.
 pub(crate) const TABLE_GEOM: &str = "table_visual";
 /// Work in progress: each replay is written here whole, then renamed into place.

@@ -84,35 +84,59 @@ pub struct CameraPool {
     pub poses: Vec<CameraPose>,
 }
 
-#[derive(Deserialize)]
-struct PoolFile {
-    rows: Vec<Vec<f64>>,
-}
-
 impl CameraPool {
     /// Reads a pool file: JSON `{"rows": [[azimuth, elevation, distance, ...], ...]}` as
-    /// `replay_cameras.json` of the DexJoCo reference.
+    /// `replay_cameras.json` of the DexJoCo reference. A rejection names the file and
+    /// the field (`rows[3][2]`).
     pub fn load(path: &Path) -> Result<Self, AugmentError> {
         let bytes = fs_err::read(path).map_err(crate::error::io_err("read", path))?;
-        let bad = |message: String| AugmentError::Pool {
+        let bad = |field: &str, what: String| AugmentError::Pool {
             path: path.into(),
-            message,
+            message: format!("field '{field}': {what}"),
         };
-        let file: PoolFile = serde_json::from_slice(&bytes).map_err(|e| bad(e.to_string()))?;
-        if file.rows.is_empty() {
-            return Err(bad("no rows".into()));
+        let doc: serde_json::Value = serde_json::from_slice(&bytes)
+            .map_err(|e| bad("(document)", format!("not valid JSON: {e}")))?;
+        let rows = doc
+            .get("rows")
+            .ok_or_else(|| {
+                bad(
+                    "rows",
+                    "missing: expected {\"rows\": [[azimuth, elevation, distance, ...], ...]}"
+                        .into(),
+                )
+            })?
+            .as_array()
+            .ok_or_else(|| bad("rows", "not an array of rows".into()))?;
+        if rows.is_empty() {
+            return Err(bad("rows", "no rows".into()));
         }
-        let mut poses = Vec::with_capacity(file.rows.len());
-        for (i, r) in file.rows.iter().enumerate() {
-            if r.len() < 3 || r[..3].iter().any(|v| !v.is_finite()) || r[2] <= 0.0 {
-                return Err(bad(format!(
-                    "row {i}: expected [azimuth, elevation, distance > 0, ...], found {r:?}"
-                )));
+        let mut poses = Vec::with_capacity(rows.len());
+        for (i, r) in rows.iter().enumerate() {
+            let row = r.as_array().filter(|r| r.len() >= 3).ok_or_else(|| {
+                bad(
+                    &format!("rows[{i}]"),
+                    format!("expected [azimuth, elevation, distance > 0, ...], found {r}"),
+                )
+            })?;
+            let mut v = [0.0; 3];
+            for (j, x) in row.iter().take(3).enumerate() {
+                v[j] = x.as_f64().filter(|x| x.is_finite()).ok_or_else(|| {
+                    bad(
+                        &format!("rows[{i}][{j}]"),
+                        format!("{x} is not a finite number"),
+                    )
+                })?;
+            }
+            if v[2] <= 0.0 {
+                return Err(bad(
+                    &format!("rows[{i}][2]"),
+                    format!("distance {} is not positive", v[2]),
+                ));
             }
             poses.push(CameraPose {
-                azimuth: r[0],
-                elevation: r[1],
-                distance: r[2],
+                azimuth: v[0],
+                elevation: v[1],
+                distance: v[2],
             });
         }
         Ok(Self {
@@ -447,6 +471,6 @@ mod tests {
         let bad = std::env::temp_dir().join("dexjoco-augment-bad-pool.json");
         fs_err::write(&bad, r#"{"rows": [[1.0, 2.0]]}"#).unwrap();
         let e = CameraPool::load(&bad).unwrap_err().to_string();
-        assert!(e.contains("row 0"), "{e}");
+        assert!(e.contains("rows[0]"), "{e}");
     }
 }

@@ -123,6 +123,7 @@ pub fn augment_with(
     }
     let out = &config.out;
     fs_err::create_dir_all(out).map_err(io_err("create", out))?;
+    let _lock = crate::staging::lock_output(out, config.shard)?;
 
     // One scene per task, shared by the workers; the settings that decide the output's
     // bytes, checked against what the folder was made with.

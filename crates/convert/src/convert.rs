@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use dexjoco_core::Progress;
+use dexjoco_formats::fs::StagedDir;
 use dexjoco_formats::openpi::NormStats;
 use rayon::prelude::*;
 
@@ -27,6 +28,15 @@ pub enum OutputFormat {
 }
 
 impl OutputFormat {
+    /// The `--format` name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::LeRobotV3 => "lerobot-v3",
+            Self::LeRobotV21 => "lerobot-v2.1",
+            Self::DiffusionPolicy => "diffusion-policy",
+        }
+    }
+
     fn layout(self, videos: bool) -> VideoLayout {
         match self {
             Self::LeRobotV3 => VideoLayout::Joined,
@@ -98,7 +108,19 @@ pub struct ConvertOptions {
     /// Episodes prepared in parallel at a time (0: twice the worker threads). Memory is
     /// bounded by this many episodes.
     pub batch: usize,
+    /// Also convert replays whose record (`replay.json`) says the task failed
+    /// (augment's `--keep-failed`); by default they are left out and named.
+    pub include_failed: bool,
+    /// Inputs: a non-empty output folder that holds one of them, or lies inside one, is
+    /// never replaced (even with `overwrite`).
+    pub protected_inputs: Vec<PathBuf>,
+    /// Folders a non-empty output folder may not hold or be (the work folder).
+    pub protected_dirs: Vec<PathBuf>,
 }
+
+/// The file convert writes into every dataset folder it makes; `overwrite` replaces
+/// only folders holding it (or empty ones).
+pub const CONVERT_MARKER: &str = ".dexjoco-convert.json";
 
 /// What a conversion did.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -132,9 +154,13 @@ pub struct FailedEpisode {
 
 /// Converts episodes (read lazily from `inputs`, in dataset order) into a dataset at `out`.
 ///
-/// The dataset is written into a temporary folder beside `out` and renamed into place
-/// when complete, so an interrupted run leaves no dataset that looks complete. A
-/// non-empty `out` is refused unless `options.overwrite`.
+/// One run writes `out` at a time: the lock `.NAME.lock` beside it is held for the
+/// whole run (a second run fails at once with [`dexjoco_formats::FormatError::Locked`]).
+/// The dataset is written into `.NAME.partial-PID` beside `out` and renamed into place
+/// when complete, so an interrupted run leaves no dataset that looks complete; the next
+/// run removes what a killed one left. A non-empty `out` is refused unless
+/// `options.overwrite`, and even then when it holds or lies inside an input, holds a
+/// protected folder, or was not made by convert (no [`CONVERT_MARKER`]).
 pub fn convert<I>(
     inputs: I,
     out: &Path,
@@ -144,34 +170,60 @@ pub fn convert<I>(
 where
     I: IntoIterator<Item = Result<InputEpisode, ConvertError>>,
 {
-    if out.is_file() || (dexjoco_formats::fs::is_non_empty_dir(out) && !options.overwrite) {
+    if out.is_file() {
         return Err(ConvertError::OutputNotEmpty(out.to_path_buf()));
     }
-    let parent = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
+    let staged = StagedDir::begin(out)?;
+    check_output(out, options)?;
+    let mut summary = run(inputs, staged.path(), options, progress)?;
+    let marker = serde_json::json!({
+        "written_by": "dexjoco-data convert",
+        "format": options.format.name(),
+    });
+    dexjoco_formats::write_atomic(
+        &staged.path().join(CONVERT_MARKER),
+        format!("{marker}\n").as_bytes(),
+    )?;
+    staged.commit()?;
+    summary.out = out.to_path_buf();
+    Ok(summary)
+}
+
+/// Refuses to replace a non-empty `out` that is not a dataset convert made, or whose
+/// removal would take an input or a protected folder with it.
+pub fn check_output(out: &Path, options: &ConvertOptions) -> Result<(), ConvertError> {
+    use dexjoco_formats::fs::{is_non_empty_dir, is_within, overlaps};
+    if !is_non_empty_dir(out) {
+        return Ok(());
+    }
+    let refuse = |reason: String| ConvertError::OverwriteRefused {
+        out: out.to_path_buf(),
+        reason,
     };
-    fs_err::create_dir_all(&parent)?;
-    let name = out
-        .file_name()
-        .map_or_else(|| "dataset".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
-    if tmp.exists() {
-        fs_err::remove_dir_all(&tmp)?;
-    }
-    fs_err::create_dir_all(&tmp)?;
-    let result = run(inputs, &tmp, options, progress);
-    match result {
-        Ok(mut summary) => {
-            dexjoco_formats::fs::replace_dir(&tmp, out)?;
-            summary.out = out.to_path_buf();
-            Ok(summary)
-        }
-        Err(e) => {
-            let _ = fs_err::remove_dir_all(&tmp);
-            Err(e)
+    for input in &options.protected_inputs {
+        if overlaps(out, input) {
+            let how = if is_within(input, out) {
+                "holds"
+            } else {
+                "lies inside"
+            };
+            return Err(refuse(format!("it {how} the input '{}'", input.display())));
         }
     }
+    for dir in &options.protected_dirs {
+        if is_within(dir, out) {
+            return Err(refuse(format!("it holds '{}'", dir.display())));
+        }
+    }
+    if !options.overwrite {
+        return Err(ConvertError::OutputNotEmpty(out.to_path_buf()));
+    }
+    if !out.join(CONVERT_MARKER).is_file() {
+        return Err(refuse(format!(
+            "it was not made by convert (no {CONVERT_MARKER})"
+        )));
+    }
+    Ok(())
 }
 
 /// Episodes the dataset's layout is chosen from (see [`layout_leader`]).
@@ -302,6 +354,23 @@ where
                 progress.advance(1, &item.episode.id);
                 summary.excluded.push(item.episode.id);
                 continue;
+            }
+            if !options.include_failed {
+                match dexjoco_formats::raw::replay_success(&item.dir) {
+                    Ok(Some(false)) => {
+                        let e = ConvertError::FailedReplay {
+                            dir: item.dir.clone(),
+                        };
+                        fail(&mut failures, (ordinal, 0), progress, item.episode.id, &e);
+                        continue;
+                    }
+                    Ok(_) => {}
+                    Err(e) => {
+                        let e = ConvertError::Format(e);
+                        fail(&mut failures, (ordinal, 0), progress, item.episode.id, &e);
+                        continue;
+                    }
+                }
             }
             pending.push((ordinal, item));
             ordinal += 1;

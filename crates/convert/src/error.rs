@@ -37,6 +37,23 @@ pub enum ConvertError {
     /// The output folder exists and is not empty.
     #[error("output folder '{0}' is not empty")]
     OutputNotEmpty(PathBuf),
+    /// The output folder may not be replaced, overwrite or not.
+    #[error("output folder '{}' will not be replaced: {reason}", out.display())]
+    OverwriteRefused {
+        /// The output folder.
+        out: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// A replay whose record says its task failed (augment's `--keep-failed`).
+    #[error(
+        "file '{}', field 'success': the replay failed its task (kept by augment --keep-failed); --include-failed converts it",
+        dir.join(dexjoco_formats::raw::REPLAY_RECORD).display()
+    )]
+    FailedReplay {
+        /// The replay folder.
+        dir: PathBuf,
+    },
     /// Every episode failed; the first reason is given.
     #[error("none of the {count} episode(s) could be converted; the first: {first}")]
     AllFailed {

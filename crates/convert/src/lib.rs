@@ -33,7 +33,9 @@ mod prepare;
 pub mod stats;
 
 pub use config::{ActionSource, ColumnSlice, Selection, TaskSelection, first_moving_frame};
-pub use convert::{ConvertOptions, FailedEpisode, OutputFormat, Summary, convert};
+pub use convert::{
+    CONVERT_MARKER, ConvertOptions, FailedEpisode, OutputFormat, Summary, check_output, convert,
+};
 pub use diffusion_policy::{REPLAY_BUFFER, ZarrWriter};
 pub use error::ConvertError;
 pub use lerobot_v3::{

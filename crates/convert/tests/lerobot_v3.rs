@@ -110,16 +110,21 @@ fn refuses_a_non_empty_output_and_bad_input_leaves_nothing() {
     assert!(err.to_string().contains("not empty"), "{err}");
     assert!(out.join("keep.txt").exists());
 
+    // Overwrite replaces only a dataset convert made.
+    let opts = ConvertOptions {
+        overwrite: true,
+        ..opts
+    };
+    let err = convert(fx.inputs.iter().cloned().map(Ok), &out, &opts, &NoProgress).unwrap_err();
+    assert!(err.to_string().contains("not made by convert"), "{err}");
+    fs_err::write(out.join(dexjoco_convert::CONVERT_MARKER), "{}").unwrap();
+
     // Every episode lacks a camera: the error names the first, nothing is left behind
     // and the old folder is untouched even with overwrite.
     let mut bad = fx.inputs.clone();
     for b in &mut bad {
         b.episode.cameras.retain(|c| c.name != "handcam_rgb");
     }
-    let opts = ConvertOptions {
-        overwrite: true,
-        ..opts
-    };
     let err = convert(bad.into_iter().map(Ok), &out, &opts, &NoProgress)
         .unwrap_err()
         .to_string();

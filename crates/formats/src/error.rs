@@ -173,14 +173,19 @@ pub enum FormatError {
     },
     /// Another process is writing the folder.
     #[error(
-        "'{}' is in use by process {pid} (if no such run is going on, remove its .lock file)",
-        path.display()
+        "'{}' is in use by process {pid}@{host} (lock file '{}'); if no such run is going on, remove that file",
+        path.display(),
+        file.display()
     )]
     Locked {
         /// The folder.
         path: PathBuf,
+        /// The lock file.
+        file: PathBuf,
         /// The process holding it.
         pid: u32,
+        /// The host it runs on.
+        host: String,
     },
     /// An episode breaks the core data model.
     #[error(transparent)]

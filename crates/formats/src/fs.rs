@@ -6,7 +6,7 @@
 //! old one or the new one, whole.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::error::{FormatError, Result, io_err};
 
@@ -41,25 +41,250 @@ pub fn persist_synced(tmp: tempfile::NamedTempFile, path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// The name a replaced folder is moved aside to while its replacement is renamed in:
+/// `.NAME.old` beside it (hidden, so discovery never reads it).
+pub fn aside_path(to: &Path) -> PathBuf {
+    sibling(to, "", ".old")
+}
+
+/// `<parent of path>/.<name><infix><suffix>`.
+fn sibling(path: &Path, infix: &str, suffix: &str) -> PathBuf {
+    let name = path
+        .file_name()
+        .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+    path.with_file_name(format!(".{name}{infix}{suffix}"))
+}
+
 /// Moves a staged folder to `to`, replacing what is there (the old copy is moved aside
-/// first, so `to` is always either the old or the new folder, whole).
+/// to [`aside_path`] first, so `to` is always either the old or the new folder, whole;
+/// a run killed between the two renames is undone by [`recover_replaced`]).
 pub fn replace_dir(staged: &Path, to: &Path) -> Result<()> {
     if let Some(parent) = to.parent() {
         fs_err::create_dir_all(parent).map_err(io_err("create", parent))?;
     }
-    if to.exists() {
-        let aside = staged.with_extension("old");
-        if aside.exists() {
-            fs_err::remove_dir_all(&aside).map_err(io_err("remove", &aside))?;
-        }
+    let aside = aside_path(to);
+    if fs_err::symlink_metadata(&aside).is_ok() {
+        // Left by a replacement that completed but was killed before cleaning up.
+        remove_any(&aside)?;
+    }
+    if fs_err::symlink_metadata(to).is_ok() {
         fs_err::rename(to, &aside).map_err(io_err("rename", to))?;
         fs_err::rename(staged, to).map_err(io_err("rename", staged))?;
         // The replacement is done; a left-over old copy is removed by the next replace.
-        let _ = fs_err::remove_dir_all(&aside);
+        let _ = remove_any(&aside);
     } else {
         fs_err::rename(staged, to).map_err(io_err("rename", staged))?;
     }
     Ok(())
+}
+
+fn remove_any(path: &Path) -> Result<()> {
+    let meta = fs_err::symlink_metadata(path).map_err(io_err("read", path))?;
+    if meta.is_dir() {
+        fs_err::remove_dir_all(path).map_err(io_err("remove", path))
+    } else {
+        fs_err::remove_file(path).map_err(io_err("remove", path))
+    }
+}
+
+/// Undoes what a [`replace_dir`] killed midway left at `to`: when `to` is missing and
+/// its old copy is aside, the old copy is put back; when both exist, the old copy is
+/// removed. Returns whether anything was done.
+pub fn recover_replaced(to: &Path) -> Result<bool> {
+    let aside = aside_path(to);
+    if fs_err::symlink_metadata(&aside).is_err() {
+        return Ok(false);
+    }
+    if fs_err::symlink_metadata(to).is_err() {
+        tracing::warn!(
+            "'{}' was being replaced when a run stopped: the previous copy is put back",
+            to.display()
+        );
+        fs_err::rename(&aside, to).map_err(io_err("rename", &aside))?;
+    } else {
+        remove_any(&aside)?;
+    }
+    Ok(true)
+}
+
+/// [`recover_replaced`] for every `.NAME.old` in `dir` (none when `dir` is missing).
+pub fn recover_replaced_in(dir: &Path) -> Result<usize> {
+    let Ok(rd) = fs_err::read_dir(dir) else {
+        return Ok(0);
+    };
+    let mut names: Vec<String> = rd
+        .flatten()
+        .filter_map(|e| e.file_name().to_str().map(str::to_owned))
+        .filter(|n| n.starts_with('.') && n.ends_with(".old") && n.len() > 5)
+        .collect();
+    names.sort();
+    let mut done = 0;
+    for n in names {
+        let to = dir.join(&n[1..n.len() - 4]);
+        if recover_replaced(&to)? {
+            done += 1;
+        }
+    }
+    Ok(done)
+}
+
+/// File name of the lock of a folder written beside it: `.NAME.lock`.
+pub fn output_lock_name(to: &Path) -> String {
+    sibling(to, "", ".lock")
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// A folder written whole and renamed into place: the lock `.NAME.lock` beside it (one
+/// writer per output), an empty staging folder `.NAME.partial-PID` beside it, and on
+/// [`StagedDir::commit`] the replacement of the folder. Dropped uncommitted, the
+/// staging folder is removed; a killed run's staging folder is removed by the next
+/// [`StagedDir::begin`] of the same folder.
+#[derive(Debug)]
+pub struct StagedDir {
+    staged: PathBuf,
+    to: PathBuf,
+    committed: bool,
+    _lock: crate::lock::DirLock,
+}
+
+impl StagedDir {
+    /// Takes the lock of `to` (failing with [`FormatError::Locked`] when another run
+    /// writes it), undoes a replacement a killed run left half done, removes the
+    /// staging folders of earlier runs and creates this run's. Nothing at `to` is
+    /// touched until [`StagedDir::commit`].
+    pub fn begin(to: &Path) -> Result<Self> {
+        // `.`, `..` or `/` name no folder to put a staging folder beside: resolved first.
+        let resolved;
+        let to = if to.file_name().is_none() || to.ends_with("..") {
+            resolved = resolve(to);
+            resolved.as_path()
+        } else {
+            to
+        };
+        let parent = match to.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        fs_err::create_dir_all(&parent).map_err(io_err("create", &parent))?;
+        let lock = crate::lock::DirLock::acquire_named(&parent, &output_lock_name(to))?;
+        recover_replaced(to)?;
+        for leaked in leaked_partials(to)? {
+            tracing::info!(
+                "removing '{}', left by a run that stopped",
+                leaked.display()
+            );
+            remove_any(&leaked)?;
+        }
+        let staged = sibling(to, ".partial-", &std::process::id().to_string());
+        fs_err::create_dir_all(&staged).map_err(io_err("create", &staged))?;
+        Ok(Self {
+            staged,
+            to: to.to_path_buf(),
+            committed: false,
+            _lock: lock,
+        })
+    }
+
+    /// The staging folder to write into.
+    pub fn path(&self) -> &Path {
+        &self.staged
+    }
+
+    /// The folder it replaces.
+    pub fn target(&self) -> &Path {
+        &self.to
+    }
+
+    /// Syncs the staging folder and renames it to the target, replacing what is there.
+    pub fn commit(mut self) -> Result<()> {
+        sync_tree(&self.staged);
+        replace_dir(&self.staged, &self.to)?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for StagedDir {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = fs_err::remove_dir_all(&self.staged);
+        }
+    }
+}
+
+/// The `.NAME.partial-*` folders beside `to` (staging folders of runs that stopped;
+/// only called under `to`'s lock, so none belongs to a live run).
+fn leaked_partials(to: &Path) -> Result<Vec<PathBuf>> {
+    let prefix = sibling(to, ".partial-", "")
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let parent = to.parent().filter(|p| !p.as_os_str().is_empty());
+    let parent = parent.unwrap_or(Path::new("."));
+    let mut out: Vec<PathBuf> = fs_err::read_dir(parent)
+        .map_err(io_err("list", parent))?
+        .flatten()
+        .filter(|e| {
+            e.file_name()
+                .to_str()
+                .and_then(|n| n.strip_prefix(&prefix))
+                .is_some_and(|pid| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
+        })
+        .map(|e| e.path())
+        .collect();
+    out.sort();
+    Ok(out)
+}
+
+/// `path` made absolute with every link resolved, also when its last components do
+/// not exist yet (they are appended to the resolved existing part; `.` and `..` among
+/// them are applied lexically).
+pub fn resolve(path: &Path) -> PathBuf {
+    let abs = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir()
+            .unwrap_or_else(|_| PathBuf::from("/"))
+            .join(path)
+    };
+    let mut existing = abs.as_path();
+    let mut rest = Vec::new();
+    loop {
+        if let Ok(real) = existing.canonicalize() {
+            let mut out = real;
+            for c in rest.iter().rev() {
+                match c {
+                    std::path::Component::ParentDir => {
+                        out.pop();
+                    }
+                    std::path::Component::CurDir => {}
+                    c => out.push(c),
+                }
+            }
+            return out;
+        }
+        match (existing.parent(), existing.components().next_back()) {
+            (Some(p), Some(c)) => {
+                rest.push(c);
+                existing = p;
+            }
+            _ => return abs,
+        }
+    }
+}
+
+/// Whether `a` and `b` are the same folder or one lies inside the other (after
+/// [`resolve`]).
+pub fn overlaps(a: &Path, b: &Path) -> bool {
+    let (a, b) = (resolve(a), resolve(b));
+    a.starts_with(&b) || b.starts_with(&a)
+}
+
+/// Whether `inner` is `outer` or lies inside it (after [`resolve`]).
+pub fn is_within(inner: &Path, outer: &Path) -> bool {
+    resolve(inner).starts_with(resolve(outer))
 }
 
 /// Copies a file or a folder tree (symlinks are followed).

@@ -32,5 +32,5 @@ pub mod zarr_v2;
 pub use episodes::{ReadEpisode, ReadOptions, Source, discover, discover_input, read_episode};
 pub use error::{FormatError, Problem, ProblemCode, Result};
 pub use fs::write_atomic;
-pub use lock::{DirLock, LOCK_FILE};
+pub use lock::{DirLock, LOCK_FILE, LockOwner};
 pub use manifest::{ENTRY_FILE, MANIFEST, Manifest, ManifestEntry, SourceKind, Status};

@@ -1,71 +1,432 @@
-//! One writer per output folder: `<dir>/.lock` names the process that writes the folder.
-//! A lock left by a process that no longer exists (killed) is taken over.
+//! One writer per output folder: a lock file in the folder names the process that
+//! writes it, as `{"pid": P, "host": H, "started": T}`.
+//!
+//! - **Atomic creation**: the owner's pid, host and process start time are written to a
+//!   temporary file first, which is then hard-linked to the lock name (`link` fails
+//!   when the name exists, on local file systems and NFS alike). A lock file is never
+//!   visible empty or half written, so no reader can take a lock being created for a
+//!   stale one. (Only where the file system has no hard links is the lock created in
+//!   place, and a lock that does not parse is then taken for one being written for
+//!   [`UNREADABLE_GRACE`].)
+//! - **Stale** only when its process is gone: same host, and no process with that pid
+//!   exists, or it is a zombie, or it started at another time (the pid was reused). A
+//!   lock of another host is never taken over: it cannot be checked from here.
+//! - **Taking over** a stale lock goes through a second lock (`<name>.break`): the
+//!   breaker re-reads the lock and removes it only if it still holds the stale owner,
+//!   so two processes that find the same stale lock cannot both end up holding it.
+//! - Several lock files can share a folder: [`DirLock::acquire_named`] takes one of
+//!   another name (augment's shards each hold `.lock-shard-<i>-of-<n>`), and
+//!   [`DirLock::live_locks`] lists the live ones, so a run that must be alone can take
+//!   its own lock, then refuse while another is live. (Two such runs started at the
+//!   same moment may both refuse; they never both go on.)
+//!
+//! A lock is released when its [`DirLock`] is dropped; a killed process leaves its
+//! file, which the next run takes over.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
 
 use crate::error::{FormatError, Result, io_err};
 
 /// File name of a folder's lock.
 pub const LOCK_FILE: &str = ".lock";
 
-/// Exclusive use of a folder by this process, released on drop.
+/// How long a lock file that does not parse is taken for one being written (only
+/// possible on file systems without hard links).
+pub const UNREADABLE_GRACE: Duration = Duration::from_secs(10);
+
+/// The process a lock file names.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LockOwner {
+    /// Process id.
+    pub pid: u32,
+    /// Host name of the machine the process runs on.
+    pub host: String,
+    /// Start time of the process (clock ticks after boot, Linux), so that a reused pid
+    /// is not taken for the owner; absent where it cannot be read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub started: Option<u64>,
+    /// The lock file (not stored in it).
+    #[serde(skip)]
+    pub file: PathBuf,
+}
+
+impl std::fmt::Display for LockOwner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}@{}", self.pid, self.host)
+    }
+}
+
+impl LockOwner {
+    /// This process.
+    pub fn current() -> Self {
+        let pid = std::process::id();
+        Self {
+            pid,
+            host: host_name(),
+            started: process_start(pid),
+            file: PathBuf::new(),
+        }
+    }
+
+    /// Whether the owner may still run: always for another host (it cannot be checked),
+    /// else whether a process with its pid and start time exists and is not a zombie.
+    pub fn is_alive(&self) -> bool {
+        if self.host != host_name() {
+            return true;
+        }
+        match proc_stat(self.pid) {
+            ProcState::Unknown => true,
+            ProcState::Gone | ProcState::Zombie => false,
+            ProcState::Running { started } => match (self.started, started) {
+                (Some(a), Some(b)) => a == b,
+                _ => true,
+            },
+        }
+    }
+
+    fn to_bytes(&self) -> Vec<u8> {
+        let mut v = serde_json::to_vec(self).expect("a lock owner serializes");
+        v.push(b'\n');
+        v
+    }
+}
+
+/// Exclusive use of a folder (or of one lock name in it) by this process, released on
+/// drop.
 #[derive(Debug)]
 pub struct DirLock {
     path: PathBuf,
+    owner: LockOwner,
 }
 
+/// What reading a lock file found.
+enum Found {
+    /// A complete lock of this owner, with the bytes read.
+    Owner(LockOwner, Vec<u8>),
+    /// The file is gone.
+    Gone,
+    /// The file does not parse; whether it is old enough to be taken for stale.
+    Unreadable { old: bool, bytes: Vec<u8> },
+}
+
+static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
 impl DirLock {
-    /// Takes the lock of `dir` (which must exist), or fails with
+    /// Takes the lock `<dir>/.lock` (the folder must exist), or fails with
     /// [`FormatError::Locked`] naming the process that holds it.
     pub fn acquire(dir: &Path) -> Result<Self> {
-        use std::io::Write;
-        let path = dir.join(LOCK_FILE);
-        for _ in 0..3 {
-            match fs_err::OpenOptions::new()
-                .write(true)
-                .create_new(true)
-                .open(&path)
-            {
-                Ok(mut f) => {
-                    write!(f, "{}", std::process::id()).map_err(io_err("write", &path))?;
-                    return Ok(Self { path });
+        Self::acquire_named(dir, LOCK_FILE)
+    }
+
+    /// Takes the lock file `name` in `dir` (e.g. `.lock-shard-2-of-4`, or
+    /// `.dataset.lock` for a folder written beside it), or fails with
+    /// [`FormatError::Locked`] naming the live process (`pid@host`) that holds it. A
+    /// lock of a process that has ended is taken over.
+    pub fn acquire_named(dir: &Path, name: &str) -> Result<Self> {
+        let path = dir.join(name);
+        let mut owner = LockOwner::current();
+        owner.file = path.clone();
+        let bytes = owner.to_bytes();
+        for attempt in 0..50 {
+            if create_exclusive(&path, &bytes)? {
+                return Ok(Self { path, owner });
+            }
+            match read_lock(&path)? {
+                Found::Gone => {}
+                Found::Owner(holder, _) if holder.is_alive() => {
+                    return Err(locked(dir, holder));
                 }
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                    let owner = fs_err::read_to_string(&path)
-                        .ok()
-                        .and_then(|s| s.trim().parse::<u32>().ok());
-                    match owner {
-                        Some(pid) if process_exists(pid) => {
-                            return Err(FormatError::Locked {
-                                path: dir.to_owned(),
-                                pid,
-                            });
-                        }
-                        _ => {
-                            tracing::info!("taking over the lock of a process that has ended");
-                            let _ = fs_err::remove_file(&path);
-                        }
-                    }
+                Found::Unreadable { old: false, .. } => {
+                    return Err(locked(
+                        dir,
+                        LockOwner {
+                            pid: 0,
+                            host: "(a lock being written)".into(),
+                            started: None,
+                            file: path.clone(),
+                        },
+                    ));
                 }
-                Err(e) => return Err(io_err("create", &path)(e)),
+                Found::Owner(holder, seen) => {
+                    tracing::info!(
+                        "taking over the lock '{}' of {holder}, which has ended",
+                        path.display()
+                    );
+                    break_stale(&path, &seen)?;
+                }
+                Found::Unreadable { old: true, bytes } => {
+                    tracing::warn!("taking over the unreadable lock '{}'", path.display());
+                    break_stale(&path, &bytes)?;
+                }
+            }
+            std::thread::sleep(Duration::from_millis(2 + attempt));
+        }
+        match read_lock(&path)? {
+            Found::Owner(holder, _) => Err(locked(dir, holder)),
+            _ => Err(FormatError::Io {
+                op: "take the lock",
+                path,
+                source: std::io::Error::other("other processes keep taking it over"),
+            }),
+        }
+    }
+
+    /// The live locks of `dir`: every lock file named `.lock` or `.lock-*` whose
+    /// process may still run (those of ended processes are left out, not removed).
+    /// Includes this process's own locks.
+    pub fn live_locks(dir: &Path) -> Result<Vec<LockOwner>> {
+        let mut out = Vec::new();
+        let rd = match fs_err::read_dir(dir) {
+            Ok(rd) => rd,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(out),
+            Err(e) => return Err(io_err("list", dir)(e)),
+        };
+        let mut names: Vec<String> = rd
+            .flatten()
+            .filter_map(|e| e.file_name().to_str().map(str::to_owned))
+            .filter(|n| n == LOCK_FILE || n.starts_with(".lock-"))
+            .collect();
+        names.sort();
+        for name in names {
+            match read_lock(&dir.join(&name))? {
+                Found::Owner(o, _) if o.is_alive() => out.push(o),
+                Found::Unreadable { old: false, .. } => out.push(LockOwner {
+                    pid: 0,
+                    host: "(a lock being written)".into(),
+                    started: None,
+                    file: dir.join(&name),
+                }),
+                _ => {}
             }
         }
-        Err(FormatError::Locked {
-            path: dir.to_owned(),
-            pid: 0,
-        })
+        Ok(out)
+    }
+
+    /// The lock file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// This process, as the lock names it.
+    pub fn owner(&self) -> &LockOwner {
+        &self.owner
     }
 }
 
 impl Drop for DirLock {
     fn drop(&mut self) {
-        let _ = fs_err::remove_file(&self.path);
+        // Only our own lock is removed (never one another process took over).
+        if let Ok(Found::Owner(o, _)) = read_lock(&self.path)
+            && o.pid == self.owner.pid
+            && o.host == self.owner.host
+            && o.started == self.owner.started
+        {
+            let _ = fs_err::remove_file(&self.path);
+        }
     }
 }
 
-/// Whether a process exists (Linux: /proc; elsewhere assumed alive, so a stale lock must
-/// be removed by hand).
-fn process_exists(pid: u32) -> bool {
+fn locked(dir: &Path, owner: LockOwner) -> FormatError {
+    FormatError::Locked {
+        path: dir.to_owned(),
+        file: owner.file.clone(),
+        pid: owner.pid,
+        host: owner.host,
+    }
+}
+
+/// Creates `path` holding `bytes`, complete before it becomes visible; `Ok(false)` when
+/// it exists.
+fn create_exclusive(path: &Path, bytes: &[u8]) -> Result<bool> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .map_or_else(|| "lock".into(), |n| n.to_string_lossy().into_owned());
+    let tmp = dir.join(format!(
+        "{name}.tmp-{}-{}",
+        std::process::id(),
+        TEMP_COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    {
+        let mut f = fs_err::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+            .map_err(io_err("create", &tmp))?;
+        f.write_all(bytes).map_err(io_err("write", &tmp))?;
+        f.sync_all().map_err(io_err("sync", &tmp))?;
+    }
+    let linked = fs_err::hard_link(&tmp, path);
+    let _ = fs_err::remove_file(&tmp);
+    match linked {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
+        Err(e)
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::Unsupported | std::io::ErrorKind::PermissionDenied
+            ) =>
+        {
+            // No hard links here: create in place (a reader may see it half written,
+            // see UNREADABLE_GRACE).
+            match fs_err::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(path)
+            {
+                Ok(mut f) => {
+                    f.write_all(bytes).map_err(io_err("write", path))?;
+                    f.sync_all().map_err(io_err("sync", path))?;
+                    Ok(true)
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
+                Err(e) => Err(io_err("create", path)(e)),
+            }
+        }
+        Err(e) => Err(io_err("create", path)(e)),
+    }
+}
+
+fn read_lock(path: &Path) -> Result<Found> {
+    let bytes = match fs_err::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Found::Gone),
+        Err(e) => return Err(io_err("read", path)(e)),
+    };
+    let parsed = serde_json::from_slice::<LockOwner>(&bytes)
+        .ok()
+        .or_else(|| {
+            // A lock of an older version: the pid alone, of this host.
+            let pid = std::str::from_utf8(&bytes)
+                .ok()?
+                .trim()
+                .parse::<u32>()
+                .ok()?;
+            Some(LockOwner {
+                pid,
+                host: host_name(),
+                started: None,
+                file: PathBuf::new(),
+            })
+        });
+    Ok(match parsed {
+        Some(mut o) => {
+            o.file = path.to_owned();
+            Found::Owner(o, bytes)
+        }
+        None => {
+            let old = fs_err::metadata(path)
+                .ok()
+                .and_then(|m| m.modified().ok())
+                .and_then(|t| t.elapsed().ok())
+                .is_some_and(|age| age >= UNREADABLE_GRACE);
+            Found::Unreadable { old, bytes }
+        }
+    })
+}
+
+/// Removes the stale lock `path` if it still holds `seen`, under the break lock.
+fn break_stale(path: &Path, seen: &[u8]) -> Result<()> {
+    let breaker = path.with_file_name(format!(
+        "{}.break",
+        path.file_name().unwrap_or_default().to_string_lossy()
+    ));
+    let mut me = LockOwner::current();
+    me.file = breaker.clone();
+    if !create_exclusive(&breaker, &me.to_bytes())? {
+        // Another process is taking it over; or a breaker was killed midway.
+        if let Found::Owner(b, _) = read_lock(&breaker)?
+            && !b.is_alive()
+        {
+            let _ = fs_err::remove_file(&breaker);
+        }
+        return Ok(());
+    }
+    let still = fs_err::read(path).ok();
+    if still.as_deref() == Some(seen) {
+        let _ = fs_err::remove_file(path);
+    }
+    let _ = fs_err::remove_file(&breaker);
+    Ok(())
+}
+
+/// This machine's host name (Linux: the kernel's; else `$HOSTNAME`, else `localhost`).
+pub fn host_name() -> String {
+    for f in ["/proc/sys/kernel/hostname", "/etc/hostname"] {
+        if let Ok(s) = fs_err::read_to_string(f) {
+            let s = s.trim();
+            if !s.is_empty() {
+                return s.to_owned();
+            }
+        }
+    }
+    std::env::var("HOSTNAME").unwrap_or_else(|_| "localhost".into())
+}
+
+enum ProcState {
+    /// No such process.
+    Gone,
+    /// Ended, not yet reaped by its parent.
+    Zombie,
+    /// Alive, with its start time when known.
+    Running { started: Option<u64> },
+    /// Cannot tell (no /proc): taken as alive, so a stale lock is removed by hand.
+    Unknown,
+}
+
+fn proc_stat(pid: u32) -> ProcState {
     let proc = Path::new("/proc");
-    !proc.is_dir() || proc.join(pid.to_string()).exists()
+    if !proc.join("self/stat").exists() {
+        return ProcState::Unknown;
+    }
+    let Ok(stat) = fs_err::read_to_string(proc.join(pid.to_string()).join("stat")) else {
+        return ProcState::Gone;
+    };
+    // `pid (comm) state ppid ...`: comm may hold spaces and parentheses.
+    let Some(rest) = stat.rfind(')').map(|i| &stat[i + 1..]) else {
+        return ProcState::Running { started: None };
+    };
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    match fields.first() {
+        Some(&"Z" | &"X" | &"x") => ProcState::Zombie,
+        // Field 22 of stat (starttime) is the 20th after the state's field 3.
+        _ => ProcState::Running {
+            started: fields.get(19).and_then(|s| s.parse().ok()),
+        },
+    }
+}
+
+fn process_start(pid: u32) -> Option<u64> {
+    match proc_stat(pid) {
+        ProcState::Running { started } => started,
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn this_process_is_alive_and_reads_its_start_time() {
+        let me = LockOwner::current();
+        assert!(me.is_alive());
+        assert!(me.started.is_some(), "/proc/self/stat gives the start time");
+        let reused = LockOwner {
+            started: me.started.map(|s| s + 1),
+            ..me.clone()
+        };
+        assert!(!reused.is_alive(), "same pid, other start time: reused pid");
+        let other_host = LockOwner {
+            pid: u32::MAX,
+            host: format!("{}-elsewhere", me.host),
+            ..me
+        };
+        assert!(other_host.is_alive(), "another host cannot be checked");
+    }
 }

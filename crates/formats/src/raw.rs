@@ -19,6 +19,12 @@ pub const REPLAY_ZARR: &str = "replay.zarr";
 pub const VIDEOS: &str = "videos";
 /// Largest chunk the recorder makes, in bytes (`2e6 // bytes_per_step` frames).
 pub const CHUNK_BYTES: usize = 2_000_000;
+/// Most values one array of an episode may hold (2^25, 256 MiB of float64: a hundred
+/// times the longest DexJoCo episode); a larger `.zarray` shape is refused before
+/// anything is allocated.
+pub const MAX_ELEMENTS: u64 = 1 << 25;
+/// Most chunks one array may have.
+const MAX_CHUNKS: u64 = 1 << 20;
 
 /// An episode read from a raw folder, with what reading it changed or left out.
 #[derive(Debug, Clone)]
@@ -97,6 +103,25 @@ fn array_info(zarr: &Path, key: &str, at: &Location) -> Result<ArrayInfo> {
     let chunks = dims("chunks").ok_or_else(|| corrupt("chunks"))?;
     if chunks.len() != shape.len() || chunks.contains(&0) {
         return Err(corrupt("chunks"));
+    }
+    let elements = shape
+        .iter()
+        .try_fold(1u64, |n, d| n.checked_mul(*d))
+        .filter(|n| *n <= MAX_ELEMENTS);
+    let chunk_count = shape
+        .iter()
+        .zip(&chunks)
+        .try_fold(1u64, |n, (s, c)| n.checked_mul(s.div_ceil(*c)))
+        .filter(|n| *n <= MAX_CHUNKS);
+    if elements.is_none() || chunk_count.is_none() {
+        return Err(FormatError::input(
+            ProblemCode::WrongDimensions,
+            at,
+            format!(
+                "shape {shape:?} in chunks {chunks:?} is beyond what an episode holds \
+                 (at most {MAX_ELEMENTS} values in {MAX_CHUNKS} chunks)"
+            ),
+        ));
     }
     let dtype_str = meta.get("dtype").and_then(Value::as_str).unwrap_or("?");
     let dtype = match dtype_str {
@@ -255,12 +280,12 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
     if !zarr.is_dir() {
         return Err(FormatError::input(
             ProblemCode::MissingArray,
-            &base,
+            &base.clone().field(REPLAY_ZARR),
             "no replay.zarr folder",
         ));
     }
     read_json(&zarr.join(".zgroup"), &base.clone().field(".zgroup"))?;
-    let store = open_store(&zarr, &base)?;
+    let store = open_store(&zarr, &base.clone().field(REPLAY_ZARR))?;
     let mut notes = Vec::new();
     let mut arrays = BTreeMap::new();
 
@@ -324,14 +349,23 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
         arrays.insert(name.clone(), fa);
     }
 
-    let frames = arrays.get(Episode::ACTION).map_or(0, FrameArray::len);
+    let frames = check_lengths(&arrays, &base)?;
     let at = base.clone().field("meta/episode_ends");
     let ends = read_episode_ends(&store, &zarr, &at)?;
     if ends != [frames as i64] {
+        let at = match ends.first() {
+            Some(&end) if ends.len() == 1 && end >= 0 && (end as usize) < frames => {
+                at.frame(end as usize)
+            }
+            _ => at,
+        };
         return Err(FormatError::input(
             ProblemCode::EpisodeEndsMismatch,
             &at,
-            format!("episode_ends {ends:?} where the arrays hold one episode of {frames} frames"),
+            format!(
+                "episode_ends {ends:?} where every array ({}) holds one episode of {frames} frames",
+                arrays.keys().cloned().collect::<Vec<_>>().join(", ")
+            ),
         ));
     }
 
@@ -366,6 +400,56 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
         videos,
         notes,
     })
+}
+
+/// Augment's record of one replay, in the replay folder (its `success` field says
+/// whether the task succeeded in the replay; `--keep-failed` keeps failed ones).
+pub const REPLAY_RECORD: &str = "replay.json";
+
+/// Whether the replay record (`replay.json`) of an episode folder says its task
+/// succeeded: `None` when the folder has no record (a recording, not a replay); an
+/// error naming the file and field when the record is unreadable or has no boolean
+/// `success`.
+pub fn replay_success(dir: &Path) -> Result<Option<bool>> {
+    let path = dir.join(REPLAY_RECORD);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let at = Location::default().path(&path).field("success");
+    let v = read_json(&path, &at)?;
+    v.get("success")
+        .and_then(Value::as_bool)
+        .map(Some)
+        .ok_or_else(|| {
+            FormatError::input(
+                ProblemCode::Corrupt,
+                &at,
+                "the replay record has no boolean 'success'",
+            )
+        })
+}
+
+/// The number of frames every array holds: that of `action` (else of the first array);
+/// an array of another length is an error naming it and the first frame it lacks (or
+/// has beyond the others).
+fn check_lengths(arrays: &BTreeMap<String, FrameArray>, base: &Location) -> Result<usize> {
+    let Some((lead, frames)) = arrays
+        .get_key_value(Episode::ACTION)
+        .or_else(|| arrays.iter().next())
+        .map(|(name, a)| (name.clone(), a.len()))
+    else {
+        return Ok(0);
+    };
+    for (name, a) in arrays {
+        if a.len() != frames {
+            return Err(FormatError::input(
+                ProblemCode::WrongLength,
+                &base.clone().field(name.as_str()).frame(a.len().min(frames)),
+                format!("{} frames where '{lead}' has {frames}", a.len()),
+            ));
+        }
+    }
+    Ok(frames)
 }
 
 /// In the older pick_bucket releases state[23:30] is the food and [30:37] the bucket.

@@ -11,6 +11,7 @@
 //! [`dexjoco_formats::manifest`].
 
 mod error;
+mod input;
 mod store;
 mod validate;
 

@@ -19,21 +19,20 @@
 //! digits of the SHA-256 of the input's bytes, so re-running on the same input skips it.
 
 use std::collections::HashMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use dexjoco_core::{Location, Progress, TaskSet};
 use dexjoco_formats::episodes::{ReadOptions, Source};
 use dexjoco_formats::error::io_err;
-use dexjoco_formats::fs::{copy_tree, replace_dir, write_atomic};
-use dexjoco_formats::manifest::{
-    ENTRY_FILE, MANIFEST, Manifest, ManifestEntry, SourceKind, Status,
-};
+use dexjoco_formats::fs::{self as fs_replace, copy_tree, replace_dir, write_atomic};
+use dexjoco_formats::manifest::{ENTRY_FILE, MANIFEST, Manifest, ManifestEntry, Status};
 use dexjoco_formats::{DirLock, FormatError, Problem, ProblemCode, raw};
 use rayon::prelude::*;
 use serde::Serialize;
 use sha2::{Digest, Sha256};
+
+use crate::input::{hash_source, hex16, keep_quarantined_copy, name_problems};
 
 use crate::error::{IngestError, Result};
 use crate::validate::{ValidationOptions, validate};
@@ -83,6 +82,9 @@ pub enum Outcome {
     Duplicate,
     /// Rejected and quarantined (now or in an earlier run).
     Quarantined,
+    /// Already stored, redone under `force`, and failed its re-check (e.g. under tighter
+    /// tolerances): the stored episode is kept as it was, the problems are reported.
+    RecheckFailed,
 }
 
 /// The result for one source.
@@ -119,9 +121,9 @@ impl IngestSummary {
         self.sources.iter().filter(|s| s.outcome == outcome).count()
     }
 
-    /// Sources rejected (now or before).
+    /// Sources rejected (now or before), and stored episodes that failed their re-check.
     pub fn rejected(&self) -> usize {
-        self.count(Outcome::Quarantined)
+        self.count(Outcome::Quarantined) + self.count(Outcome::RecheckFailed)
     }
 }
 
@@ -175,6 +177,16 @@ impl Store {
         let root = root.into();
         fs_err::create_dir_all(&root).map_err(io_err("create", &root))?;
         let lock = DirLock::acquire(&root)?;
+        // A run killed while replacing a folder (under force) left its old copy aside.
+        fs_replace::recover_replaced_in(&root)?;
+        for e in fs_err::read_dir(&root)
+            .map_err(io_err("list", &root))?
+            .flatten()
+        {
+            if e.path().is_dir() && !e.file_name().to_string_lossy().starts_with('.') {
+                fs_replace::recover_replaced_in(&e.path())?;
+            }
+        }
         let staging = root.join(STAGING);
         if staging.exists() {
             fs_err::remove_dir_all(&staging).map_err(io_err("remove", &staging))?;
@@ -219,7 +231,7 @@ impl Store {
             .flatten()
         {
             let name = e.file_name();
-            if name == STAGING || !e.path().is_dir() {
+            if name.to_string_lossy().starts_with('.') || !e.path().is_dir() {
                 continue;
             }
             let file = if name == QUARANTINE {
@@ -231,6 +243,9 @@ impl Store {
                 continue;
             };
             for sub in rd.flatten() {
+                if sub.file_name().to_string_lossy().starts_with('.') {
+                    continue;
+                }
                 let f = sub.path().join(file);
                 if f.is_file() {
                     out.push(f);
@@ -557,8 +572,36 @@ impl Store {
             });
         }
         seen.insert(entry.id.clone(), source.path.clone());
+        let previous = self.manifest.get(&entry.id).cloned();
+        if let Some(prev) = previous.as_ref().filter(|prev| {
+            prev.status == Status::Ok
+                && entry.status == Status::Quarantined
+                && self.root.join(&prev.path).is_dir()
+        }) {
+            // A stored episode redone under force that fails its re-check is never
+            // removed: it stays as it was, and the problems are reported.
+            if let Some(dir) = &staged {
+                let _ = fs_err::remove_dir_all(dir);
+            }
+            tracing::warn!(
+                "{}: the stored episode failed its re-check and is kept as it was: {}",
+                prev.path.display(),
+                entry
+                    .problems
+                    .first()
+                    .map(ToString::to_string)
+                    .unwrap_or_default()
+            );
+            return Ok(SourceReport {
+                source: source.path,
+                id: entry.id,
+                outcome: Outcome::RecheckFailed,
+                path: prev.path.clone(),
+                problems: entry.problems,
+                notes: entry.notes,
+            });
+        }
         if let Some(staged) = staged {
-            let previous = self.manifest.get(&entry.id).cloned();
             if entry.status == Status::Ok {
                 // Force re-uses the episode's folder; otherwise the task's next index.
                 let reuse = previous
@@ -580,6 +623,9 @@ impl Store {
                     &serde_json::to_vec_pretty(&entry).expect("entry serializes"),
                 )?;
             }
+            if entry.status == Status::Quarantined {
+                keep_quarantined_copy(&staged, &self.root.join(&entry.path))?;
+            }
             if let Some(prev) = previous.filter(|prev| prev.path != entry.path) {
                 // A quarantined input that now passes (or the reverse, under force).
                 let old = self.root.join(&prev.path);
@@ -599,63 +645,4 @@ impl Store {
             notes: entry.notes,
         })
     }
-}
-
-/// `sha256` hex of a source and its size; MCAP files' bytes are returned for reading.
-fn hash_source(source: &Source) -> Result<(String, u64, Option<Vec<u8>>)> {
-    match source.kind {
-        SourceKind::Mcap => {
-            let bytes = fs_err::read(&source.path).map_err(io_err("read", &source.path))?;
-            let hash = hex(&Sha256::digest(&bytes));
-            Ok((hash, bytes.len() as u64, Some(bytes)))
-        }
-        SourceKind::Raw => {
-            let files = raw::list_files(&source.path, Path::new(""))?;
-            let mut h = Sha256::new();
-            let mut total = 0u64;
-            let mut buf = vec![0u8; 1 << 16];
-            for rel in files {
-                let p = source.path.join(&rel);
-                let mut f = fs_err::File::open(&p).map_err(io_err("read", &p))?;
-                let name = rel.to_string_lossy();
-                h.update((name.len() as u64).to_le_bytes());
-                h.update(name.as_bytes());
-                let len = f.metadata().map_err(io_err("read", &p))?.len();
-                h.update(len.to_le_bytes());
-                loop {
-                    let n = f.read(&mut buf).map_err(io_err("read", &p))?;
-                    if n == 0 {
-                        break;
-                    }
-                    h.update(&buf[..n]);
-                    total += n as u64;
-                }
-            }
-            Ok((hex(&h.finalize()), total, None))
-        }
-    }
-}
-
-/// Every problem names the input and the episode id, also where the reader could not.
-fn name_problems(mut problems: Vec<Problem>, source: &Path, id: &str) -> Vec<Problem> {
-    for p in &mut problems {
-        if p.file.as_deref() != Some(source) {
-            if let Some(inner) = p.file.take().filter(|f| f != source) {
-                p.message = format!("{} (in '{}')", p.message, inner.display());
-            }
-            p.file = Some(source.to_owned());
-        }
-        if p.episode.is_none() {
-            p.episode = Some(id.to_owned());
-        }
-    }
-    problems
-}
-
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-fn hex16(bytes: &[u8]) -> String {
-    hex(&bytes[..8])
 }

@@ -233,6 +233,66 @@ pub struct DatasetStats {
     pub norm_stats: serde_json::Value,
 }
 
+/// The episodes that do not fit their task's layout: per task and array, the width most
+/// episodes of the task have (among equals, that of the first) is the task's; each
+/// episode with another width is returned (its index and a [`StatsError::Width`] naming
+/// task, episode, field and both widths), so it can be left out and named while the
+/// rest is described.
+pub fn width_outliers(episodes: &[Episode]) -> Vec<(usize, StatsError)> {
+    let mut by_task: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
+    for (i, e) in episodes.iter().enumerate() {
+        by_task.entry(e.task.as_str()).or_default().push(i);
+    }
+    let mut out: Vec<(usize, StatsError)> = Vec::new();
+    for (task, idx) in by_task {
+        // Array name -> (width -> (count, first index)).
+        let mut counts: BTreeMap<&str, BTreeMap<usize, (usize, usize)>> = BTreeMap::new();
+        for &i in &idx {
+            for (name, a) in &episodes[i].arrays {
+                if SKIPPED_ARRAYS.contains(&name.as_str()) {
+                    continue;
+                }
+                let c = counts
+                    .entry(name)
+                    .or_default()
+                    .entry(a.width())
+                    .or_insert((0, i));
+                c.0 += 1;
+            }
+        }
+        let chosen: BTreeMap<&str, usize> = counts
+            .iter()
+            .filter_map(|(name, widths)| {
+                widths
+                    .iter()
+                    .max_by_key(|(_, (n, first))| (*n, std::cmp::Reverse(*first)))
+                    .map(|(w, _)| (*name, *w))
+            })
+            .collect();
+        for &i in &idx {
+            let e = &episodes[i];
+            let odd = e
+                .arrays
+                .iter()
+                .find(|(name, a)| chosen.get(name.as_str()).is_some_and(|w| *w != a.width()));
+            if let Some((name, a)) = odd {
+                out.push((
+                    i,
+                    StatsError::Width {
+                        task: task.to_owned(),
+                        episode: e.id.clone(),
+                        array: name.clone(),
+                        expected: chosen[name.as_str()],
+                        found: a.width(),
+                    },
+                ));
+            }
+        }
+    }
+    out.sort_by_key(|(i, _)| *i);
+    out
+}
+
 impl DatasetStats {
     /// Computes the statistics. Fails when there are no episodes, or when an array's
     /// width differs between episodes of one task.

@@ -44,7 +44,7 @@ pub enum StatsError {
     },
     /// Arrays of the same name have different widths across episodes of one task.
     #[error(
-        "task '{task}', episode '{episode}', field '{array}': {found} values per frame where earlier episodes have {expected}"
+        "task '{task}', episode '{episode}', field '{array}': {found} values per frame where the task's other episodes have {expected}"
     )]
     Width {
         /// The task.

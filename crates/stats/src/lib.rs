@@ -27,7 +27,8 @@ mod replays;
 mod success;
 
 pub use dataset::{
-    ArrayStats, DatasetStats, HISTOGRAM_BINS, LengthStats, TaskStats, column_names, quantile_sorted,
+    ArrayStats, DatasetStats, HISTOGRAM_BINS, LengthStats, TaskStats, column_names,
+    quantile_sorted, width_outliers,
 };
 pub use error::StatsError;
 pub use language::{

@@ -4,6 +4,10 @@
 //!   mcap, lerobot...), made by `scripts/setup.sh --python`. Tests that need it fail
 //!   with a hint when it is missing: they are never skipped.
 //! - [`upstream_dir`]: the DexJoCo reference scenes at `../shared/dexjoco-upstream`.
+//! - [`hostile`]: generated hostile inputs (mutated files) and a bounded, deterministic
+//!   runner that checks a parser neither panics nor hangs on them.
+
+pub mod hostile;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -38,12 +38,12 @@ impl TaskSpec {
             return Ok(());
         }
         if !visiting.insert(name.to_owned()) {
-            return Err(self.invalid(format!("node '{name}' depends on itself")));
+            return Err(self.invalid(&format!("nodes.{name}"), "depends on itself".into()));
         }
         let node = self
             .nodes
             .get(name)
-            .ok_or_else(|| self.invalid(format!("unknown node '{name}'")))?;
+            .ok_or_else(|| self.invalid(&format!("nodes.{name}"), "no such node".into()))?;
         for input in node.inputs() {
             let base = input.split('.').next().unwrap_or(input);
             self.visit(base, done, visiting, order)?;
@@ -54,10 +54,12 @@ impl TaskSpec {
         Ok(())
     }
 
-    pub(super) fn invalid(&self, message: String) -> TaskSpecError {
+    /// An inconsistency at `field` (a key path such as `nodes.on_pad.radius`).
+    pub(super) fn invalid(&self, field: &str, message: String) -> TaskSpecError {
         TaskSpecError::Invalid {
+            file: String::new(),
             task: self.id.clone(),
-            message,
+            message: format!("field '{field}': {message}"),
         }
     }
 
@@ -65,82 +67,97 @@ impl TaskSpec {
     /// exist), the graph has no cycle, the state width matches the layout, objects named
     /// by placements and derived poses exist, ranges and counts are sensible.
     pub fn validate(&self) -> Result<(), TaskSpecError> {
-        let check_ref = |r: &str| -> Result<(), TaskSpecError> {
+        let check_ref = |field: &str, r: &str| -> Result<(), TaskSpecError> {
             let (base, out) = match r.split_once('.') {
                 Some((b, o)) => (b, Some(o)),
                 None => (r, None),
             };
-            let node = self
-                .nodes
-                .get(base)
-                .ok_or_else(|| self.invalid(format!("reference to unknown node '{base}'")))?;
+            let node = self.nodes.get(base).ok_or_else(|| {
+                self.invalid(field, format!("reference to unknown node '{base}'"))
+            })?;
             if let Some(o) = out
                 && !node.outputs().contains(&o)
             {
-                return Err(self.invalid(format!(
-                    "node '{base}' has no output '{o}' (it has: {})",
-                    node.outputs().join(", ")
-                )));
+                return Err(self.invalid(
+                    field,
+                    format!(
+                        "node '{base}' has no output '{o}' (it has: {})",
+                        node.outputs().join(", ")
+                    ),
+                ));
             }
             Ok(())
         };
         for (name, node) in &self.nodes {
             if name.contains('.') || name.is_empty() {
-                return Err(self.invalid(format!("bad node name '{name}'")));
+                return Err(self.invalid("nodes", format!("bad node name '{name}'")));
             }
             for input in node.inputs() {
-                check_ref(input)?;
+                check_ref(&format!("nodes.{name}"), input)?;
             }
             if let Node::ValueThreshold { of, .. } = node
                 && !of.contains('.')
             {
-                return Err(self.invalid(format!(
-                    "node '{name}': value_threshold needs 'node.output', got '{of}'"
-                )));
+                return Err(self.invalid(
+                    &format!("nodes.{name}.of"),
+                    format!("value_threshold needs 'node.output', got '{of}'"),
+                ));
             }
             self.validate_node(name, node)?;
         }
-        check_ref(&self.success)?;
+        check_ref("success", &self.success)?;
         if let Some(f) = &self.failure {
-            check_ref(f)?;
+            check_ref("failure", f)?;
         }
         self.evaluation_order()?;
 
         let width = self.state_layout().width();
         if width != self.state.width {
-            return Err(self.invalid(format!(
-                "state width {} does not match the layout ({width})",
-                self.state.width
-            )));
+            return Err(self.invalid(
+                "state.width",
+                format!("{} does not match the layout ({width})", self.state.width),
+            ));
         }
         let objects: BTreeSet<&str> = self.state.objects.iter().map(|o| o.name.as_str()).collect();
         if objects.len() != self.state.objects.len() {
-            return Err(self.invalid("duplicate state object names".into()));
+            return Err(self.invalid("state.objects", "duplicate names".into()));
         }
-        for p in &self.placement {
+        for (i, p) in self.placement.iter().enumerate() {
             if !objects.contains(p.object.as_str()) {
-                return Err(self.invalid(format!("placement of unknown object '{}'", p.object)));
+                return Err(self.invalid(
+                    &format!("placement[{i}].object"),
+                    format!("unknown object '{}'", p.object),
+                ));
             }
             if p.yaw_deg < 0.0 || p.axes[0] == p.axes[1] {
-                return Err(self.invalid(format!("bad placement of '{}'", p.object)));
+                return Err(self.invalid(
+                    &format!("placement[{i}]"),
+                    format!("bad placement of '{}'", p.object),
+                ));
             }
         }
-        for d in &self.state.derived {
+        for (i, d) in self.state.derived.iter().enumerate() {
             if let Some(f) = &d.from
                 && !objects.contains(f.as_str())
             {
-                return Err(self.invalid(format!("derived pose from unknown object '{f}'")));
+                return Err(self.invalid(
+                    &format!("state.derived[{i}].from"),
+                    format!("unknown object '{f}'"),
+                ));
             }
         }
         if let Some(h) = &self.reset.hand_qpos
             && h.len() != crate::layout::HAND_DOF
         {
-            return Err(self.invalid(format!("reset.hand_qpos has {} values, not 16", h.len())));
+            return Err(self.invalid("reset.hand_qpos", format!("{} values, not 16", h.len())));
         }
-        if self.step_cap == 0 || self.cameras.is_empty() {
-            return Err(self.invalid("step_cap and cameras must not be empty".into()));
+        if self.step_cap == 0 {
+            return Err(self.invalid("step_cap", "must not be 0".into()));
         }
-        for d in &self.dynamics {
+        if self.cameras.is_empty() {
+            return Err(self.invalid("cameras", "must not be empty".into()));
+        }
+        for (i, d) in self.dynamics.iter().enumerate() {
             let r = match d {
                 DynamicsRandomization::MassScale { range, .. }
                 | DynamicsRandomization::FrictionlossUniform { range, .. }
@@ -148,14 +165,16 @@ impl TaskSpec {
                 | DynamicsRandomization::StiffnessScale { range, .. } => range,
             };
             if r[0] > r[1] || r[0] < 0.0 {
-                return Err(self.invalid(format!("bad dynamics range {r:?}")));
+                return Err(
+                    self.invalid(&format!("dynamics[{i}].range"), format!("bad range {r:?}"))
+                );
             }
         }
         Ok(())
     }
 
     fn validate_node(&self, name: &str, node: &Node) -> Result<(), TaskSpecError> {
-        let bad = |what: &str| Err(self.invalid(format!("node '{name}': {what}")));
+        let bad = |what: &str| Err(self.invalid(&format!("nodes.{name}"), what.to_owned()));
         match node {
             Node::PointInCylinder { radius, along, .. }
                 if *radius <= 0.0 || along[0] > along[1] =>

@@ -106,13 +106,58 @@ pub enum TaskSpecError {
         message: String,
     },
     /// The spec parses but is inconsistent.
-    #[error("task spec '{task}': {message}")]
+    #[error("task spec {}'{task}': {message}", in_file(file))]
     Invalid {
+        /// The file (or label), when known.
+        file: String,
         /// Task id.
         task: String,
-        /// What is wrong.
+        /// What is wrong, starting with the field (`field 'nodes.on_pad'`).
         message: String,
     },
+}
+
+/// ` in 'FILE'` when the file is known.
+fn in_file(file: &str) -> String {
+    if file.is_empty() {
+        String::new()
+    } else {
+        format!("'{file}', task ")
+    }
+}
+
+/// The key path of the first NaN or infinite number in a TOML value.
+fn non_finite(v: &toml::Value, path: &str) -> Option<String> {
+    let join = |k: &str| {
+        if path.is_empty() {
+            k.to_owned()
+        } else {
+            format!("{path}.{k}")
+        }
+    };
+    match v {
+        toml::Value::Float(f) if !f.is_finite() => Some(path.to_owned()),
+        toml::Value::Array(a) => a
+            .iter()
+            .enumerate()
+            .find_map(|(i, x)| non_finite(x, &format!("{path}[{i}]"))),
+        toml::Value::Table(t) => t.iter().find_map(|(k, x)| non_finite(x, &join(k))),
+        _ => None,
+    }
+}
+
+impl TaskSpecError {
+    /// The same error, naming the file it is about.
+    pub fn in_file(self, file: &str) -> Self {
+        match self {
+            Self::Invalid { task, message, .. } => Self::Invalid {
+                file: file.into(),
+                task,
+                message,
+            },
+            other => other,
+        }
+    }
 }
 
 impl TaskSpec {
@@ -122,13 +167,19 @@ impl TaskSpec {
         TaskSet::builtin().get(id)
     }
 
-    /// Parses a spec from TOML text (strict: unknown keys are errors) and validates it.
+    /// Parses a spec from TOML text (strict: unknown keys are errors; every number
+    /// finite) and validates it. Errors name `label` and the field.
     pub fn from_toml_str(text: &str, label: &str) -> Result<Self, TaskSpecError> {
-        let spec: Self = toml::from_str(text).map_err(|e| TaskSpecError::Parse {
+        let parse = |message: String| TaskSpecError::Parse {
             file: label.into(),
-            message: e.to_string(),
-        })?;
-        spec.validate()?;
+            message,
+        };
+        let spec: Self = toml::from_str(text).map_err(|e| parse(e.to_string()))?;
+        let table: toml::Table = toml::from_str(text).map_err(|e| parse(e.to_string()))?;
+        if let Some(field) = non_finite(&toml::Value::Table(table), "") {
+            return Err(parse(format!("field '{field}': numbers must be finite")));
+        }
+        spec.validate().map_err(|e| e.in_file(label))?;
         Ok(spec)
     }
 
@@ -141,10 +192,9 @@ impl TaskSpec {
         let spec = Self::from_toml_str(&text, &path.display().to_string())?;
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
         if stem != spec.id {
-            return Err(spec.invalid(format!(
-                "file '{}' must be named after the task id",
-                path.display()
-            )));
+            return Err(spec
+                .invalid("id", "the file must be named after the task id".into())
+                .in_file(&path.display().to_string()));
         }
         Ok(spec)
     }

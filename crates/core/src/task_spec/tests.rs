@@ -182,7 +182,10 @@ fn unknown_keys_and_bad_references_are_refused() {
     let e = TaskSpec::from_toml_str(&unknown, "t")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("unknown node 'nothing'"), "{e}");
+    assert!(
+        e.contains("unknown node 'nothing'") && e.contains("field 'nodes.done'"),
+        "{e}"
+    );
 
     let port = minimal(
         "[nodes.a]\nkind = \"held\"\nof = \"b\"\nsteps = 2\n[nodes.b]\nkind = \"not\"\nof = \"a.depth\"\n[nodes.done]\nkind = \"not\"\nof = \"a\"\n",
@@ -195,7 +198,10 @@ fn unknown_keys_and_bad_references_are_refused() {
     let e = TaskSpec::from_toml_str(&width, "t")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("state width"), "{e}");
+    assert!(
+        e.contains("task spec 't'") && e.contains("field 'state.width'"),
+        "{e}"
+    );
 
     let top = minimal(
         "[nodes.done]\nkind = \"any\"\nof = [\"e\"]\n[nodes.e]\nkind = \"joint_threshold\"\njoint = { qpos = \"j\" }\nop = \"gt\"\nvalue = 1.0\n",

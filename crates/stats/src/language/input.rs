@@ -373,6 +373,12 @@ impl LanguageInput {
     }
 
     fn from_rows(path: &Path, rows: Vec<RawRow>) -> Result<Self, StatsError> {
+        if rows.is_empty() {
+            return Err(StatsError::Empty {
+                path: path.to_path_buf(),
+                message: "no data rows: no evaluated episodes after the header".into(),
+            });
+        }
         let mut instructions: Vec<Instruction> = Vec::new();
         let mut trials = Vec::new();
         let mut seen = BTreeSet::new();

@@ -1,0 +1,89 @@
+//! Helpers shared by the CLI tests.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command};
+
+/// A folder of DexJoCo raw episode folders (replay.zarr + videos/) for `convert`.
+pub fn convert_input(dir: &Path) -> PathBuf {
+    use dexjoco_core::{ArmSetup, CameraStream, Episode, FrameArray};
+    let input = dir.join("episodes");
+    for e in 0..2usize {
+        let n = 6 + e;
+        let action: Vec<Vec<f64>> = (0..n)
+            .map(|k| {
+                let mut r = vec![0.0; 23];
+                r[0] = k as f64 * 0.01;
+                r[3] = 1.0;
+                r
+            })
+            .collect();
+        let mut arrays = std::collections::BTreeMap::new();
+        arrays.insert(
+            Episode::ACTION.into(),
+            FrameArray::from_rows(&action).unwrap(),
+        );
+        arrays.insert(Episode::STATE.into(), FrameArray::zeros(n, 31));
+        arrays.insert(
+            Episode::TIMESTAMP.into(),
+            Episode::regular_timestamps(n, 30.0),
+        );
+        let mut ep = Episode {
+            id: format!("ep{e}"),
+            task: "click_mouse".into(),
+            prompt: String::new(),
+            fps: 30.0,
+            arrays,
+            cameras: vec![CameraStream {
+                name: "front".into(),
+                video: Some("videos/front.mp4".into()),
+                depth: None,
+            }],
+        };
+        ep.compute_action_rotvec(ArmSetup::SingleArm).unwrap();
+        let d = input.join("click_mouse").join(format!("episode_{e:06}"));
+        fs_err::create_dir_all(d.join("videos")).unwrap();
+        dexjoco_formats::raw::write_replay_zarr(&d, &ep).unwrap();
+        let spec = dexjoco_video::VideoSpec {
+            width: 64,
+            height: 64,
+            fps: 30,
+            codec: dexjoco_video::Codec::DEXJOCO,
+        };
+        let mut w = dexjoco_video::VideoWriter::create(d.join("videos/front.mp4"), spec).unwrap();
+        for k in 0..n {
+            w.write_frame(&vec![(k * 20) as u8; 64 * 64 * 3]).unwrap();
+        }
+        w.finish().unwrap();
+    }
+    input
+}
+
+/// A process that stays alive while a test runs (it holds locks in tests).
+pub fn sleeper() -> Child {
+    Command::new("sleep")
+        .arg("120")
+        .spawn()
+        .expect("sleep runs")
+}
+
+/// Writes a lock file naming a live process of this host, as a running command would.
+pub fn lock_of(file: &Path, pid: u32) {
+    let stat = fs_err::read_to_string(format!("/proc/{pid}/stat")).unwrap();
+    let rest = &stat[stat.rfind(')').unwrap() + 1..];
+    let started: u64 = rest.split_whitespace().nth(19).unwrap().parse().unwrap();
+    let host = dexjoco_formats::lock::host_name();
+    fs_err::write(
+        file,
+        serde_json::json!({"pid": pid, "host": host, "started": started}).to_string(),
+    )
+    .unwrap();
+}
+
+/// The pid of a process that has ended.
+pub fn dead_pid() -> u32 {
+    let mut c = Command::new("true").spawn().unwrap();
+    let pid = c.id();
+    c.wait().unwrap();
+    pid
+}
