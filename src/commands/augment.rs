@@ -194,7 +194,7 @@ fn print_plan(config: &AugmentConfig, workers: usize) -> anyhow::Result<ExitStat
         );
         outln!("  {:<28} {}", "1 worker process:", duration(s));
         outln!(
-            "  {:<28} {} (assuming rendering scales over {here} core(s); 2 processes on 2 cores measured 1.88x)",
+            "  {:<28} {} (assumes {here} process(es) scale linearly; `dexjoco-data bench augment` measures it)",
             format!("-j {workers} on this machine:"),
             duration(s / here as f64)
         );
