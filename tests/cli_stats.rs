@@ -134,7 +134,7 @@ fn dataset_statistics_of_raw_episode_folders_leave_out_unreadable_ones() {
     assert_eq!(d["episodes"], 3, "{d}");
     assert_eq!(d["frames"], 150);
     let stats_dir = work.path().join("stats/dataset");
-    for f in ["dataset_stats.json", "summary.md", "norm_stats.json"] {
+    for f in ["dataset_stats.json", "summary.md", "source_norm_stats.json"] {
         assert!(stats_dir.join(f).is_file(), "{f} missing");
     }
 

@@ -406,7 +406,7 @@ as the DexJoCo evaluator writes it (instructions.csv at its root names each conf
 and expected answer), or a tidy .csv/.json with instruction, expected, seed, episode, output.
 Writes <out>/language-eval/ (summary.md, language_eval.json, CSVs, heatmap.png/.svg) and
 <out>/success-table/ (success_table.md/.tex/.csv/.json) and <out>/dataset/ (dataset_stats.json,
-summary.md, norm_stats.json, plots; replay_success.md/.json when the folder holds an
+summary.md, source_norm_stats.json, plots; replay_success.md/.json when the folder holds an
 augment_report.json); the summary goes to stdout. Each of these folders is replaced
 whole, so nothing of an earlier run remains in it. An episode that cannot be read, or
 whose array widths differ from the other episodes of its task, is left out and named

@@ -152,3 +152,43 @@ impl Shard {
 pub fn replay_name(episode: &str, r: usize) -> String {
     format!("{episode}__r{r:02}")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn from(vars: &[(&str, &str)]) -> Result<Shard, String> {
+        Shard::from_env(|name| {
+            vars.iter()
+                .find(|(k, _)| *k == name)
+                .map(|(_, v)| (*v).to_owned())
+        })
+    }
+
+    #[test]
+    fn shard_auto_reads_slurm_arrays_relative_to_their_first_index() {
+        let s = from(&[("SLURM_ARRAY_TASK_ID", "2"), ("SLURM_ARRAY_TASK_COUNT", "4")]);
+        assert_eq!(s, Ok(Shard { index: 2, count: 4 }));
+        let s = from(&[
+            ("SLURM_ARRAY_TASK_ID", "7"),
+            ("SLURM_ARRAY_TASK_MIN", "5"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+        ]);
+        assert_eq!(s, Ok(Shard { index: 2, count: 4 }));
+        let e = from(&[("SLURM_ARRAY_TASK_ID", "4"), ("SLURM_ARRAY_TASK_COUNT", "4")]);
+        assert!(e.unwrap_err().contains("--array=0-3"));
+        let e = from(&[("SLURM_ARRAY_TASK_ID", "1")]).unwrap_err();
+        assert!(e.contains("SLURM_ARRAY_TASK_COUNT"), "{e}");
+    }
+
+    #[test]
+    fn shard_auto_reads_kubernetes_indexed_jobs_with_the_documented_count() {
+        let s = from(&[("JOB_COMPLETION_INDEX", "3"), ("DEXJOCO_SHARD_COUNT", "8")]);
+        assert_eq!(s, Ok(Shard { index: 3, count: 8 }));
+        let e = from(&[("JOB_COMPLETION_INDEX", "3")]).unwrap_err();
+        assert!(e.contains("DEXJOCO_SHARD_COUNT"), "{e}");
+        let e = from(&[("JOB_COMPLETION_INDEX", "x"), ("DEXJOCO_SHARD_COUNT", "8")]);
+        assert!(e.unwrap_err().contains("JOB_COMPLETION_INDEX=x"));
+        assert!(from(&[]).unwrap_err().contains("neither"));
+    }
+}

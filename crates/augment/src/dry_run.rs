@@ -67,7 +67,7 @@ impl DryRun {
 pub fn dry_run(config: &AugmentConfig, calibration: usize) -> Result<DryRun, AugmentError> {
     let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
         .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
-    let (sources, skipped) = read_sources(&config.inputs, &tasks)?;
+    let (sources, skipped) = read_sources(&config.inputs, &config.out, &tasks)?;
     let cameras = 1 + config.cameras.len();
     let owned = owned_replays(&sources, config, cameras);
     let task_ids: BTreeSet<&str> = sources.iter().map(|s| s.spec.id.as_str()).collect();
@@ -219,7 +219,7 @@ pub fn render_only(
 ) -> Result<f64, AugmentError> {
     let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
         .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
-    let (sources, _) = read_sources(&config.inputs, &tasks)?;
+    let (sources, _) = read_sources(&config.inputs, &config.out, &tasks)?;
     let src = sources
         .first()
         .ok_or_else(|| AugmentError::Input("no episode to render".into()))?;

@@ -122,9 +122,14 @@ impl OutputSettings {
             max_frames: config.max_frames,
             extend_steps: config.extend_steps,
             dynamics: config.dynamics,
+            // The folder as an absolute path, so `xmls` and `/abs/xmls` are one folder.
             scene: match &config.scene {
                 SceneSource::BuiltIn => "built-in".into(),
-                SceneSource::Dir(d) => d.display().to_string(),
+                SceneSource::Dir(d) => d
+                    .canonicalize()
+                    .unwrap_or_else(|_| d.clone())
+                    .display()
+                    .to_string(),
             },
             tasks: tasks
                 .into_iter()
@@ -218,10 +223,8 @@ fn diff(prefix: &str, now: &serde_json::Value, was: &serde_json::Value, out: &mu
 mod tests {
     use super::*;
 
-    #[test]
-    fn differences_name_the_setting_and_both_values() {
-        let pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
-        let config = |size: u32| AugmentConfig {
+    fn config(size: u32) -> AugmentConfig {
+        AugmentConfig {
             inputs: Vec::new(),
             out: "o".into(),
             replays: 1,
@@ -245,7 +248,12 @@ mod tests {
             extend_steps: 30,
             shard: None,
             overwrite: false,
-        };
+        }
+    }
+
+    #[test]
+    fn differences_name_the_setting_and_both_values() {
+        let pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
         let task = || [("t".to_owned(), "s".to_owned(), &pool, "x".to_owned())];
         let a = OutputSettings::of(&config(64), task());
         let b = OutputSettings::of(&config(224), task());
@@ -254,5 +262,62 @@ mod tests {
             a.differences(&b),
             ["height: 64 (was 224)", "width: 64 (was 224)"]
         );
+    }
+
+    /// Every setting that changes a replay's bytes is part of the fingerprint: a resume
+    /// that changes any one of them is refused, naming it.
+    #[test]
+    fn every_byte_changing_setting_is_named() {
+        let pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
+        let other_pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::Bimanual);
+        let scenes = tempfile::tempdir().unwrap();
+        let base = config(64);
+        let task = |scene: &str, pool, spec: &str| {
+            [("t".to_owned(), scene.to_owned(), pool, spec.to_owned())]
+        };
+        let was = OutputSettings::of(&base, task("s", &pool, "x"));
+        let changed: Vec<(&str, OutputSettings)> = vec![
+            ("seed", OutputSettings::of(&AugmentConfig { seed: 1, ..base.clone() }, task("s", &pool, "x"))),
+            ("quality", {
+                let mut c = base.clone();
+                c.settings.quality = RenderQuality::PAPER;
+                OutputSettings::of(&c, task("s", &pool, "x"))
+            }),
+            ("cameras", OutputSettings::of(&AugmentConfig { cameras: vec!["front".into()], ..base.clone() }, task("s", &pool, "x"))),
+            ("depth", OutputSettings::of(&AugmentConfig { depth: true, ..base.clone() }, task("s", &pool, "x"))),
+            ("max_frames", OutputSettings::of(&AugmentConfig { max_frames: Some(3), ..base.clone() }, task("s", &pool, "x"))),
+            ("extend_steps", OutputSettings::of(&AugmentConfig { extend_steps: 0, ..base.clone() }, task("s", &pool, "x"))),
+            ("dynamics", OutputSettings::of(&AugmentConfig { dynamics: true, ..base.clone() }, task("s", &pool, "x"))),
+            ("scene", OutputSettings::of(&AugmentConfig { scene: SceneSource::Dir(scenes.path().into()), ..base.clone() }, task("s", &pool, "x"))),
+            ("tasks.t.scene", OutputSettings::of(&base, task("other scene", &pool, "x"))),
+            ("tasks.t.camera_pool", OutputSettings::of(&base, task("s", &other_pool, "x"))),
+            ("tasks.t.spec", OutputSettings::of(&base, task("s", &pool, "other spec"))),
+        ];
+        for (key, now) in changed {
+            let d = now.differences(&was);
+            assert!(
+                !d.is_empty() && d.iter().all(|l| l.starts_with(&format!("{key}"))),
+                "changing {key} gives {d:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn one_scene_folder_named_two_ways_is_one_setting() {
+        let pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
+        let dir = tempfile::tempdir().unwrap();
+        fs_err::create_dir(dir.path().join("xmls")).unwrap();
+        let task = || [("t".to_owned(), "s".to_owned(), &pool, "x".to_owned())];
+        let direct = AugmentConfig {
+            scene: SceneSource::Dir(dir.path().join("xmls")),
+            ..config(64)
+        };
+        let roundabout = AugmentConfig {
+            scene: SceneSource::Dir(dir.path().join("xmls/../xmls")),
+            ..config(64)
+        };
+        let a = OutputSettings::of(&direct, task());
+        let b = OutputSettings::of(&roundabout, task());
+        assert!(a.differences(&b).is_empty(), "{:?}", a.differences(&b));
     }
 }

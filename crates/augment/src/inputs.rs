@@ -74,15 +74,18 @@ pub(crate) fn check_fields(episode: &Episode) -> Result<(), String> {
 /// Reads every input episode and its task spec, through the one episode reader
 /// ([`dexjoco_formats::episodes`]). A path that cannot be listed, an episode that cannot
 /// be read, an unknown task or a missing field skips that input or episode only.
+/// Nothing under `exclude` (the run's own `--out`) is read as input, so an output folder
+/// inside an input folder is never replayed again.
 pub(crate) fn read_sources(
     inputs: &[PathBuf],
+    exclude: &Path,
     tasks: &TaskSet,
 ) -> Result<(Vec<Source>, Vec<SkippedInput>), AugmentError> {
     let mut out = Vec::new();
     let mut skipped = Vec::new();
     let mut skip = |path: &Path, reason: String| skipped.push(SkippedInput::new(path, reason));
     for input in inputs {
-        let found = match dexjoco_formats::discover_input(input, None) {
+        let found = match dexjoco_formats::discover_input(input, Some(exclude)) {
             Ok(found) => found,
             Err(e) => {
                 skip(input, e.to_string());

@@ -42,6 +42,15 @@ pub(crate) struct PhysicsSummary {
     pub(crate) states_hash: String,
 }
 
+impl PhysicsSummary {
+    /// The replay reached its first success only past the recording's end (in the
+    /// `--extend-steps` extension). A replay that never succeeds is not extended, even
+    /// though it ran the whole extension.
+    pub(crate) fn extended(&self) -> bool {
+        self.first_success.is_some_and(|k| k >= self.recorded)
+    }
+}
+
 /// Recorded steps a run replays of `src`: all, or the first `--max-frames`.
 pub(crate) fn recorded_frames(src: &Source, config: &AugmentConfig) -> usize {
     let n = src.episode.len();

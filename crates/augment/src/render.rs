@@ -310,7 +310,7 @@ fn record_of(
         first_success: physics.first_success,
         steps: physics.frames,
         recorded_steps: physics.recorded,
-        extended: physics.frames > physics.recorded,
+        extended: physics.extended(),
         max_state_deviation: physics.deviation,
         deviation_at: physics.deviation_at,
         videos: Vec::new(),

@@ -110,7 +110,7 @@ pub fn augment_with(
 ) -> Result<AugmentReport, AugmentError> {
     let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
         .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
-    let (mut sources, mut skipped) = read_sources(&config.inputs, &tasks)?;
+    let (mut sources, mut skipped) = read_sources(&config.inputs, &config.out, &tasks)?;
     if sources.is_empty()
         && let Some(first) = skipped.first()
     {
@@ -358,7 +358,7 @@ fn build_report(
                 steps: p.frames,
                 recorded_steps: p.recorded,
                 success_shift: p.first_success.map(|k| k as i64 - (p.recorded as i64 - 1)),
-                extended: p.frames > p.recorded,
+                extended: p.extended(),
                 max_state_deviation: p.deviation,
                 replays_kept: kept[i],
             })

@@ -639,3 +639,54 @@ fn a_replay_that_succeeds_one_step_late_is_kept_by_the_extension_with_its_shift(
         assert_eq!(r.first_success, Some(recorded));
     }
 }
+
+#[test]
+fn a_replay_that_never_succeeds_is_not_flagged_extended() {
+    // A recording cut far before its success: the extension runs all its steps without a
+    // success; kept with --keep-failed, the replay is a failure, not an extended success.
+    let tmp = tempfile::tempdir().unwrap();
+    let mut c = config(
+        vec![demos().join("click_mouse/episode_000000")],
+        &tmp.path().join("out"),
+    );
+    c.max_frames = Some(40);
+    c.keep_failed = true;
+    c.replays = 1;
+    c.extend_steps = 5;
+    c.settings.width = 32;
+    c.settings.height = 32;
+    let report = run(&c, 1);
+    let e = &report.episodes[0];
+    assert!(!e.success);
+    assert_eq!((e.recorded_steps, e.steps), (40, 45), "the extension ran");
+    assert!(!e.extended, "no success, so not extended");
+    assert_eq!(report.replays.len(), 1);
+    assert!(!report.replays[0].extended && !report.replays[0].success);
+    let md = fs_err::read_to_string(c.out.join("augment_report.md")).unwrap();
+    assert!(!md.contains("only after the recording ended"), "{md}");
+}
+
+#[test]
+fn an_output_folder_inside_the_input_folder_is_not_read_as_input() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("data");
+    copy_dir(
+        &demos().join("click_mouse/episode_000000"),
+        &input.join("click_mouse/episode_000000"),
+    );
+    let mut c = config(vec![input.clone()], &input.join("aug"));
+    c.replays = 1;
+    c.max_frames = Some(3);
+    c.keep_failed = true;
+    c.extend_steps = 0;
+    c.settings.width = 32;
+    c.settings.height = 32;
+    let first = run(&c, 1);
+    assert_eq!(first.episodes.len(), 1);
+    // The second run (a resume) finds its own replays under the input folder and leaves
+    // them out: still one episode, nothing rendered.
+    let again = run(&c, 1);
+    assert_eq!(again.episodes.len(), 1, "{:?}", again.episodes);
+    assert!(again.skipped.is_empty(), "{:?}", again.skipped);
+    assert_eq!(again.rendered_now, 0);
+}

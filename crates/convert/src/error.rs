@@ -1,3 +1,5 @@
+//! The conversion errors, each naming the file, episode and field it concerns.
+
 use std::path::PathBuf;
 
 use dexjoco_core::{CoreError, Location};

@@ -1,3 +1,6 @@
+//! The episode model: named per-frame arrays ([`FrameArray`]) of one task, with their
+//! frame rate, prompt and source, as every stage passes them on.
+
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 

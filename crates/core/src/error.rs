@@ -1,3 +1,6 @@
+//! Where a problem is ([`Location`]: file, episode, field, frame) and the core errors
+//! that name it.
+
 use std::fmt;
 use std::path::PathBuf;
 

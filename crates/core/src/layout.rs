@@ -1,3 +1,6 @@
+//! The robot's array layouts (action, `action_rotvec`, proprioception) for one and two
+//! arms, column names, and the Allegro hand's ranges.
+
 use serde::{Deserialize, Serialize};
 
 /// Allegro hand joints per hand (ff, mf, rf, th x j0..j3).

@@ -10,7 +10,11 @@
 //!   [`UNREADABLE_GRACE`].)
 //! - **Stale** only when its process is gone: same host, and no process with that pid
 //!   exists, or it is a zombie, or it started at another time (the pid was reused). A
-//!   lock of another host is never taken over: it cannot be checked from here.
+//!   process on another host cannot be checked from here, so its owner keeps a
+//!   heartbeat: while a lock is held, a thread refreshes the lock file's modification
+//!   time every [`HEARTBEAT`]; a lock of another host is stale once that time is older
+//!   than [`FOREIGN_LEASE`] (a shard killed on one cluster node is rerun on another a
+//!   few minutes later).
 //! - **Taking over** a stale lock goes through a second lock (`<name>.break`): the
 //!   breaker re-reads the lock and removes it only if it still holds the stale owner,
 //!   so two processes that find the same stale lock cannot both end up holding it.
@@ -38,6 +42,13 @@ pub const LOCK_FILE: &str = ".lock";
 /// How long a lock file that does not parse is taken for one being written (only
 /// possible on file systems without hard links).
 pub const UNREADABLE_GRACE: Duration = Duration::from_secs(10);
+
+/// How often a held lock's file gets its modification time refreshed.
+pub const HEARTBEAT: Duration = Duration::from_secs(30);
+
+/// How long a lock of another host stays live without a heartbeat (10 missed
+/// heartbeats: generous for clock skew between hosts and a slow network file system).
+pub const FOREIGN_LEASE: Duration = Duration::from_secs(300);
 
 /// The process a lock file names.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -73,11 +84,16 @@ impl LockOwner {
         }
     }
 
-    /// Whether the owner may still run: always for another host (it cannot be checked),
-    /// else whether a process with its pid and start time exists and is not a zombie.
+    /// Whether the owner may still run: for another host, whether its lock file had a
+    /// heartbeat within [`FOREIGN_LEASE`] (or its age cannot be read); for this host,
+    /// whether a process with its pid and start time exists and is not a zombie.
     pub fn is_alive(&self) -> bool {
         if self.host != host_name() {
-            return true;
+            return fs_err::metadata(&self.file)
+                .ok()
+                .and_then(|m| m.modified().ok())
+                .and_then(|t| t.elapsed().ok())
+                .is_none_or(|age| age <= FOREIGN_LEASE);
         }
         match proc_stat(self.pid) {
             ProcState::Unknown => true,
@@ -102,6 +118,53 @@ impl LockOwner {
 pub struct DirLock {
     path: PathBuf,
     owner: LockOwner,
+    heartbeat: Option<Heartbeat>,
+}
+
+/// The thread that refreshes a held lock file's modification time; stopped on drop.
+#[derive(Debug)]
+struct Heartbeat {
+    stop: std::sync::mpsc::Sender<()>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Heartbeat {
+    /// Touches `path` every `every` while it still holds `bytes` (our lock).
+    fn start(path: PathBuf, bytes: Vec<u8>, every: Duration) -> Option<Self> {
+        let (stop, stopped) = std::sync::mpsc::channel::<()>();
+        let thread = std::thread::Builder::new()
+            .name("lock-heartbeat".into())
+            .spawn(move || {
+                while let Err(std::sync::mpsc::RecvTimeoutError::Timeout) =
+                    stopped.recv_timeout(every)
+                {
+                    if fs_err::read(&path).ok().as_deref() != Some(&bytes[..]) {
+                        return; // taken over or removed: not ours to touch
+                    }
+                    let touched = fs_err::OpenOptions::new()
+                        .append(true)
+                        .open(&path)
+                        .and_then(|f| f.file().set_modified(std::time::SystemTime::now()));
+                    if let Err(e) = touched {
+                        tracing::warn!("lock heartbeat on '{}': {e}", path.display());
+                    }
+                }
+            })
+            .ok()?;
+        Some(Self {
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+impl Drop for Heartbeat {
+    fn drop(&mut self) {
+        let _ = self.stop.send(());
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
 }
 
 /// What reading a lock file found.
@@ -134,7 +197,12 @@ impl DirLock {
         let bytes = owner.to_bytes();
         for attempt in 0..50 {
             if create_exclusive(&path, &bytes)? {
-                return Ok(Self { path, owner });
+                let heartbeat = Heartbeat::start(path.clone(), bytes, HEARTBEAT);
+                return Ok(Self {
+                    path,
+                    owner,
+                    heartbeat,
+                });
             }
             match read_lock(&path)? {
                 Found::Gone => {}
@@ -220,6 +288,7 @@ impl DirLock {
 
 impl Drop for DirLock {
     fn drop(&mut self) {
+        drop(self.heartbeat.take());
         // Only our own lock is removed (never one another process took over).
         if let Ok(Found::Owner(o, _)) = read_lock(&self.path)
             && o.pid == self.owner.pid
@@ -422,11 +491,66 @@ mod tests {
             ..me.clone()
         };
         assert!(!reused.is_alive(), "same pid, other start time: reused pid");
-        let other_host = LockOwner {
-            pid: u32::MAX,
+    }
+
+    /// A lock file of another host, its modification time `age` ago.
+    fn foreign_lock(dir: &Path, age: Duration) -> PathBuf {
+        let me = LockOwner::current();
+        let other = LockOwner {
+            pid: 12345,
             host: format!("{}-elsewhere", me.host),
-            ..me
+            started: None,
+            file: PathBuf::new(),
         };
-        assert!(other_host.is_alive(), "another host cannot be checked");
+        let path = dir.join(LOCK_FILE);
+        fs_err::write(&path, other.to_bytes()).unwrap();
+        let f = fs_err::OpenOptions::new().append(true).open(&path).unwrap();
+        f.file()
+            .set_modified(std::time::SystemTime::now() - age)
+            .unwrap();
+        path
+    }
+
+    #[test]
+    fn another_hosts_lock_is_live_while_its_heartbeat_is_recent() {
+        let dir = tempfile::tempdir().unwrap();
+        foreign_lock(dir.path(), Duration::from_secs(60));
+        let err = DirLock::acquire(dir.path()).unwrap_err().to_string();
+        assert!(err.contains("12345@"), "{err}");
+        assert_eq!(DirLock::live_locks(dir.path()).unwrap().len(), 1);
+    }
+
+    #[test]
+    fn another_hosts_lock_without_a_heartbeat_for_the_lease_is_taken_over() {
+        let dir = tempfile::tempdir().unwrap();
+        foreign_lock(dir.path(), FOREIGN_LEASE + Duration::from_secs(60));
+        assert!(DirLock::live_locks(dir.path()).unwrap().is_empty());
+        let lock = DirLock::acquire(dir.path()).expect("a dead host's lock is stale");
+        assert_eq!(lock.owner().pid, std::process::id());
+    }
+
+    #[test]
+    fn a_held_lock_gets_its_heartbeat_and_the_heartbeat_stops_on_drop() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("hb");
+        let bytes = LockOwner::current().to_bytes();
+        fs_err::write(&path, &bytes).unwrap();
+        let old = std::time::SystemTime::now() - Duration::from_secs(3600);
+        let set_old = || {
+            let f = fs_err::OpenOptions::new().append(true).open(&path).unwrap();
+            f.file().set_modified(old).unwrap();
+        };
+        let mtime = || fs_err::metadata(&path).unwrap().modified().unwrap();
+        set_old();
+        let hb = Heartbeat::start(path.clone(), bytes, Duration::from_millis(20)).unwrap();
+        let t = std::time::Instant::now();
+        while mtime() == old && t.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert!(mtime() > old, "the heartbeat refreshed the lock file");
+        drop(hb);
+        set_old();
+        std::thread::sleep(Duration::from_millis(100));
+        assert_eq!(mtime(), old, "no heartbeat after drop");
     }
 }

@@ -1,3 +1,5 @@
+//! The simulation and rendering errors, each naming the scene, name or device concerned.
+
 use std::path::PathBuf;
 
 /// Errors of the simulation and rendering layer.

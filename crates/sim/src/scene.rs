@@ -1,3 +1,6 @@
+//! MuJoCo scenes: loading an MJCF file or string into a model, with the version check
+//! and the name lookups the rest of the crate uses.
+
 use std::ffi::CStr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 
-use dexjoco_core::{ArmSetup, Episode};
+use dexjoco_core::{ArmSetup, ArrayLayout, Episode, TaskSpec};
 use serde::{Deserialize, Serialize};
 
 use dexjoco_formats::openpi::{RunningStats, norm_stats_document};
@@ -101,8 +101,21 @@ pub struct ArrayStats {
     pub histogram: Vec<Vec<u64>>,
 }
 
-/// Column names of an array, from the DexJoCo layouts when its width fits one.
-pub fn column_names(array: &str, width: usize, setup: Option<ArmSetup>) -> Vec<String> {
+/// Column names of an array, from the DexJoCo layouts when its width fits one. `state`
+/// takes its task's state layout (`mouse.pose[3]`, as ingest, the simulator and MCAP name
+/// it) when `task` gives one of its width; without one (a dataset of several tasks) the
+/// columns past proprioception are `privileged[i]`.
+pub fn column_names(
+    array: &str,
+    width: usize,
+    setup: Option<ArmSetup>,
+    task: Option<&ArrayLayout>,
+) -> Vec<String> {
+    if array == Episode::STATE
+        && let Some(l) = task.filter(|l| l.width() == width)
+    {
+        return (0..width).map(|i| l.column_name(i)).collect();
+    }
     let layout = match (array, setup) {
         (Episode::ACTION, _) if width == 23 => Some(ArmSetup::SingleArm.action_layout()),
         (Episode::ACTION, _) if width == 46 => Some(ArmSetup::Bimanual.action_layout()),
@@ -124,7 +137,12 @@ pub fn column_names(array: &str, width: usize, setup: Option<ArmSetup>) -> Vec<S
         .collect()
 }
 
-fn array_stats(episodes: &[&Episode], name: &str, setup: Option<ArmSetup>) -> Option<ArrayStats> {
+fn array_stats(
+    episodes: &[&Episode],
+    name: &str,
+    setup: Option<ArmSetup>,
+    task: Option<&ArrayLayout>,
+) -> Option<ArrayStats> {
     let arrays: Vec<_> = episodes.iter().filter_map(|e| e.array(name)).collect();
     let width = arrays.first()?.width();
     let frames: usize = arrays.iter().map(|a| a.len()).sum();
@@ -134,7 +152,7 @@ fn array_stats(episodes: &[&Episode], name: &str, setup: Option<ArmSetup>) -> Op
     let mut s = ArrayStats {
         width,
         frames,
-        columns: column_names(name, width, setup),
+        columns: column_names(name, width, setup, task),
         mean: Vec::with_capacity(width),
         std: Vec::with_capacity(width),
         min: Vec::with_capacity(width),
@@ -345,6 +363,7 @@ impl DatasetStats {
                 }
             }
             let setup = setup_of(eps);
+            let layout = TaskSpec::builtin(task).map(TaskSpec::state_layout);
             tasks.push(TaskStats {
                 task: (*task).to_string(),
                 episodes: eps.len(),
@@ -353,7 +372,10 @@ impl DatasetStats {
                     .expect("a task has episodes"),
                 arrays: task_widths
                     .keys()
-                    .filter_map(|name| Some(((*name).to_string(), array_stats(eps, name, setup)?)))
+                    .filter_map(|name| {
+                        let s = array_stats(eps, name, setup, layout.as_ref())?;
+                        Some(((*name).to_string(), s))
+                    })
                     .collect(),
                 norm_stats: norm_stats(eps, task_widths.keys().copied()),
             });
@@ -365,7 +387,7 @@ impl DatasetStats {
         for (name, w) in &widths {
             match w {
                 Some(_) => {
-                    if let Some(s) = array_stats(&all, name, setup) {
+                    if let Some(s) = array_stats(&all, name, setup, None) {
                         arrays.insert((*name).to_string(), s);
                     }
                 }
@@ -442,11 +464,18 @@ mod tests {
 
     #[test]
     fn column_names_follow_the_layouts() {
-        let n = column_names(Episode::STATE, 31, Some(ArmSetup::SingleArm));
+        let n = column_names(Episode::STATE, 31, Some(ArmSetup::SingleArm), None);
         assert_eq!(n[0], "arm.tcp_pos[0]");
         assert_eq!(n[7], "arm.hand_qpos[0]");
         assert_eq!(n[23], "privileged[0]");
-        assert_eq!(column_names(Episode::ACTION, 46, None)[23], "left.pos[0]");
-        assert_eq!(column_names("other", 2, None), ["other[0]", "other[1]"]);
+        let mouse = TaskSpec::builtin("click_mouse").unwrap().state_layout();
+        let n = column_names(Episode::STATE, mouse.width(), None, Some(&mouse));
+        assert_eq!(n[7], "arm.hand_qpos[0]");
+        assert_eq!(n[23], "mouse.pose[0]", "the spec's name, as ingest gives it");
+        assert_eq!(n[mouse.width() - 1], "dh[0]");
+        let other = column_names(Episode::STATE, 31, Some(ArmSetup::SingleArm), Some(&mouse));
+        assert_eq!(other[23], "privileged[0]", "a layout of another width is not used");
+        assert_eq!(column_names(Episode::ACTION, 46, None, None)[23], "left.pos[0]");
+        assert_eq!(column_names("other", 2, None, None), ["other[0]", "other[1]"]);
     }
 }

@@ -1,3 +1,5 @@
+//! The stats errors, each naming the file or folder, and the row or field where it helps.
+
 use std::path::PathBuf;
 
 /// Errors of the stats stage. Each names the file or folder it is about, and the row or

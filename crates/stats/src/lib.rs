@@ -31,6 +31,7 @@ pub use dataset::{
     quantile_sorted, width_outliers,
 };
 pub use error::StatsError;
+pub use output::{SOURCE_NORM_STATS, SOURCE_NORM_STATS_DIR};
 pub use language::{
     EXAMPLE_MARKER, Instruction, JsPair, LanguageInput, LanguageOptions, LanguageReport,
     MANIFEST_FILE, NONE_OUTPUT, Precision, Trial, format_p, infer_expected,

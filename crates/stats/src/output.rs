@@ -11,6 +11,14 @@ use crate::language::{LanguageReport, format_p};
 use crate::plot;
 use crate::success::SuccessTable;
 
+/// `stats --dataset`'s normalization statistics of the source arrays as stored (openpi's
+/// format). Not named `norm_stats.json`: that is the file `convert --norm-stats` writes
+/// of the training columns, the one to hand to openpi (the README says how they differ).
+pub const SOURCE_NORM_STATS: &str = "source_norm_stats.json";
+
+/// The folder of per-task [`SOURCE_NORM_STATS`] files (`<task>.json`).
+pub const SOURCE_NORM_STATS_DIR: &str = "source_norm_stats";
+
 fn write_json(path: &Path, value: &impl Serialize) -> Result<(), StatsError> {
     let text = serde_json::to_string_pretty(value).map_err(|source| StatsError::Json {
         path: path.to_path_buf(),
@@ -275,8 +283,9 @@ impl SuccessTable {
 }
 
 impl DatasetStats {
-    /// Writes `dataset_stats.json`, `summary.md`, `norm_stats.json` (dataset-wide arrays;
-    /// per task under `norm_stats/<task>.json`) and the figures `episode_lengths.{png,svg}`
+    /// Writes `dataset_stats.json`, `summary.md`, `source_norm_stats.json` (openpi's
+    /// format, of the source arrays as stored, dataset-wide; per task under
+    /// `source_norm_stats/<task>.json`) and the figures `episode_lengths.{png,svg}`
     /// and `<array>_distribution.{png,svg}` into `dir` (created). Returns the files.
     pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>, StatsError> {
         fs_err::create_dir_all(dir)?;
@@ -287,10 +296,10 @@ impl DatasetStats {
         let p = dir.join("summary.md");
         fs_err::write(&p, self.to_markdown())?;
         files.push(p);
-        let p = dir.join("norm_stats.json");
+        let p = dir.join(SOURCE_NORM_STATS);
         write_json(&p, &self.norm_stats)?;
         files.push(p);
-        let per_task = dir.join("norm_stats");
+        let per_task = dir.join(SOURCE_NORM_STATS_DIR);
         fs_err::create_dir_all(&per_task)?;
         for t in &self.tasks {
             let p = per_task.join(format!("{}.json", t.task));

@@ -67,8 +67,8 @@ fn counts_lengths_and_files() {
     for name in [
         "dataset_stats.json",
         "summary.md",
-        "norm_stats.json",
-        "norm_stats/click_mouse.json",
+        "source_norm_stats.json",
+        "source_norm_stats/click_mouse.json",
         "episode_lengths.png",
         "action_distribution.svg",
         "state_distribution.png",
@@ -81,7 +81,7 @@ fn counts_lengths_and_files() {
     let png = image::open(dir.path().join("action_distribution.png")).unwrap();
     assert!(png.width() > 1000, "{}", png.width());
     let norm: serde_json::Value =
-        serde_json::from_str(&fs_err::read_to_string(dir.path().join("norm_stats.json")).unwrap())
+        serde_json::from_str(&fs_err::read_to_string(dir.path().join("source_norm_stats.json")).unwrap())
             .unwrap();
     assert_eq!(
         norm["norm_stats"]["actions"]["mean"]
