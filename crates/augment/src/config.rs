@@ -167,7 +167,10 @@ mod tests {
 
     #[test]
     fn shard_auto_reads_slurm_arrays_relative_to_their_first_index() {
-        let s = from(&[("SLURM_ARRAY_TASK_ID", "2"), ("SLURM_ARRAY_TASK_COUNT", "4")]);
+        let s = from(&[
+            ("SLURM_ARRAY_TASK_ID", "2"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+        ]);
         assert_eq!(s, Ok(Shard { index: 2, count: 4 }));
         let s = from(&[
             ("SLURM_ARRAY_TASK_ID", "7"),
@@ -175,7 +178,10 @@ mod tests {
             ("SLURM_ARRAY_TASK_COUNT", "4"),
         ]);
         assert_eq!(s, Ok(Shard { index: 2, count: 4 }));
-        let e = from(&[("SLURM_ARRAY_TASK_ID", "4"), ("SLURM_ARRAY_TASK_COUNT", "4")]);
+        let e = from(&[
+            ("SLURM_ARRAY_TASK_ID", "4"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+        ]);
         assert!(e.unwrap_err().contains("--array=0-3"));
         let e = from(&[("SLURM_ARRAY_TASK_ID", "1")]).unwrap_err();
         assert!(e.contains("SLURM_ARRAY_TASK_COUNT"), "{e}");

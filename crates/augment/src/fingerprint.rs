@@ -277,21 +277,93 @@ mod tests {
         };
         let was = OutputSettings::of(&base, task("s", &pool, "x"));
         let changed: Vec<(&str, OutputSettings)> = vec![
-            ("seed", OutputSettings::of(&AugmentConfig { seed: 1, ..base.clone() }, task("s", &pool, "x"))),
+            (
+                "seed",
+                OutputSettings::of(
+                    &AugmentConfig {
+                        seed: 1,
+                        ..base.clone()
+                    },
+                    task("s", &pool, "x"),
+                ),
+            ),
             ("quality", {
                 let mut c = base.clone();
                 c.settings.quality = RenderQuality::PAPER;
                 OutputSettings::of(&c, task("s", &pool, "x"))
             }),
-            ("cameras", OutputSettings::of(&AugmentConfig { cameras: vec!["front".into()], ..base.clone() }, task("s", &pool, "x"))),
-            ("depth", OutputSettings::of(&AugmentConfig { depth: true, ..base.clone() }, task("s", &pool, "x"))),
-            ("max_frames", OutputSettings::of(&AugmentConfig { max_frames: Some(3), ..base.clone() }, task("s", &pool, "x"))),
-            ("extend_steps", OutputSettings::of(&AugmentConfig { extend_steps: 0, ..base.clone() }, task("s", &pool, "x"))),
-            ("dynamics", OutputSettings::of(&AugmentConfig { dynamics: true, ..base.clone() }, task("s", &pool, "x"))),
-            ("scene", OutputSettings::of(&AugmentConfig { scene: SceneSource::Dir(scenes.path().into()), ..base.clone() }, task("s", &pool, "x"))),
-            ("tasks.t.scene", OutputSettings::of(&base, task("other scene", &pool, "x"))),
-            ("tasks.t.camera_pool", OutputSettings::of(&base, task("s", &other_pool, "x"))),
-            ("tasks.t.spec", OutputSettings::of(&base, task("s", &pool, "other spec"))),
+            (
+                "cameras",
+                OutputSettings::of(
+                    &AugmentConfig {
+                        cameras: vec!["front".into()],
+                        ..base.clone()
+                    },
+                    task("s", &pool, "x"),
+                ),
+            ),
+            (
+                "depth",
+                OutputSettings::of(
+                    &AugmentConfig {
+                        depth: true,
+                        ..base.clone()
+                    },
+                    task("s", &pool, "x"),
+                ),
+            ),
+            (
+                "max_frames",
+                OutputSettings::of(
+                    &AugmentConfig {
+                        max_frames: Some(3),
+                        ..base.clone()
+                    },
+                    task("s", &pool, "x"),
+                ),
+            ),
+            (
+                "extend_steps",
+                OutputSettings::of(
+                    &AugmentConfig {
+                        extend_steps: 0,
+                        ..base.clone()
+                    },
+                    task("s", &pool, "x"),
+                ),
+            ),
+            (
+                "dynamics",
+                OutputSettings::of(
+                    &AugmentConfig {
+                        dynamics: true,
+                        ..base.clone()
+                    },
+                    task("s", &pool, "x"),
+                ),
+            ),
+            (
+                "scene",
+                OutputSettings::of(
+                    &AugmentConfig {
+                        scene: SceneSource::Dir(scenes.path().into()),
+                        ..base.clone()
+                    },
+                    task("s", &pool, "x"),
+                ),
+            ),
+            (
+                "tasks.t.scene",
+                OutputSettings::of(&base, task("other scene", &pool, "x")),
+            ),
+            (
+                "tasks.t.camera_pool",
+                OutputSettings::of(&base, task("s", &other_pool, "x")),
+            ),
+            (
+                "tasks.t.spec",
+                OutputSettings::of(&base, task("s", &pool, "other spec")),
+            ),
         ];
         for (key, now) in changed {
             let d = now.differences(&was);

@@ -542,16 +542,22 @@ fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<dexjoco_core::Epis
 /// what a drift of one step (another MuJoCo version, the controller's rounding) does to a
 /// real DexJoCo recording.
 fn one_step_short(dir: &Path) -> (PathBuf, usize) {
-    let src = read_stored_episode(&demos().join("click_mouse/episode_000000")).unwrap();
-    let n = src.len();
-    let mut ep = src.clone();
+    let n = read_stored_episode(&demos().join("click_mouse/episode_000000"))
+        .unwrap()
+        .len();
+    (cut_recording(dir, n - 1), n - 1)
+}
+
+/// The sample click_mouse demo's first `frames` frames, written as a raw episode in `dir`.
+fn cut_recording(dir: &Path, frames: usize) -> PathBuf {
+    let mut ep = read_stored_episode(&demos().join("click_mouse/episode_000000")).unwrap();
     for a in ep.arrays.values_mut() {
-        let rows: Vec<&[f64]> = (0..n - 1).map(|k| a.row(k)).collect();
+        let rows: Vec<&[f64]> = (0..frames).map(|k| a.row(k)).collect();
         *a = dexjoco_core::FrameArray::from_rows(&rows).unwrap();
     }
     let folder = dir.join("click_mouse/episode_000000");
     dexjoco_formats::raw::write_replay_zarr(&folder, &ep).unwrap();
-    (folder, n - 1)
+    folder
 }
 
 #[test]
@@ -645,11 +651,9 @@ fn a_replay_that_never_succeeds_is_not_flagged_extended() {
     // A recording cut far before its success: the extension runs all its steps without a
     // success; kept with --keep-failed, the replay is a failure, not an extended success.
     let tmp = tempfile::tempdir().unwrap();
-    let mut c = config(
-        vec![demos().join("click_mouse/episode_000000")],
-        &tmp.path().join("out"),
-    );
-    c.max_frames = Some(40);
+    let input = cut_recording(&tmp.path().join("in"), 40);
+    let mut c = config(vec![input], &tmp.path().join("out"));
+    c.max_frames = None;
     c.keep_failed = true;
     c.replays = 1;
     c.extend_steps = 5;

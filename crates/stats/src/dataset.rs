@@ -471,11 +471,23 @@ mod tests {
         let mouse = TaskSpec::builtin("click_mouse").unwrap().state_layout();
         let n = column_names(Episode::STATE, mouse.width(), None, Some(&mouse));
         assert_eq!(n[7], "arm.hand_qpos[0]");
-        assert_eq!(n[23], "mouse.pose[0]", "the spec's name, as ingest gives it");
+        assert_eq!(
+            n[23], "mouse.pose[0]",
+            "the spec's name, as ingest gives it"
+        );
         assert_eq!(n[mouse.width() - 1], "dh[0]");
-        let other = column_names(Episode::STATE, 31, Some(ArmSetup::SingleArm), Some(&mouse));
-        assert_eq!(other[23], "privileged[0]", "a layout of another width is not used");
-        assert_eq!(column_names(Episode::ACTION, 46, None, None)[23], "left.pos[0]");
-        assert_eq!(column_names("other", 2, None, None), ["other[0]", "other[1]"]);
+        let other = column_names(Episode::STATE, 30, Some(ArmSetup::SingleArm), Some(&mouse));
+        assert_eq!(
+            other[23], "privileged[0]",
+            "a layout of another width is not used"
+        );
+        assert_eq!(
+            column_names(Episode::ACTION, 46, None, None)[23],
+            "left.pos[0]"
+        );
+        assert_eq!(
+            column_names("other", 2, None, None),
+            ["other[0]", "other[1]"]
+        );
     }
 }

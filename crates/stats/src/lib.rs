@@ -31,11 +31,11 @@ pub use dataset::{
     quantile_sorted, width_outliers,
 };
 pub use error::StatsError;
-pub use output::{SOURCE_NORM_STATS, SOURCE_NORM_STATS_DIR};
 pub use language::{
     EXAMPLE_MARKER, Instruction, JsPair, LanguageInput, LanguageOptions, LanguageReport,
     MANIFEST_FILE, NONE_OUTPUT, Precision, Trial, format_p, infer_expected,
 };
 pub use measures::{ChiSquare, LogBase, MeanStd};
+pub use output::{SOURCE_NORM_STATS, SOURCE_NORM_STATS_DIR};
 pub use replays::{AUGMENT_REPORT, ReplayStats, TaskReplays};
 pub use success::{AverageCell, SuccessCell, SuccessTable, latex_escape, regime_name, task_name};

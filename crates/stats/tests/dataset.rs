@@ -80,9 +80,10 @@ fn counts_lengths_and_files() {
     }
     let png = image::open(dir.path().join("action_distribution.png")).unwrap();
     assert!(png.width() > 1000, "{}", png.width());
-    let norm: serde_json::Value =
-        serde_json::from_str(&fs_err::read_to_string(dir.path().join("source_norm_stats.json")).unwrap())
-            .unwrap();
+    let norm: serde_json::Value = serde_json::from_str(
+        &fs_err::read_to_string(dir.path().join("source_norm_stats.json")).unwrap(),
+    )
+    .unwrap();
     assert_eq!(
         norm["norm_stats"]["actions"]["mean"]
             .as_array()
