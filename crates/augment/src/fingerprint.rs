@@ -368,7 +368,7 @@ mod tests {
         for (key, now) in changed {
             let d = now.differences(&was);
             assert!(
-                !d.is_empty() && d.iter().all(|l| l.starts_with(&format!("{key}"))),
+                !d.is_empty() && d.iter().all(|l| l.starts_with(key)),
                 "changing {key} gives {d:?}"
             );
         }
