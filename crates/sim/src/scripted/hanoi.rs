@@ -27,7 +27,8 @@ const GRIP_UP: f64 = 0.136;
 const LIFT: f64 = 0.215;
 
 /// Index and ring fingers bent down (base joints `j0`: + spreads them apart, - closes
-/// them on each other), the middle finger curled away, the thumb at home.
+/// them on each other), the middle finger curled away, the thumb tucked under the palm
+/// (clear of the post and of the other hand).
 const fn hand(j0: f64) -> [f64; HAND_DOF] {
     [
         j0, 0.8, 0.8, 0.2, 0.0, 1.6, 1.7, 1.6, -j0, 0.8, 0.8, 0.2, 0.263, 1.1, 1.6, 1.7,
@@ -67,28 +68,48 @@ fn grip_at(e: &TaskEnv, disk: &str) -> Result<V3, SimError> {
     Ok([p[0] - TIP_X, p[1], p[2] + GRIP_UP])
 }
 
-/// Grasps the medium disk with the right hand and the small one with the left (both at
-/// once: they are on different posts) and lifts both clear of their posts.
-fn pick_both(rec: &mut Recorder, rq: Q, lq: Q) -> Result<(), SimError> {
-    let r = grip_at(rec.env(), "medium")?;
-    let l = grip_at(rec.env(), "small")?;
-    let up = |p: V3, dz: f64| kin::add(p, [0.0, 0.0, dz]);
-    let both = |r: V3, l: V3, h: [f64; HAND_DOF]| {
-        [Goal::new(RIGHT, r, rq, h), Goal::new(LEFT, l, lq, h)]
+/// Brings each `(arm, orientation, disk)` hand around its disk, fingers spread
+/// (nothing touched yet), all at once; returns where each TCP pinches.
+fn reach(rec: &mut Recorder, hands: &[(usize, Q, &str)]) -> Result<Vec<V3>, SimError> {
+    let at = hands
+        .iter()
+        .map(|&(_, _, disk)| grip_at(rec.env(), disk))
+        .collect::<Result<Vec<_>, _>>()?;
+    let goals = |dz: f64| -> Vec<Goal> {
+        hands
+            .iter()
+            .zip(&at)
+            .map(|(&(arm, q, _), &p)| Goal::new(arm, kin::add(p, [0.0, 0.0, dz]), q, SPREAD))
+            .collect()
     };
-    rec.go_many(&both(up(r, 0.1), up(l, 0.1), SPREAD), 90, |_| false)?;
+    rec.go_many(&goals(0.1), 90, |_| false)?;
     rec.settle(0.01, 30)?;
     show(rec, "above");
-    rec.go_many(&both(r, l, SPREAD), 45, |_| false)?;
+    rec.go_many(&goals(0.0), 45, |_| false)?;
     rec.settle(0.004, 40)?;
-    show(rec, "at");
-    rec.snap(RIGHT, "medium_at");
-    rec.go_many(&both(r, l, PINCH), 25, |_| false)?;
+    show(rec, "around");
+    rec.snap(hands[0].0, "around");
+    Ok(at)
+}
+
+/// Closes `arm`'s pinch at `at` over `steps` steps (other arms as in `others`
+/// meanwhile) and lifts the disk clear of its post, straight up.
+fn pinch_lift(
+    rec: &mut Recorder,
+    arm: usize,
+    q: Q,
+    at: V3,
+    steps: usize,
+    others: &[Goal],
+) -> Result<(), SimError> {
+    let mut goals = others.to_vec();
+    goals.push(Goal::new(arm, at, q, PINCH));
+    rec.go_many(&goals, steps, |_| false)?;
     rec.wait(10)?;
     show(rec, "pinched");
-    rec.snap(RIGHT, "medium_pinched");
-    rec.snap(LEFT, "small_pinched");
-    rec.go_many(&both(up(r, LIFT), up(l, LIFT), PINCH), 100, |_| false)?;
+    rec.snap(arm, &format!("pinched_{arm}"));
+    let up = kin::add(at, [0.0, 0.0, LIFT]);
+    rec.go(arm, up, q, PINCH, 100)?;
     rec.settle(0.005, 30)?;
     show(rec, "lifted");
     Ok(())
@@ -144,16 +165,10 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     let post_c = kin::site(e, "hanoi_post_c_site")?;
     show(&rec, "start");
     if variant == Variant::Wrong {
-        // The medium disk on the base halfway between the middle and right posts: off
-        // every post.
-        let r = grip_at(rec.env(), "medium")?;
-        rec.go(RIGHT, kin::add(r, [0.0, 0.0, 0.1]), rq, SPREAD, 90)?;
-        rec.settle(0.01, 30)?;
-        rec.go(RIGHT, r, rq, SPREAD, 45)?;
-        rec.settle(0.004, 40)?;
-        rec.go(RIGHT, r, rq, PINCH, 25)?;
-        rec.wait(10)?;
-        rec.go(RIGHT, kin::add(r, [0.0, 0.0, LIFT]), rq, PINCH, 100)?;
+        // The medium disk set down on the base halfway between the middle and right
+        // posts: off every post, on the table.
+        let r = reach(&mut rec, &[(RIGHT, rq, "medium")])?[0];
+        pinch_lift(&mut rec, RIGHT, rq, r, 25, &[])?;
         let spot = kin::scale(kin::add(post_b, post_c), 0.5);
         place(&mut rec, RIGHT, rq, "medium", spot, top + H)?;
         rec.go(RIGHT, rhome, rq, SPREAD, 80)?;
@@ -161,9 +176,13 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
         show(&rec, "end");
         return rec.finish(id);
     }
-    pick_both(&mut rec, rq, lq)?;
+    // The right hand moves the medium disk while the left waits around the small one.
+    let at = reach(&mut rec, &[(RIGHT, rq, "medium"), (LEFT, lq, "small")])?;
+    pinch_lift(&mut rec, RIGHT, rq, at[0], 25, &[])?;
     place(&mut rec, RIGHT, rq, "medium", post_c, top + 3.0 * H)?;
-    rec.go(RIGHT, rhome, rq, SPREAD, 80)?;
+    // Then the left hand moves the small disk; the right one goes home meanwhile.
+    let home = [Goal::new(RIGHT, rhome, rq, SPREAD)];
+    pinch_lift(&mut rec, LEFT, lq, at[1], 60, &home)?;
     place(&mut rec, LEFT, lq, "small", post_c, top + 5.0 * H)?;
     rec.go(LEFT, lhome, lq, SPREAD, 80)?;
     rec.wait(60)?;
