@@ -91,6 +91,11 @@ fn bimanual_assembly_plans_and_replays() {
 }
 
 #[test]
+fn bimanual_hanoi_plans_and_replays() {
+    plan_record_replay("bimanual_hanoi", 21);
+}
+
+#[test]
 fn bimanual_photograph_plans_and_replays() {
     plan_record_replay("bimanual_photograph", 19);
 }
@@ -129,6 +134,7 @@ fn water_plant_plans_and_replays() {
 fn every_task_with_a_planner_is_tested_here() {
     let tested = [
         "bimanual_assembly",
+        "bimanual_hanoi",
         "bimanual_photograph",
         "bimanual_unlock_ipad",
         "click_mouse",
@@ -162,6 +168,11 @@ fn wrong_plans_reach_the_failure_condition() {
         p.failed,
         "pulling the trigger away from the plant did not fail"
     );
+    assert_eq!(p.success_at, None);
+    // bimanual_hanoi: the medium disk set down on the base between two posts.
+    let (scene, spec, s0) = reset("bimanual_hanoi", 15);
+    let p = scripted::plan(&scene, &spec, &s0, "wrong", Variant::Wrong).unwrap();
+    assert!(p.failed, "a disk on the table did not fail the episode");
     assert_eq!(p.success_at, None);
     // A task without a failure condition has no wrong plan.
     let (scene, spec, s0) = reset("pinch_tongs", 15);

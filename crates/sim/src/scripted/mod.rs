@@ -18,6 +18,7 @@ mod assembly;
 mod click_mouse;
 mod fold_glasses;
 mod hammer_nail;
+mod hanoi;
 pub(crate) mod kin;
 mod photograph;
 mod pick_bucket;
@@ -416,6 +417,7 @@ pub enum Variant {
 /// The tasks that have a scripted planner.
 pub const PLANNED_TASKS: &[&str] = &[
     "bimanual_assembly",
+    "bimanual_hanoi",
     "bimanual_photograph",
     "bimanual_unlock_ipad",
     "click_mouse",
@@ -438,6 +440,7 @@ pub fn plan(
     let env = || TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default());
     match (spec.id.as_str(), variant) {
         ("bimanual_assembly", Variant::Demo) => assembly::plan(env()?, id),
+        ("bimanual_hanoi", v) => hanoi::plan(env()?, id, v),
         ("bimanual_photograph", Variant::Demo) => photograph::plan(env()?, id),
         ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
