@@ -1,6 +1,6 @@
 //! The `scripted` command end to end: demonstrations planned from random resets are
 //! written in the raw layout, read back as episodes of the task that start from their
-//! reset, byte-identical for the same seed; a task without a planner is refused.
+//! reset, byte-identical for the same seed; an unknown task is refused.
 
 use std::path::Path;
 use std::process::Command;
@@ -61,18 +61,16 @@ fn scripted_writes_successful_demonstrations_deterministically() {
 }
 
 #[test]
-fn scripted_refuses_a_task_without_a_planner() {
+fn scripted_refuses_an_unknown_task_as_a_usage_error() {
     let tmp = tempfile::tempdir().unwrap();
     let out = cli()
-        .args(["scripted", "--task", "bimanual_hanoi", "--out"])
+        .args(["scripted", "--task", "no_such_task", "--out"])
         .arg(tmp.path())
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2), "unknown task: exit 2 in every command");
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("no scripted planner for 'bimanual_hanoi'"),
-        "{err}"
-    );
+    assert!(err.contains("unknown task 'no_such_task'"), "{err}");
+    assert!(err.contains("bimanual_hanoi"), "the hint lists the tasks: {err}");
     assert!(std::fs::read_dir(tmp.path()).unwrap().next().is_none());
 }

@@ -7,7 +7,6 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use dexjoco_core::TaskSpec;
 use dexjoco_sim::scripted::{self, Variant};
 use dexjoco_sim::{SceneSource, TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
@@ -38,14 +37,8 @@ pub struct ScriptedArgs {
 
 /// Runs `scripted`.
 pub fn run(global: &GlobalArgs, args: &ScriptedArgs) -> anyhow::Result<ExitStatus> {
-    let spec = TaskSpec::builtin(&args.task).ok_or_else(|| CliError {
-        message: format!("unknown task '{}'", args.task),
-        hint: Some(format!(
-            "tasks with a planner: {}",
-            scripted::PLANNED_TASKS.join(", ")
-        )),
-        status: ExitStatus::Failure,
-    })?;
+    // An unknown task is a usage error (exit 2), as in every command.
+    let spec = crate::settings::known_task(dexjoco_core::TaskSet::builtin(), &args.task)?;
     if !scripted::PLANNED_TASKS.contains(&spec.id.as_str()) {
         return Err(CliError {
             message: format!("no scripted planner for '{}'", spec.id),
