@@ -19,6 +19,7 @@ mod click_mouse;
 mod fold_glasses;
 mod hammer_nail;
 pub(crate) mod kin;
+mod microwave_cook;
 mod photograph;
 mod pick_bucket;
 mod pinch_tongs;
@@ -416,6 +417,7 @@ pub enum Variant {
 /// The tasks that have a scripted planner.
 pub const PLANNED_TASKS: &[&str] = &[
     "bimanual_assembly",
+    "bimanual_microwave_cook",
     "bimanual_photograph",
     "bimanual_unlock_ipad",
     "click_mouse",
@@ -438,6 +440,7 @@ pub fn plan(
     let env = || TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default());
     match (spec.id.as_str(), variant) {
         ("bimanual_assembly", Variant::Demo) => assembly::plan(env()?, id),
+        ("bimanual_microwave_cook", Variant::Demo) => microwave_cook::plan(env()?, id),
         ("bimanual_photograph", Variant::Demo) => photograph::plan(env()?, id),
         ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
