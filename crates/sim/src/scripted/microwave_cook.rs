@@ -1,31 +1,63 @@
-//! The bimanual_microwave_cook planner (probe).
+//! The bimanual_microwave_cook planner. The left hand hooks the door handle (fingers
+//! slid through the gap between the bar and the door, palm toward the door) and pulls
+//! the door open along its arc in a closed loop on the hinge angle, while the right hand
+//! clamps the hot dog (thumb under the palm, fingers curled over its far side) and lifts
+//! it. The right hand carries the hot dog in over the oven's floor, lets go and pushes
+//! it deeper with straight fingers; the left hand then pushes the door shut with its
+//! finger pads and holds it, while the right index finger presses the start button
+//! with a guarded move.
 
 use dexjoco_core::HAND_DOF;
 
 use super::kin::{self, Q, V3};
-use super::{CLOSE, Goal, OPEN, Planned, Recorder, debug};
+use super::{CLOSE, Goal, Planned, Recorder, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
 const RIGHT: usize = 0;
 const LEFT: usize = 1;
-/// The hot dog's centre from the TCP along the fingers, and below it.
-const FOOD_X: f64 = 0.09;
-const FOOD_DOWN: f64 = 0.11;
-/// How far the hand's target leads the hook out from the door while pulling (m).
+
+/// The left hand while hooking the handle: fingers almost straight, the thumb tucked.
+const HOOK: [f64; HAND_DOF] = [
+    0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 1.2, 0.3, 0.3, 0.3,
+];
+/// The clamp's approach: fingers half curled, the thumb already turned under the palm.
+const CLAMP_OPEN: [f64; HAND_DOF] = [
+    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 1.4, 0.5, 0.8, 0.8,
+];
+/// Straight fingers, the thumb folded up under the palm (its tip 5 cm below the TCP).
+const PUSH: [f64; HAND_DOF] = [
+    0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.4, 0.5, 1.6, 1.6,
+];
+/// Straight index finger, middle and ring curled, the thumb folded up under the palm.
+const PRESS: [f64; HAND_DOF] = [
+    0.0, 0.0, 0.0, 0.0, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 1.4, 0.5, 1.6, 1.6,
+];
+
+/// The bar's half depth (door normal) and half width (along the door), from the model.
+const BAR_DEPTH: f64 = 0.0096;
+const BAR_WIDTH: f64 = 0.018;
+/// The finger plane's offset from the TCP along the palm normal.
+const FINGERS_OUT: f64 = 0.03;
+/// The left TCP from the bar's edge along the door (toward the hinge) when hooked.
+const HOOK_IN: f64 = 0.09;
+/// How far the left target leads the hook out from the door while pulling (m), and
+/// into the door while pushing it shut.
 const PULL: f64 = 0.08;
-/// How far the door opens (rad).
-const OPEN_TO: f64 = -0.75;
-/// Where the hot dog goes (microwave frame): across the opening (x), where it is let
+const SHUT: f64 = 0.06;
+/// The right TCP's distance from the hinge beyond which the door may swing shut.
+const CLEAR: f64 = 0.56;
+/// How far the door opens (rad), and the most control steps the pull may take.
+const OPEN_TO: f64 = -0.6;
+const PULL_STEPS: usize = 220;
+/// The hot dog's centre from the TCP along the fingers, and below it, when clamped.
+const FOOD_X: f64 = 0.07;
+const FOOD_DOWN: f64 = 0.09;
+/// Where the hot dog goes (microwave frame): across the opening (x); where it is let
 /// go and how deep the fingertips push its near side (y).
 const PLACE_X: f64 = 0.05;
 const DROP_Y: f64 = -0.14;
 const PUSH_Y: f64 = -0.11;
-
-/// Straight fingers, thumb curled in.
-const HOOK: [f64; HAND_DOF] = [
-    0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 1.2, 0.3, 0.3, 0.3,
-];
 
 /// The wxyz quaternion of the TCP frame whose x axis (fingers) is `f` and z axis (palm
 /// normal, out of the palm) is `n` (unit, perpendicular).
@@ -59,13 +91,66 @@ fn rz(v: V3, a: f64) -> V3 {
     [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]]
 }
 
-/// With `DEXJOCO_PLAN_SNAP` set: wide pictures of the scene (from above-behind, from
-/// the left, from the right).
-fn snap(rec: &mut Recorder, name: &str) {
-    snap_at(rec, name, [-0.3, 0.0, 1.1], 1.0);
+/// One arm's commanded target: position, orientation, hand.
+#[derive(Debug, Clone, Copy)]
+struct Pose {
+    p: V3,
+    q: Q,
+    h: [f64; HAND_DOF],
 }
 
-/// As [`snap`], looking at `lookat` from `scale` times the usual distance.
+impl Pose {
+    fn goal(&self, arm: usize) -> Goal {
+        Goal::new(arm, self.p, self.q, self.h)
+    }
+}
+
+/// A queue of straight moves for one arm, stepped alongside another arm's closed loop.
+#[derive(Debug, Default)]
+struct Track {
+    moves: Vec<(Pose, usize)>,
+    from: Option<Pose>,
+    k: usize,
+}
+
+impl Track {
+    fn then(mut self, to: Pose, steps: usize) -> Self {
+        self.moves.push((to, steps.max(1)));
+        self
+    }
+
+    /// The next step's target from `now` (the current target), or `None` when done.
+    fn next(&mut self, now: Pose) -> Option<Pose> {
+        let (to, steps) = *self.moves.first()?;
+        let from = *self.from.get_or_insert(now);
+        self.k += 1;
+        let t = self.k as f64 / steps as f64;
+        let mut h = [0.0; HAND_DOF];
+        for (i, v) in h.iter_mut().enumerate() {
+            *v = from.h[i] + (to.h[i] - from.h[i]) * t;
+        }
+        let pose = Pose {
+            p: kin::add(from.p, kin::scale(kin::sub(to.p, from.p), t)),
+            q: kin::nlerp(from.q, to.q, t),
+            h,
+        };
+        if self.k >= steps {
+            self.moves.remove(0);
+            self.from = None;
+            self.k = 0;
+        }
+        Some(pose)
+    }
+}
+
+/// The current target of `arm` as a [`Pose`].
+fn now(rec: &Recorder, arm: usize) -> Pose {
+    let (p, q) = rec.target(arm);
+    Pose { p, q, h: rec.hands[arm] }
+}
+
+/// With `DEXJOCO_PLAN_SNAP` set: pictures of the scene around `lookat` (from behind
+/// and above, from the right, from the front right, from above).
 fn snap_at(rec: &mut Recorder, name: &str, lookat: V3, scale: f64) {
     let Some(dir) = std::env::var_os("DEXJOCO_PLAN_SNAP") else {
         return;
@@ -80,7 +165,7 @@ fn snap_at(rec: &mut Recorder, name: &str, lookat: V3, scale: f64) {
         for (k, az, el, dist) in [
             (0, 0.0, -45.0, 1.3),
             (1, 90.0, -10.0, 0.9),
-            (2, 45.0, -20.0, 0.8),
+            (2, 30.0, -35.0, 0.8),
             (3, 0.0, -88.0, 1.3),
         ] {
             let view = crate::render::CameraView::Orbit {
@@ -99,35 +184,24 @@ fn snap_at(rec: &mut Recorder, name: &str, lookat: V3, scale: f64) {
     }
 }
 
-/// The clamp's approach: fingers half curled, the thumb already turned under the palm.
-const CLAMP_OPEN: [f64; HAND_DOF] = [
-    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 1.4, 0.5, 0.8, 0.8,
-];
-
-/// Straight fingers, the thumb tucked under the palm.
-const PUSH: [f64; HAND_DOF] = [
-    0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.3, 0.4, 0.4, 0.4,
-];
+fn snap(rec: &mut Recorder, name: &str) {
+    snap_at(rec, name, [-0.3, 0.0, 1.1], 1.0);
+}
 
 /// Plans bimanual_microwave_cook on an environment just restored from its initial state.
 pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let s = env.state();
     let right_home = [s[3], s[4], s[5], s[6]];
-    let left_home = [s[10], s[11], s[12], s[13]];
     let mut rec = Recorder::new(env);
-    let e = rec.env();
-    let hinge = kin::anchor(e, "microjoint")?;
-    let bar = kin::geom(e, "door_handle")?.0;
     let show = |rec: &Recorder, what: &str| {
         if debug() {
             let e = rec.env();
             eprintln!(
-                "{what}: step {} door {:.3} dog {:.3?} tcpL {:.3?} tgtL {:.3?} tcpR {:.3?} {:?} {:?} {:?}",
+                "{what}: step {} door {:.3} dog {:.3?} tcpL {:.3?} tcpR {:.3?} closed {:?} in {:?} pressed {:?}",
                 e.steps(),
                 kin::joint(e, "microjoint").unwrap_or(f64::NAN),
                 kin::body(e, "hot_dog").map(|b| b.0).unwrap_or_default(),
                 kin::tcp(e, LEFT).0,
-                e.targets()[LEFT].0,
                 kin::tcp(e, RIGHT).0,
                 e.checker().value("door_closed"),
                 e.checker().value("food_inside"),
@@ -135,54 +209,23 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
             );
         }
     };
-    if debug() {
-        let e = rec.env();
-        eprintln!("hinge {hinge:.3?} bar {bar:.3?} homes {right_home:.3?} {left_home:.3?}");
-        for g in [
-            "fingertip_ff_right",
-            "fingertip_mf_right",
-            "fingertip_rf_right",
-            "thumbtip_right",
-            "fingertip_ff_left",
-            "fingertip_mf_left",
-            "fingertip_rf_left",
-            "thumbtip_left",
-        ] {
-            if let Ok(p) = kin::geom(e, g) {
-                eprintln!("  {g} {:.3?}", p.0);
-            }
-        }
-        eprintln!("  tcp {:.3?} {:.3?}", kin::tcp(e, 0).0, kin::tcp(e, 1).0);
-    }
-    if std::env::var_os("MW_HANDPROBE").is_some() {
-        for (name, h) in [("open", OPEN), ("close", CLOSE), ("push", PUSH)] {
-            rec.go(RIGHT, kin::tcp(rec.env(), RIGHT).0, right_home, h, 60)?;
-            let e = rec.env();
-            let (t, q) = kin::tcp(e, RIGHT);
-            let m = kin::qmat(q);
-            for g in ["fingertip_ff_right", "fingertip_mf_right", "fingertip_rf_right", "thumbtip_right"] {
-                let w = kin::sub(kin::geom(e, g)?.0, t);
-                // hand frame: m^T w
-                let h = [
-                    m[0] * w[0] + m[3] * w[1] + m[6] * w[2],
-                    m[1] * w[0] + m[4] * w[1] + m[7] * w[2],
-                    m[2] * w[0] + m[5] * w[1] + m[8] * w[2],
-                ];
-                eprintln!("{name} {g} world {w:.3?} hand {h:.3?}");
-            }
-        }
-    }
-    // The hook: left fingers pointing -y through the gap between the bar and the door,
-    // palm toward the door (thumb down). Offsets at the closed door, from the hinge.
-    let gap_x = (bar[0] + 0.0096 + hinge[0]) / 2.0 - hinge[0];
-    let hook_rel = [gap_x - 0.03, bar[1] + 0.018 + 0.09 - hinge[1], bar[2] - hinge[2]];
-    let hook_at = |phi: f64, dx: f64, dy: f64| -> (V3, Q) {
-        let p = kin::add(hinge, rz(kin::add(hook_rel, [dx, dy, 0.0]), phi));
-        let q = frame(rz([0.0, -1.0, 0.0], phi), rz([1.0, 0.0, 0.0], phi));
-        (p, q)
-    };
-    // The right hand's cage pinch across the hot dog, fingers along its width (+x-ish).
+    let door = |e: &TaskEnv| kin::joint(e, "microjoint");
+    // The door's frame: offsets from the hinge as they are at the closed door.
     let e = rec.env();
+    let hinge = kin::anchor(e, "microjoint")?;
+    let theta0 = door(e)?;
+    let bar = rz(kin::sub(kin::geom(e, "door_handle")?.0, hinge), -theta0);
+    // The hook: left fingers pointing along the door toward its free edge through the gap
+    // between the bar and the door, palm toward the door (thumb down), the knuckles
+    // just past the bar's inner edge.
+    let gap = (bar[0] + BAR_DEPTH) / 2.0;
+    let hook_rel = [gap - FINGERS_OUT, bar[1] + BAR_WIDTH + HOOK_IN, bar[2]];
+    let hook = |theta: f64, out: f64, along: f64, h: [f64; HAND_DOF]| Pose {
+        p: kin::add(hinge, rz(kin::add(hook_rel, [out, along, 0.0]), theta)),
+        q: frame(rz([0.0, -1.0, 0.0], theta), rz([1.0, 0.0, 0.0], theta)),
+        h,
+    };
+    // The right hand's clamp across the hot dog, fingers along its width (+x-ish).
     let dog_geom = super::geom_of_body(e, "hot_dog")
         .ok_or_else(|| SimError::Spec("no hot dog collision geom".into()))?;
     let (dp, dm) = (e.data().geom_xpos()[dog_geom], e.data().geom_xmat()[dog_geom]);
@@ -191,124 +234,215 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         d = [-d[0], -d[1], 0.0];
     }
     let d = kin::horizontal(d);
-    let rq = kin::qmul(kin::yaw(d[1].atan2(d[0])), right_home);
-    let mut grip = kin::sub(dp, kin::scale(d, FOOD_X));
-    grip[2] = dp[2] + FOOD_DOWN;
-    let (p0, q0) = hook_at(0.0, -0.1, 0.15);
-    rec.go_many(
-        &[
-            Goal::new(LEFT, p0, q0, HOOK),
-            Goal::new(RIGHT, kin::add(grip, [0.0, 0.0, 0.1]), rq, CLAMP_OPEN),
-        ],
-        100,
-        |_| false,
-    )?;
-    rec.settle(0.005, 60)?;
-    show(&rec, "pre-hook far");
-    snap(&mut rec, "a_prehook_far");
-    let (p1, _) = hook_at(0.0, 0.0, 0.15);
-    rec.go_many(
-        &[
-            Goal::new(LEFT, p1, q0, HOOK),
-            Goal::new(RIGHT, grip, rq, CLAMP_OPEN),
-        ],
-        40,
-        |_| false,
-    )?;
-    rec.settle(0.004, 40)?;
-    show(&rec, "pre-hook");
-    snap_at(&mut rec, "b_pregrasp", dp, 0.4);
-    let (p2, _) = hook_at(0.0, 0.0, 0.0);
-    rec.go_many(
-        &[
-            Goal::new(LEFT, p2, q0, HOOK),
-            Goal::new(RIGHT, grip, rq, CLOSE),
-        ],
-        30,
-        |_| false,
-    )?;
-    rec.settle(0.004, 40)?;
-    show(&rec, "hooked");
-    snap_at(&mut rec, "b_grasped", dp, 0.4);
-    snap(&mut rec, "b_hooked");
-    // Pull the door open: the hand's angle about the hinge leads the door's; the right
-    // hand lifts the hot dog meanwhile.
-    let lift = kin::add(grip, [0.0, 0.0, 0.2]);
-    let mut phi = 0.0;
-    let n = 200;
-    for k in 1..=n {
-        let theta = kin::joint(rec.env(), "microjoint")?;
-        phi = theta;
-        let (p, q) = hook_at(theta, -PULL, 0.0);
-        let t = (k as f64 / 100.0).min(1.0);
-        let rp = kin::add(grip, kin::scale(kin::sub(lift, grip), t));
-        rec.go_many(
-            &[Goal::new(LEFT, p, q, HOOK), Goal::new(RIGHT, rp, rq, CLOSE)],
-            1,
-            |_| false,
-        )?;
-        if k % 25 == 0 {
-            show(&rec, &format!("pull {phi:.2}"));
-        }
-        if theta < OPEN_TO + 0.02 {
-            break;
-        }
-    }
-    show(&rec, "pulled");
-    let dog_now = rec.env().data().geom_xpos()[dog_geom];
-    snap_at(&mut rec, "c_lifted", dog_now, 0.4);
-    snap(&mut rec, "c_pulled");
-    // The hot dog into the cavity: measure where it sits in the hand, carry it in front
-    // of the opening, in over the floor's front edge, down, let go; then push it deeper
-    // with straight fingers.
-    let e = rec.env();
+    let yaw0 = d[1].atan2(d[0]);
+    let rq = kin::qmul(kin::yaw(yaw0), right_home);
+    let fx: f64 = std::env::var("MW_FX").ok().and_then(|v| v.parse().ok()).unwrap_or(FOOD_X);
+    let fdn: f64 = std::env::var("MW_FD").ok().and_then(|v| v.parse().ok()).unwrap_or(FOOD_DOWN);
+    let mut grip = kin::sub(dp, kin::scale(d, fx));
+    grip[2] = dp[2] + fdn;
+    let rpose = |p: V3, h: [f64; HAND_DOF]| Pose { p, q: rq, h };
+    // The oven's frame and the hot dog's way in.
     let (mp, mm) = kin::body(e, "microwave_object")?;
     let oven = |p: V3| kin::add(mp, kin::mulv(&mm, p));
     let into = kin::horizontal(kin::mulv(&mm, [0.0, 1.0, 0.0]));
     let floor = mp[2] - 0.126;
     let pyaw = into[1].atan2(into[0]);
     let pq = kin::qmul(kin::yaw(pyaw), right_home);
-    let dog_now = e.data().geom_xpos()[dog_geom];
-    let yaw0 = d[1].atan2(d[0]);
-    let off = rz(kin::sub(dog_now, kin::tcp(e, RIGHT).0), pyaw - yaw0);
+
+    // Both hands to their first poses, then in.
+    rec.go_many(
+        &[
+            hook(theta0, -0.1, 0.15, HOOK).goal(LEFT),
+            rpose(kin::add(grip, [0.0, 0.0, 0.1]), CLAMP_OPEN).goal(RIGHT),
+        ],
+        90,
+        |_| false,
+    )?;
+    rec.settle(0.01, 30)?;
+    rec.go_many(
+        &[
+            hook(theta0, 0.0, 0.15, HOOK).goal(LEFT),
+            rpose(grip, CLAMP_OPEN).goal(RIGHT),
+        ],
+        40,
+        |_| false,
+    )?;
+    rec.settle(0.005, 30)?;
+    show(&rec, "at the handle and the hot dog");
+    snap_at(&mut rec, "a_grip0", dp, 0.4);
+    if debug() {
+        let e = rec.env();
+        let m = e.data().geom_xmat()[dog_geom];
+        let tm = kin::qmat(kin::tcp(e, RIGHT).1);
+        eprintln!(
+            "PRE long {:.1} yaw0 {:.1} hand x {:.1}",
+            m[3].atan2(m[0]).to_degrees(),
+            yaw0.to_degrees(),
+            tm[3].atan2(tm[0]).to_degrees()
+        );
+    }
+    for k in 0..3 {
+        rec.go_many(
+            &[
+                hook(theta0, 0.0, 0.0, HOOK).goal(LEFT),
+                rpose(grip, CLOSE).goal(RIGHT),
+            ],
+            10,
+            |_| false,
+        )?;
+        snap_at(&mut rec, &format!("a_grip{}", k + 1), dp, 0.4);
+    }
+    rec.wait(10)?;
+    show(&rec, "hooked and clamped");
+    snap(&mut rec, "a_hooked");
+
+    // Pull the door open (the target leads the hook out from the door at the door's
+    // angle); the right hand lifts the hot dog and takes it beside the opening, clear
+    // of the door's sweep.
+    let e = rec.env();
+    let off = kin::sub(e.data().geom_xpos()[dog_geom], kin::tcp(e, RIGHT).0);
     let mut spot = oven([PLACE_X, DROP_Y, 0.0]);
     spot[2] = floor + 0.03 + 0.015;
-    let place = kin::sub(spot, off);
+    // The offset turns with the hand (measured again once lifted).
+    let place_for = |off: V3| kin::sub(spot, rz(off, pyaw - yaw0));
+    let place = place_for(off);
     let front = kin::add(kin::sub(place, kin::scale(into, 0.12)), [0.0, 0.0, 0.03]);
-    for k in 0..5 {
-        rec.go_many(&[Goal::new(RIGHT, front, pq, CLOSE)], 20, |_| false)?;
-        show(&rec, &format!("carry {k}"));
-        let dog_now = rec.env().data().geom_xpos()[dog_geom];
-        snap_at(&mut rec, &format!("carry{k}"), dog_now, 0.5);
+    let aside = kin::add(front, [-0.05, -0.2, 0.02]);
+    let mut track = Track::default()
+        .then(rpose(kin::add(grip, [0.0, 0.0, 0.15]), CLOSE), 50)
+        .then(
+            Pose {
+                p: aside,
+                q: pq,
+                h: CLOSE,
+            },
+            70,
+        );
+    let mut pulling = true;
+    for _ in 0..PULL_STEPS + 120 {
+        if rec.done() {
+            break;
+        }
+        let theta = door(rec.env())?;
+        pulling &= theta > OPEN_TO && rec.env().steps() < 250 + PULL_STEPS;
+        let left = if pulling {
+            hook(theta, -PULL, 0.0, HOOK)
+        } else {
+            hook(theta, 0.0, 0.0, HOOK)
+        };
+        let right = track.next(now(&rec, RIGHT));
+        if right.is_none() && !pulling {
+            break;
+        }
+        let right = right.unwrap_or(now(&rec, RIGHT));
+        rec.go_many(&[left.goal(LEFT), right.goal(RIGHT)], 1, |_| false)?;
     }
-    rec.settle(0.006, 40)?;
-    show(&rec, "in front");
-    snap(&mut rec, "d_front");
+    show(&rec, "door open, hot dog lifted");
+    if debug() {
+        let e = rec.env();
+        let m = e.data().geom_xmat()[dog_geom];
+        let a = m[3].atan2(m[0]);
+        let tm = kin::qmat(kin::tcp(e, RIGHT).1);
+        let rel = (a - tm[3].atan2(tm[0]) + 10.0 * std::f64::consts::PI) % std::f64::consts::PI;
+        let off = kin::sub(e.data().geom_xpos()[dog_geom], kin::tcp(e, RIGHT).0);
+        eprintln!("GRASP long axis vs fingers {:.1} deg (90 ideal), tilt z {:.2} off {:.3?}", rel.to_degrees(), m[6], rz(off, -pyaw));
+    }
+    snap(&mut rec, "b_open");
+
+    // In over the floor's front edge, down, let go.
+    let e = rec.env();
+    let off = kin::sub(e.data().geom_xpos()[dog_geom], kin::tcp(e, RIGHT).0);
+    let off = rz(off, yaw0 - pyaw); // as it was before the turn
+    let place = place_for(off);
+    let front = kin::add(kin::sub(place, kin::scale(into, 0.12)), [0.0, 0.0, 0.03]);
+    rec.go(RIGHT, front, pq, CLOSE, 50)?;
     rec.go(RIGHT, kin::add(place, [0.0, 0.0, 0.03]), pq, CLOSE, 50)?;
     rec.go(RIGHT, place, pq, CLOSE, 20)?;
-    rec.settle(0.005, 40)?;
+    rec.settle(0.005, 30)?;
     show(&rec, "placed");
-    snap(&mut rec, "e_placed");
-    rec.go(RIGHT, place, pq, OPEN, 20)?;
-    let back = kin::add(kin::sub(place, kin::scale(into, 0.1)), [0.0, 0.0, 0.03]);
-    rec.go(RIGHT, back, pq, PUSH, 40)?;
-    rec.settle(0.005, 40)?;
-    show(&rec, "let go");
-    snap(&mut rec, "f_letgo");
-    let e = rec.env();
-    let tip = kin::sub(kin::geom(e, "fingertip_mf_right")?.0, kin::tcp(e, RIGHT).0);
+    snap_at(&mut rec, "c_placed", spot, 0.5);
+    // Let go: the fingers straighten above the hot dog, the thumb folds up; back out.
+    rec.go(RIGHT, place, pq, PUSH, 15)?;
+    show(&rec, "released");
+    snap_at(&mut rec, "c_released", spot, 0.5);
+    let tip = rz([0.176, 0.0, -0.051], pyaw);
     let mut aim = oven([PLACE_X, PUSH_Y, 0.0]);
-    aim[2] = floor + 0.03;
+    aim[2] = floor + 0.025;
     let push = kin::sub(aim, tip);
-    let start = kin::sub(push, kin::scale(into, 0.12));
-    rec.go(RIGHT, start, pq, PUSH, 30)?;
-    rec.settle(0.004, 40)?;
-    rec.go(RIGHT, push, pq, PUSH, 60)?;
-    rec.settle(0.004, 40)?;
+    let start = kin::sub(push, kin::scale(into, 0.1));
+    rec.go(RIGHT, [start[0], start[1], place[2]], pq, PUSH, 30)?;
+    show(&rec, "back");
+    snap_at(&mut rec, "c_back", spot, 0.5);
+    // Straight fingers behind the hot dog, then push it in.
+    rec.go(RIGHT, start, pq, PUSH, 20)?;
+    rec.settle(0.005, 30)?;
+    rec.go(RIGHT, push, pq, PUSH, 50)?;
+    rec.wait(10)?;
     show(&rec, "pushed");
-    snap(&mut rec, "g_pushed");
-    rec.go(RIGHT, start, pq, PUSH, 40)?;
-    show(&rec, "out");
-    let _ = (OPEN, right_home);
+    snap(&mut rec, "d_pushed");
+
+    // The right hand backs out toward the start button; the left pushes the door shut
+    // and holds it.
+    let e = rec.env();
+    let button = kin::geom(e, "start_button")?.0;
+    let face = oven([0.0, -0.2286, 0.0])[0] - mp[0]; // the button's front, along -into
+    let _ = face;
+    let press_tip = rz([0.176, 0.054, -0.051], pyaw);
+    let out = kin::sub(button, kin::scale(into, 0.0306));
+    let ready = kin::sub(kin::sub(out, kin::scale(into, 0.03)), press_tip);
+    let mut track = Track::default()
+        .then(
+            Pose {
+                p: kin::sub(push, kin::scale(into, 0.15)),
+                q: pq,
+                h: PUSH,
+            },
+            40,
+        )
+        .then(
+            Pose {
+                p: ready,
+                q: pq,
+                h: PRESS,
+            },
+            60,
+        );
+    for _ in 0..250 {
+        if rec.done() {
+            break;
+        }
+        let e = rec.env();
+        let theta = door(e)?;
+        let r = kin::sub(kin::tcp(e, RIGHT).0, hinge);
+        let clear = (r[0] * r[0] + r[1] * r[1]).sqrt() > CLEAR;
+        let left = hook(theta, if clear { SHUT } else { 0.0 }, 0.0, HOOK);
+        let right = track.next(now(&rec, RIGHT));
+        let closed = theta.abs() < 0.004;
+        if right.is_none() && closed {
+            break;
+        }
+        let right = right.unwrap_or(now(&rec, RIGHT));
+        rec.go_many(&[left.goal(LEFT), right.goal(RIGHT)], 1, |_| false)?;
+    }
+    show(&rec, "door shut");
+    snap(&mut rec, "e_shut");
+    rec.settle(0.004, 30)?;
+    // Guarded press: 2 mm a step toward the button until it is touched.
+    let pressed = |e: &TaskEnv| e.checker().value("start_pressed") == Some(true);
+    let deep = kin::add(ready, kin::scale(into, 0.045));
+    rec.go_many(
+        &[Pose {
+            p: deep,
+            q: pq,
+            h: PRESS,
+        }
+        .goal(RIGHT)],
+        25,
+        pressed,
+    )?;
+    show(&rec, "pressed");
+    rec.wait(20)?;
+    show(&rec, "end");
+    snap(&mut rec, "f_end");
     rec.finish(id)
 }
