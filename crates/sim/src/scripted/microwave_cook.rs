@@ -53,11 +53,13 @@ const PULL_STEPS: usize = 220;
 /// The hot dog's centre from the TCP along the fingers, and below it, when clamped.
 const FOOD_X: f64 = 0.07;
 const FOOD_DOWN: f64 = 0.09;
-/// Where the hot dog goes (microwave frame): across the opening (x); where it is let
-/// go and how deep the fingertips push its near side (y).
+/// Where the hot dog goes (microwave frame): across the opening (x) and in (y); how
+/// far above the floor it is let go.
 const PLACE_X: f64 = 0.05;
-const DROP_Y: f64 = -0.14;
-const PUSH_Y: f64 = -0.11;
+const DROP_Y: f64 = -0.09;
+const DROP_UP: f64 = 0.02;
+/// The right hand's pitch (fingers up) while placing (rad).
+const PITCH: f64 = 0.45;
 
 /// The wxyz quaternion of the TCP frame whose x axis (fingers) is `f` and z axis (palm
 /// normal, out of the palm) is `n` (unit, perpendicular).
@@ -188,6 +190,26 @@ fn snap(rec: &mut Recorder, name: &str) {
     snap_at(rec, name, [-0.3, 0.0, 1.1], 1.0);
 }
 
+/// Debug: the bodies touching geom `g` now.
+fn touching(e: &TaskEnv, g: usize) -> Vec<String> {
+    use mujoco_rs::prelude::MjtObjBase;
+    let d = e.data();
+    let m = d.model();
+    d.contact()
+        .iter()
+        .filter_map(|c| {
+            let (a, b) = (c.geom[0] as usize, c.geom[1] as usize);
+            let other = if a == g { b } else if b == g { a } else { return None };
+            let body = m.geom_bodyid()[other] as usize;
+            Some(format!(
+                "{}({:.3})",
+                m.id_to_name(MjtObjBase::mjOBJ_BODY, body).unwrap_or("?"),
+                c.dist
+            ))
+        })
+        .collect()
+}
+
 /// Plans bimanual_microwave_cook on an environment just restored from its initial state.
 pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let s = env.state();
@@ -247,7 +269,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let into = kin::horizontal(kin::mulv(&mm, [0.0, 1.0, 0.0]));
     let floor = mp[2] - 0.126;
     let pyaw = into[1].atan2(into[0]);
-    let pq = kin::qmul(kin::yaw(pyaw), right_home);
+    let level = kin::qmul(kin::yaw(pyaw), right_home);
 
     // Both hands to their first poses, then in.
     rec.go_many(
@@ -298,16 +320,13 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
 
     // Pull the door open (the target leads the hook out from the door at the door's
     // angle); the right hand lifts the hot dog and takes it beside the opening, clear
-    // of the door's sweep.
-    let e = rec.env();
-    let off = kin::sub(e.data().geom_xpos()[dog_geom], kin::tcp(e, RIGHT).0);
+    // of the door's sweep, turning to its placing orientation (fingers into the oven,
+    // pitched up so the wrist stays below the oven's top edge).
+    let lat = [-into[1], into[0], 0.0];
+    let pq = kin::qmul(kin::axis_angle(lat, -PITCH), level);
     let mut spot = oven([PLACE_X, DROP_Y, 0.0]);
-    spot[2] = floor + 0.03 + 0.015;
-    // The offset turns with the hand (measured again once lifted).
-    let place_for = |off: V3| kin::sub(spot, rz(off, pyaw - yaw0));
-    let place = place_for(off);
-    let front = kin::add(kin::sub(place, kin::scale(into, 0.12)), [0.0, 0.0, 0.03]);
-    let aside = kin::add(front, [-0.05, -0.2, 0.02]);
+    spot[2] = floor + 0.03 + DROP_UP;
+    let aside = kin::add(spot, [-0.35, -0.2, 0.1]);
     let mut track = Track::default()
         .then(rpose(kin::add(grip, [0.0, 0.0, 0.15]), CLOSE), 50)
         .then(
@@ -338,62 +357,44 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         rec.go_many(&[left.goal(LEFT), right.goal(RIGHT)], 1, |_| false)?;
     }
     show(&rec, "door open, hot dog lifted");
-    if debug() {
-        let e = rec.env();
-        let m = e.data().geom_xmat()[dog_geom];
-        let a = m[3].atan2(m[0]);
-        let tm = kin::qmat(kin::tcp(e, RIGHT).1);
-        let rel = (a - tm[3].atan2(tm[0]) + 10.0 * std::f64::consts::PI) % std::f64::consts::PI;
-        let off = kin::sub(e.data().geom_xpos()[dog_geom], kin::tcp(e, RIGHT).0);
-        eprintln!("GRASP long axis vs fingers {:.1} deg (90 ideal), tilt z {:.2} off {:.3?}", rel.to_degrees(), m[6], rz(off, -pyaw));
-    }
     snap(&mut rec, "b_open");
 
-    // In over the floor's front edge, down, let go.
+    // In over the floor's front edge, down, let go: the fingers straighten (up, as
+    // the hand is pitched), the thumb folds up; back out.
     let e = rec.env();
     let off = kin::sub(e.data().geom_xpos()[dog_geom], kin::tcp(e, RIGHT).0);
-    let off = rz(off, yaw0 - pyaw); // as it was before the turn
-    let place = place_for(off);
-    let front = kin::add(kin::sub(place, kin::scale(into, 0.12)), [0.0, 0.0, 0.03]);
+    if debug() {
+        let m = e.data().geom_xmat()[dog_geom];
+        let a = m[3].atan2(m[0]) - pyaw;
+        eprintln!("  hot dog's long axis {:.1} deg from the fingers, offset {off:.3?}", a.to_degrees());
+    }
+    let place = kin::sub(spot, off);
+    let front = kin::add(kin::sub(place, kin::scale(into, 0.14)), [0.0, 0.0, 0.02]);
     rec.go(RIGHT, front, pq, CLOSE, 50)?;
-    rec.go(RIGHT, kin::add(place, [0.0, 0.0, 0.03]), pq, CLOSE, 50)?;
-    rec.go(RIGHT, place, pq, CLOSE, 20)?;
+    rec.go(RIGHT, kin::add(place, [0.0, 0.0, 0.02]), pq, CLOSE, 50)?;
+    rec.go(RIGHT, place, pq, CLOSE, 15)?;
     rec.settle(0.005, 30)?;
     show(&rec, "placed");
     snap_at(&mut rec, "c_placed", spot, 0.5);
-    // Let go: the fingers straighten above the hot dog, the thumb folds up; back out.
-    rec.go(RIGHT, place, pq, PUSH, 15)?;
+    rec.go(RIGHT, place, pq, PUSH, 10)?;
+    rec.wait(12)?;
     show(&rec, "released");
     snap_at(&mut rec, "c_released", spot, 0.5);
-    let tip = rz([0.176, 0.0, -0.051], pyaw);
-    let mut aim = oven([PLACE_X, PUSH_Y, 0.0]);
-    aim[2] = floor + 0.025;
-    let push = kin::sub(aim, tip);
-    let start = kin::sub(push, kin::scale(into, 0.1));
-    rec.go(RIGHT, [start[0], start[1], place[2]], pq, PUSH, 30)?;
+    let back = kin::sub(place, kin::scale(into, 0.14));
+    rec.go(RIGHT, back, pq, PUSH, 30)?;
     show(&rec, "back");
-    snap_at(&mut rec, "c_back", spot, 0.5);
-    // Straight fingers behind the hot dog, then push it in.
-    rec.go(RIGHT, start, pq, PUSH, 20)?;
-    rec.settle(0.005, 30)?;
-    rec.go(RIGHT, push, pq, PUSH, 50)?;
-    rec.wait(10)?;
-    show(&rec, "pushed");
-    snap(&mut rec, "d_pushed");
 
     // The right hand backs out toward the start button; the left pushes the door shut
     // and holds it.
     let e = rec.env();
     let button = kin::geom(e, "start_button")?.0;
-    let face = oven([0.0, -0.2286, 0.0])[0] - mp[0]; // the button's front, along -into
-    let _ = face;
     let press_tip = rz([0.176, 0.054, -0.051], pyaw);
     let out = kin::sub(button, kin::scale(into, 0.0306));
     let ready = kin::sub(kin::sub(out, kin::scale(into, 0.03)), press_tip);
     let mut track = Track::default()
         .then(
             Pose {
-                p: kin::sub(push, kin::scale(into, 0.15)),
+                p: kin::add(back, [0.0, -0.15, 0.0]),
                 q: pq,
                 h: PUSH,
             },
@@ -402,7 +403,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         .then(
             Pose {
                 p: ready,
-                q: pq,
+                q: level,
                 h: PRESS,
             },
             60,
@@ -433,7 +434,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     rec.go_many(
         &[Pose {
             p: deep,
-            q: pq,
+            q: level,
             h: PRESS,
         }
         .goal(RIGHT)],
