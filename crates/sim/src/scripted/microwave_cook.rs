@@ -45,10 +45,12 @@ const HOOK_IN: f64 = 0.09;
 /// into the door while pushing it shut.
 const PULL: f64 = 0.08;
 const SHUT: f64 = 0.06;
+/// As [`SHUT`] over the last 0.1 rad and while holding the door shut.
+const SHUT_HOLD: f64 = 0.015;
 /// The right TCP's distance from the hinge beyond which the door may swing shut.
 const CLEAR: f64 = 0.56;
 /// How far the door opens (rad), and the most control steps the pull may take.
-const OPEN_TO: f64 = -0.6;
+const OPEN_TO: f64 = -0.75;
 const PULL_STEPS: usize = 220;
 /// The hot dog's centre from the TCP along the fingers, and below it, when clamped.
 const FOOD_X: f64 = 0.07;
@@ -58,7 +60,9 @@ const FOOD_DOWN: f64 = 0.09;
 const PLACE_X: f64 = 0.05;
 const DROP_Y: f64 = -0.09;
 const DROP_UP: f64 = 0.02;
-/// The right hand's pitch (fingers up) while placing (rad).
+/// The right hand's yaw from straight into the oven (toward its right arm's side) and
+/// pitch (fingers up) while placing (rad).
+const PLACE_YAW: f64 = 0.1;
 const PITCH: f64 = 0.45;
 
 /// The wxyz quaternion of the TCP frame whose x axis (fingers) is `f` and z axis (palm
@@ -210,6 +214,25 @@ fn touching(e: &TaskEnv, g: usize) -> Vec<String> {
         .collect()
 }
 
+/// Debug: every contact of a body whose name holds `part`, as "body-other(dist)".
+fn contacts_of(e: &TaskEnv, part: &str) -> Vec<String> {
+    use mujoco_rs::prelude::MjtObjBase;
+    let d = e.data();
+    let m = d.model();
+    let name = |g: i32| {
+        let body = m.geom_bodyid()[g as usize] as usize;
+        m.id_to_name(MjtObjBase::mjOBJ_BODY, body).unwrap_or("?").to_owned()
+    };
+    d.contact()
+        .iter()
+        .filter_map(|c| {
+            let (a, b) = (name(c.geom[0]), name(c.geom[1]));
+            let (a, b) = if a.contains(part) { (a, b) } else if b.contains(part) { (b, a) } else { return None };
+            Some(format!("{a}-{b}({:.3})", c.dist))
+        })
+        .collect()
+}
+
 /// Plans bimanual_microwave_cook on an environment just restored from its initial state.
 pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let s = env.state();
@@ -268,8 +291,9 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let oven = |p: V3| kin::add(mp, kin::mulv(&mm, p));
     let into = kin::horizontal(kin::mulv(&mm, [0.0, 1.0, 0.0]));
     let floor = mp[2] - 0.126;
-    let pyaw = into[1].atan2(into[0]);
-    let level = kin::qmul(kin::yaw(pyaw), right_home);
+    let iyaw = into[1].atan2(into[0]);
+    let level = kin::qmul(kin::yaw(iyaw), right_home);
+    let pyaw = iyaw + std::env::var("MW_PY").ok().and_then(|v| v.parse().ok()).unwrap_or(PLACE_YAW);
 
     // Both hands to their first poses, then in.
     rec.go_many(
@@ -322,8 +346,11 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     // angle); the right hand lifts the hot dog and takes it beside the opening, clear
     // of the door's sweep, turning to its placing orientation (fingers into the oven,
     // pitched up so the wrist stays below the oven's top edge).
-    let lat = [-into[1], into[0], 0.0];
-    let pq = kin::qmul(kin::axis_angle(lat, -PITCH), level);
+    let lat = [-pyaw.sin(), pyaw.cos(), 0.0];
+    let pq = kin::qmul(
+        kin::axis_angle(lat, -PITCH),
+        kin::qmul(kin::yaw(pyaw), right_home),
+    );
     let mut spot = oven([PLACE_X, DROP_Y, 0.0]);
     spot[2] = floor + 0.03 + DROP_UP;
     let aside = kin::add(spot, [-0.35, -0.2, 0.1]);
@@ -375,6 +402,9 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     rec.go(RIGHT, place, pq, CLOSE, 15)?;
     rec.settle(0.005, 30)?;
     show(&rec, "placed");
+    if debug() {
+        eprintln!("  floor {floor:.3} spot {spot:.3?} place target {place:.3?} right contacts {:?}", contacts_of(rec.env(), "_right"));
+    }
     snap_at(&mut rec, "c_placed", spot, 0.5);
     rec.go(RIGHT, place, pq, PUSH, 10)?;
     rec.wait(12)?;
@@ -388,7 +418,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     // and holds it.
     let e = rec.env();
     let button = kin::geom(e, "start_button")?.0;
-    let press_tip = rz([0.176, 0.054, -0.051], pyaw);
+    let press_tip = rz([0.176, 0.054, -0.051], iyaw);
     let out = kin::sub(button, kin::scale(into, 0.0306));
     let ready = kin::sub(kin::sub(out, kin::scale(into, 0.03)), press_tip);
     let mut track = Track::default()
@@ -416,7 +446,14 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         let theta = door(e)?;
         let r = kin::sub(kin::tcp(e, RIGHT).0, hinge);
         let clear = (r[0] * r[0] + r[1] * r[1]).sqrt() > CLEAR;
-        let left = hook(theta, if clear { SHUT } else { 0.0 }, 0.0, HOOK);
+        let out = if !clear {
+            0.0
+        } else if theta < -0.1 {
+            SHUT
+        } else {
+            SHUT_HOLD
+        };
+        let left = hook(theta, out, 0.0, HOOK);
         let right = track.next(now(&rec, RIGHT));
         let closed = theta.abs() < 0.004;
         if right.is_none() && closed {
