@@ -53,7 +53,7 @@ const CLEAR: f64 = 0.56;
 const OPEN_TO: f64 = -0.75;
 const PULL_STEPS: usize = 220;
 /// The hot dog's centre from the TCP along the fingers, and below it, when clamped.
-const FOOD_X: f64 = 0.07;
+const FOOD_X: f64 = 0.1;
 const FOOD_DOWN: f64 = 0.09;
 /// Where the hot dog goes (microwave frame): across the opening (x) and in (y); how
 /// far above the floor it is let go.
