@@ -19,7 +19,12 @@ const LEFT: usize = 1;
 
 /// The left hand while hooking the handle: fingers almost straight, the thumb tucked.
 const HOOK: [f64; HAND_DOF] = [
-    0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 1.2, 0.3, 0.3, 0.3,
+    0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 1.4, -0.1, 1.6, 1.6,
+];
+/// The left hand pushing the door shut: fingertips curled a little toward the door so
+/// that they, not the palm, touch it.
+const SHUT_HAND: [f64; HAND_DOF] = [
+    0.0, 0.5, 0.2, 0.1, 0.0, 0.5, 0.2, 0.1, 0.0, 0.5, 0.2, 0.1, 1.4, -0.1, 1.6, 1.6,
 ];
 /// The clamp's approach: fingers half curled, the thumb already turned under the palm.
 const CLAMP_OPEN: [f64; HAND_DOF] = [
@@ -41,11 +46,14 @@ const BAR_WIDTH: f64 = 0.018;
 const FINGERS_OUT: f64 = 0.03;
 /// The left TCP from the bar's edge along the door (toward the hinge) when hooked.
 const HOOK_IN: f64 = 0.09;
+/// The left TCP above the bar's middle when hooked (the lowest fingertip stays above
+/// the start button).
+const HOOK_UP: f64 = 0.015;
 /// How far the left target leads the hook out from the door while pulling (m), and
 /// into the door while pushing it shut.
 const PULL: f64 = 0.08;
 const SHUT: f64 = 0.06;
-/// As [`SHUT`] over the last 0.1 rad and while holding the door shut.
+/// As [`SHUT`] once shut (blended in over the last 0.05 rad).
 const SHUT_HOLD: f64 = 0.015;
 /// The right TCP's distance from the hinge beyond which the door may swing shut.
 const CLEAR: f64 = 0.56;
@@ -241,6 +249,10 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let show = |rec: &Recorder, what: &str| {
         if debug() {
             let e = rec.env();
+            let q: Vec<f64> = (1..=7)
+                .map(|i| kin::joint(e, &format!("joint{i}_left")).unwrap_or(f64::NAN))
+                .collect();
+            eprintln!("  left arm joints {q:.2?}");
             eprintln!(
                 "{what}: step {} door {:.3} dog {:.3?} tcpL {:.3?} tcpR {:.3?} closed {:?} in {:?} pressed {:?}",
                 e.steps(),
@@ -264,10 +276,11 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     // between the bar and the door, palm toward the door (thumb down), the knuckles
     // just past the bar's inner edge.
     let gap = (bar[0] + BAR_DEPTH) / 2.0;
-    let hook_rel = [gap - FINGERS_OUT, bar[1] + BAR_WIDTH + HOOK_IN, bar[2]];
+    let side: f64 = std::env::var("MW_SIDE").ok().and_then(|v| v.parse().ok()).unwrap_or(-1.0);
+    let hook_rel = [gap - FINGERS_OUT, bar[1] + side * (BAR_WIDTH + HOOK_IN), bar[2] + HOOK_UP];
     let hook = |theta: f64, out: f64, along: f64, h: [f64; HAND_DOF]| Pose {
-        p: kin::add(hinge, rz(kin::add(hook_rel, [out, along, 0.0]), theta)),
-        q: frame(rz([0.0, -1.0, 0.0], theta), rz([1.0, 0.0, 0.0], theta)),
+        p: kin::add(hinge, rz(kin::add(hook_rel, [out, side * along, 0.0]), theta)),
+        q: frame(rz([0.0, -side, 0.0], theta), rz([1.0, 0.0, 0.0], theta)),
         h,
     };
     // The right hand's clamp across the hot dog, fingers along its width (+x-ish).
@@ -295,6 +308,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let level = kin::qmul(kin::yaw(iyaw), right_home);
     let pyaw = iyaw + std::env::var("MW_PY").ok().and_then(|v| v.parse().ok()).unwrap_or(PLACE_YAW);
 
+    show(&rec, "home");
     // Both hands to their first poses, then in.
     rec.go_many(
         &[
@@ -305,6 +319,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         |_| false,
     )?;
     rec.settle(0.01, 30)?;
+    show(&rec, "pre-hook far");
     rec.go_many(
         &[
             hook(theta0, 0.0, 0.15, HOOK).goal(LEFT),
@@ -382,8 +397,18 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         }
         let right = right.unwrap_or(now(&rec, RIGHT));
         rec.go_many(&[left.goal(LEFT), right.goal(RIGHT)], 1, |_| false)?;
+        if debug() && rec.env().steps() % 20 == 0 {
+            eprintln!("    pull step {} door {theta:.3}", rec.env().steps());
+        }
     }
     show(&rec, "door open, hot dog lifted");
+    if debug() {
+        let e = rec.env();
+        let q: Vec<f64> = (1..=7)
+            .map(|i| kin::joint(e, &format!("joint{i}_left")).unwrap_or(f64::NAN))
+            .collect();
+        eprintln!("  left arm joints {q:.2?}");
+    }
     snap(&mut rec, "b_open");
 
     // In over the floor's front edge, down, let go: the fingers straighten (up, as
@@ -421,6 +446,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let press_tip = rz([0.176, 0.054, -0.051], iyaw);
     let out = kin::sub(button, kin::scale(into, 0.0306));
     let ready = kin::sub(kin::sub(out, kin::scale(into, 0.03)), press_tip);
+    let wait = kin::add(ready, [-0.12, -0.25, 0.15]);
     let mut track = Track::default()
         .then(
             Pose {
@@ -432,11 +458,11 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         )
         .then(
             Pose {
-                p: ready,
+                p: wait,
                 q: level,
                 h: PRESS,
             },
-            60,
+            50,
         );
     for _ in 0..250 {
         if rec.done() {
@@ -446,14 +472,12 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         let theta = door(e)?;
         let r = kin::sub(kin::tcp(e, RIGHT).0, hinge);
         let clear = (r[0] * r[0] + r[1] * r[1]).sqrt() > CLEAR;
-        let out = if !clear {
-            0.0
-        } else if theta < -0.1 {
-            SHUT
+        let out = if clear {
+            SHUT_HOLD + (SHUT - SHUT_HOLD) * (-theta / 0.05).clamp(0.0, 1.0)
         } else {
-            SHUT_HOLD
+            0.0
         };
-        let left = hook(theta, out, 0.0, HOOK);
+        let left = hook(theta, out, 0.0, SHUT_HAND);
         let right = track.next(now(&rec, RIGHT));
         let closed = theta.abs() < 0.004;
         if right.is_none() && closed {
@@ -463,8 +487,21 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         rec.go_many(&[left.goal(LEFT), right.goal(RIGHT)], 1, |_| false)?;
     }
     show(&rec, "door shut");
+    if debug() {
+        eprintln!("  left contacts {:?}", contacts_of(rec.env(), "_left"));
+        eprintln!("  door contacts {:?}", contacts_of(rec.env(), "door"));
+    }
     snap(&mut rec, "e_shut");
-    rec.settle(0.004, 30)?;
+    // The left fingers slide out of the handle and the hand backs away; the right
+    // index finger comes in front of the button.
+    let theta = door(rec.env())?;
+    rec.go(LEFT, hook(theta, 0.0, 0.13, HOOK).p, hook(theta, 0.0, 0.13, HOOK).q, HOOK, 25)?;
+    let away = kin::add(hook(theta, -0.15, 0.13, HOOK).p, [0.0, 0.0, 0.08]);
+    rec.go(LEFT, away, hook(theta, 0.0, 0.13, HOOK).q, HOOK, 25)?;
+    show(&rec, "left away");
+    rec.go(RIGHT, ready, level, PRESS, 40)?;
+    let arrived = |e: &TaskEnv| kin::norm(kin::sub(kin::tcp(e, RIGHT).0, ready)) < 0.004;
+    rec.go_many(&[], 30, arrived)?;
     // Guarded press: 2 mm a step toward the button until it is touched.
     let pressed = |e: &TaskEnv| e.checker().value("start_pressed") == Some(true);
     let deep = kin::add(ready, kin::scale(into, 0.045));
@@ -479,6 +516,11 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         pressed,
     )?;
     show(&rec, "pressed");
+    if debug() {
+        let e = rec.env();
+        let b = crate::checker::name_id(e.data().model(), dexjoco_core::NameKind::Geom, "start_button").unwrap();
+        eprintln!("  button touched by {:?}", touching(e, b));
+    }
     rec.wait(20)?;
     show(&rec, "end");
     snap(&mut rec, "f_end");
