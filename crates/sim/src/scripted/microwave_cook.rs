@@ -46,6 +46,9 @@ const BAR_WIDTH: f64 = 0.018;
 const FINGERS_OUT: f64 = 0.03;
 /// The left TCP from the bar's edge along the door (toward the hinge) when hooked.
 const HOOK_IN: f64 = 0.09;
+/// The hook turned about the vertical through the gap, fingertips toward the door (rad):
+/// the wrist stays farther from the left arm's base as the door opens.
+const HOOK_YAW: f64 = 0.2;
 /// The left TCP above the bar's middle when hooked (the lowest fingertip stays above
 /// the start button).
 const HOOK_UP: f64 = 0.015;
@@ -276,12 +279,23 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     // between the bar and the door, palm toward the door (thumb down), the knuckles
     // just past the bar's inner edge.
     let gap = (bar[0] + BAR_DEPTH) / 2.0;
-    let side: f64 = std::env::var("MW_SIDE").ok().and_then(|v| v.parse().ok()).unwrap_or(-1.0);
-    let hook_rel = [gap - FINGERS_OUT, bar[1] + side * (BAR_WIDTH + HOOK_IN), bar[2] + HOOK_UP];
-    let hook = |theta: f64, out: f64, along: f64, h: [f64; HAND_DOF]| Pose {
-        p: kin::add(hinge, rz(kin::add(hook_rel, [out, side * along, 0.0]), theta)),
-        q: frame(rz([0.0, -side, 0.0], theta), rz([1.0, 0.0, 0.0], theta)),
-        h,
+    let side: f64 = std::env::var("MW_SIDE").ok().and_then(|v| v.parse().ok()).unwrap_or(1.0);
+    let hook_in: f64 = std::env::var("MW_HI").ok().and_then(|v| v.parse().ok()).unwrap_or(HOOK_IN);
+    let alpha: f64 = side * std::env::var("MW_AL").ok().and_then(|v| v.parse().ok()).unwrap_or(HOOK_YAW);
+    // The hook turned by alpha about the vertical through the gap at the bar.
+    let pivot = [gap, bar[1], 0.0];
+    let hook_rel = [gap - FINGERS_OUT, bar[1] + side * (BAR_WIDTH + hook_in), bar[2] + HOOK_UP];
+    let hook = |theta: f64, out: f64, along: f64, h: [f64; HAND_DOF]| {
+        let local = kin::add(hook_rel, [out, side * along, 0.0]);
+        let local = kin::add(pivot, rz(kin::sub(local, pivot), alpha));
+        Pose {
+            p: kin::add(hinge, rz(local, theta)),
+            q: frame(
+                rz([0.0, -side, 0.0], theta + alpha),
+                rz([1.0, 0.0, 0.0], theta + alpha),
+            ),
+            h,
+        }
     };
     // The right hand's clamp across the hot dog, fingers along its width (+x-ish).
     let dog_geom = super::geom_of_body(e, "hot_dog")
@@ -330,6 +344,11 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     )?;
     rec.settle(0.005, 30)?;
     show(&rec, "at the handle and the hot dog");
+    snap(&mut rec, "a_at");
+    if debug() {
+        eprintln!("  left contacts {:?}", contacts_of(rec.env(), "_left"));
+        eprintln!("  right contacts {:?}", contacts_of(rec.env(), "_right"));
+    }
     snap_at(&mut rec, "a_grip0", dp, 0.4);
     if debug() {
         let e = rec.env();
@@ -385,7 +404,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
             break;
         }
         let theta = door(rec.env())?;
-        pulling &= theta > OPEN_TO && rec.env().steps() < 250 + PULL_STEPS;
+        pulling &= theta > std::env::var("MW_OT").ok().and_then(|v| v.parse().ok()).unwrap_or(OPEN_TO) && rec.env().steps() < 250 + PULL_STEPS;
         let left = if pulling {
             hook(theta, -PULL, 0.0, HOOK)
         } else {
