@@ -59,12 +59,12 @@ const HOOK_YAW: f64 = 0.2;
 /// How far the left target leads the hook out from the door while pulling (m), and
 /// into the door while pushing it shut (blended down to `SHUT_HOLD` over the last
 /// 0.05 rad, so the door is not pushed past its stop).
-const PULL: f64 = 0.08;
+const PULL: f64 = 0.1;
 const SHUT: f64 = 0.06;
 const SHUT_HOLD: f64 = 0.015;
 /// How far the door opens (rad), and the most control steps the pull may take.
 const OPEN_TO: f64 = -0.75;
-const PULL_STEPS: usize = 240;
+const PULL_STEPS: usize = 280;
 /// The right TCP's distance from the hinge beyond which the door may swing shut.
 const CLEAR: f64 = 0.56;
 /// The hot dog's centre from the TCP along the fingers, and below it, when clamped.
