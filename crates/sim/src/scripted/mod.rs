@@ -20,6 +20,7 @@ mod fold_glasses;
 mod hammer_nail;
 mod hanoi;
 pub(crate) mod kin;
+mod microwave_cook;
 mod photograph;
 mod pick_bucket;
 mod pinch_tongs;
@@ -418,6 +419,7 @@ pub enum Variant {
 pub const PLANNED_TASKS: &[&str] = &[
     "bimanual_assembly",
     "bimanual_hanoi",
+    "bimanual_microwave_cook",
     "bimanual_photograph",
     "bimanual_unlock_ipad",
     "click_mouse",
@@ -441,6 +443,7 @@ pub fn plan(
     match (spec.id.as_str(), variant) {
         ("bimanual_assembly", Variant::Demo) => assembly::plan(env()?, id),
         ("bimanual_hanoi", v) => hanoi::plan(env()?, id, v),
+        ("bimanual_microwave_cook", Variant::Demo) => microwave_cook::plan(env()?, id),
         ("bimanual_photograph", Variant::Demo) => photograph::plan(env()?, id),
         ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
         ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),

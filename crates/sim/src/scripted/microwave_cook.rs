@@ -1,0 +1,520 @@
+//! The bimanual_microwave_cook planner. The left hand hooks the door handle (fingers slid
+//! from the hinge side through the gap between the bar and the door, palm toward the
+//! door) and pulls the door open along its arc, its target led out from the door at the
+//! measured hinge angle; meanwhile the right hand clamps the hot dog (thumb turned under
+//! the palm on its near side, fingers curled over its far side), lifts it and turns it
+//! fingers-up. The right hand carries the hot dog in over the oven's floor, lets go and
+//! backs out of the door's sweep; the left hand pushes the door shut with its fingertips,
+//! slides out of the handle and backs away; the right index finger then presses the start
+//! button with a guarded move, ending on the success step.
+
+use dexjoco_core::{HAND_DOF, NameKind};
+
+use super::kin::{self, Q, V3};
+use super::{CLOSE, Goal, Planned, Recorder, debug};
+use crate::checker::name_id;
+use crate::env::TaskEnv;
+use crate::error::SimError;
+
+const RIGHT: usize = 0;
+const LEFT: usize = 1;
+
+/// The left hand hooking the handle: fingers almost straight, the thumb folded up
+/// under the palm.
+const HOOK: [f64; HAND_DOF] = [
+    0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 1.4, -0.1, 1.6, 1.6,
+];
+/// The left hand pushing the door shut: fingers curled a little so that their tips, not
+/// the palm, touch the door.
+const SHUT_HAND: [f64; HAND_DOF] = [
+    0.0, 0.5, 0.2, 0.1, 0.0, 0.5, 0.2, 0.1, 0.0, 0.5, 0.2, 0.1, 1.4, -0.1, 1.6, 1.6,
+];
+/// The clamp's approach: fingers half curled, the thumb already turned under the palm
+/// (closing is [`CLOSE`]: the same thumb, the fingers curled over the hot dog).
+const CLAMP_OPEN: [f64; HAND_DOF] = [
+    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 1.4, 0.5, 0.8, 0.8,
+];
+/// Letting go: straight fingers, the thumb folded up under the palm (its tip 5 cm below
+/// the TCP).
+const RELEASE: [f64; HAND_DOF] = [
+    0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.4, 0.5, 1.6, 1.6,
+];
+/// Straight index finger, middle and ring curled, the thumb folded up under the palm.
+const PRESS: [f64; HAND_DOF] = [
+    0.0, 0.0, 0.0, 0.0, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 1.4, 0.5, 1.6, 1.6,
+];
+/// The straight index fingertip from the TCP with the hand palm down, fingers along x
+/// (the robot's kinematics).
+const INDEX_TIP: V3 = [0.176, 0.054, -0.051];
+
+/// The finger plane's offset from the TCP along the palm normal.
+const FINGERS_OUT: f64 = 0.03;
+/// The left TCP from the bar's inner edge along the door (toward the hinge) when
+/// hooked, and above the bar's middle (the lowest fingertip stays above the button).
+const HOOK_IN: f64 = 0.09;
+const HOOK_UP: f64 = 0.015;
+/// The hook turned about the vertical through the gap, fingertips toward the door (rad):
+/// the left wrist stays farther from its arm's base as the door opens.
+const HOOK_YAW: f64 = 0.2;
+/// How far the left target leads the hook out from the door while pulling (m), and
+/// into the door while pushing it shut (blended down to `SHUT_HOLD` over the last
+/// 0.05 rad, so the door is not pushed past its stop).
+const PULL: f64 = 0.1;
+const SHUT: f64 = 0.06;
+const SHUT_HOLD: f64 = 0.015;
+/// How far the door opens (rad), and the most control steps the pull may take.
+const OPEN_TO: f64 = -0.75;
+const PULL_STEPS: usize = 280;
+/// The right TCP's distance from the hinge beyond which the door may swing shut.
+const CLEAR: f64 = 0.56;
+/// The hot dog's centre from the TCP along the fingers, and below it, when clamped.
+const FOOD_X: f64 = 0.1;
+const FOOD_DOWN: f64 = 0.09;
+/// Where the hot dog goes (microwave frame): across the opening (x) and in (y); how
+/// far above the floor it is let go.
+const PLACE_X: f64 = 0.05;
+const DROP_Y: f64 = -0.09;
+const DROP_UP: f64 = 0.02;
+/// The right hand's yaw from straight into the oven (toward its own side) and pitch
+/// (fingers up, so the wrist stays below the oven's top edge) while placing (rad).
+const PLACE_YAW: f64 = 0.1;
+const PITCH: f64 = 0.45;
+
+/// The wxyz quaternion of the TCP frame whose x axis (fingers) is `f` and z axis (palm
+/// normal, out of the palm) is `n` (unit, perpendicular).
+fn frame(f: V3, n: V3) -> Q {
+    let y = [
+        n[1] * f[2] - n[2] * f[1],
+        n[2] * f[0] - n[0] * f[2],
+        n[0] * f[1] - n[1] * f[0],
+    ];
+    let m = [f[0], y[0], n[0], f[1], y[1], n[1], f[2], y[2], n[2]];
+    let tr = m[0] + m[4] + m[8];
+    let q = if tr > 0.0 {
+        let s = (tr + 1.0).sqrt() * 2.0;
+        [
+            0.25 * s,
+            (m[7] - m[5]) / s,
+            (m[2] - m[6]) / s,
+            (m[3] - m[1]) / s,
+        ]
+    } else if m[0] > m[4] && m[0] > m[8] {
+        let s = (1.0 + m[0] - m[4] - m[8]).sqrt() * 2.0;
+        [
+            (m[7] - m[5]) / s,
+            0.25 * s,
+            (m[1] + m[3]) / s,
+            (m[2] + m[6]) / s,
+        ]
+    } else if m[4] > m[8] {
+        let s = (1.0 + m[4] - m[0] - m[8]).sqrt() * 2.0;
+        [
+            (m[2] - m[6]) / s,
+            (m[1] + m[3]) / s,
+            0.25 * s,
+            (m[5] + m[7]) / s,
+        ]
+    } else {
+        let s = (1.0 + m[8] - m[0] - m[4]).sqrt() * 2.0;
+        [
+            (m[3] - m[1]) / s,
+            (m[2] + m[6]) / s,
+            (m[5] + m[7]) / s,
+            0.25 * s,
+        ]
+    };
+    kin::qnorm(q)
+}
+
+/// `v` turned by `a` about world z.
+fn rz(v: V3, a: f64) -> V3 {
+    let (s, c) = a.sin_cos();
+    [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]]
+}
+
+/// One arm's commanded target: position, orientation, hand.
+#[derive(Debug, Clone, Copy)]
+struct Pose {
+    p: V3,
+    q: Q,
+    h: [f64; HAND_DOF],
+}
+
+impl Pose {
+    fn goal(&self, arm: usize) -> Goal {
+        Goal::new(arm, self.p, self.q, self.h)
+    }
+}
+
+/// A queue of straight moves for one arm, stepped alongside the other arm's closed loop.
+#[derive(Debug, Default)]
+struct Track {
+    moves: Vec<(Pose, usize)>,
+    from: Option<Pose>,
+    k: usize,
+}
+
+impl Track {
+    fn then(mut self, to: Pose, steps: usize) -> Self {
+        self.moves.push((to, steps.max(1)));
+        self
+    }
+
+    /// The next step's target, blending from `now` (the target when the move began),
+    /// or `None` when every move is done.
+    fn next(&mut self, now: Pose) -> Option<Pose> {
+        let (to, steps) = *self.moves.first()?;
+        let from = *self.from.get_or_insert(now);
+        self.k += 1;
+        let t = self.k as f64 / steps as f64;
+        let mut h = [0.0; HAND_DOF];
+        for (i, v) in h.iter_mut().enumerate() {
+            *v = from.h[i] + (to.h[i] - from.h[i]) * t;
+        }
+        let pose = Pose {
+            p: kin::add(from.p, kin::scale(kin::sub(to.p, from.p), t)),
+            q: kin::nlerp(from.q, to.q, t),
+            h,
+        };
+        if self.k >= steps {
+            self.moves.remove(0);
+            self.from = None;
+            self.k = 0;
+        }
+        Some(pose)
+    }
+}
+
+/// The current target of `arm` as a [`Pose`].
+fn now(rec: &Recorder, arm: usize) -> Pose {
+    let (p, q) = rec.target(arm);
+    Pose {
+        p,
+        q,
+        h: rec.hands[arm],
+    }
+}
+
+/// One step: both arms' targets set to `left` and `right`.
+fn step(rec: &mut Recorder, left: Pose, right: Pose) -> Result<(), SimError> {
+    rec.go_many(&[left.goal(LEFT), right.goal(RIGHT)], 1, |_| false)?;
+    Ok(())
+}
+
+/// Diagnostics: the bodies in contact with geom `g`, or with a body whose name holds
+/// `part` (as "body-other").
+fn contacts(e: &TaskEnv, g: Option<usize>, part: &str) -> Vec<String> {
+    use mujoco_rs::prelude::MjtObjBase;
+    let d = e.data();
+    let m = d.model();
+    let body = |g: usize| {
+        let b = m.geom_bodyid()[g] as usize;
+        m.id_to_name(MjtObjBase::mjOBJ_BODY, b).unwrap_or("?")
+    };
+    d.contact()
+        .iter()
+        .filter_map(|c| {
+            let (a, b) = (c.geom[0] as usize, c.geom[1] as usize);
+            let (a, b) = match g {
+                Some(g) if a == g => (a, b),
+                Some(g) if b == g => (b, a),
+                None if body(a).contains(part) => (a, b),
+                None if body(b).contains(part) => (b, a),
+                _ => return None,
+            };
+            Some(format!("{}-{}", body(a), body(b)))
+        })
+        .collect()
+}
+
+/// With `DEXJOCO_PLAN_SNAP` set: pictures around `lookat` (from behind and above, from
+/// the right, from the front right, from above; `scale` times the usual distances).
+fn snap(rec: &mut Recorder, name: &str, lookat: V3, scale: f64) {
+    let Some(dir) = std::env::var_os("DEXJOCO_PLAN_SNAP") else {
+        return;
+    };
+    let model = rec.env.data().model_clone();
+    let settings = crate::render::RenderSettings {
+        width: 640,
+        height: 480,
+        ..Default::default()
+    };
+    let result = crate::render::Renderer::new(&model, settings).and_then(|mut r| {
+        for (k, azimuth, elevation, distance) in [
+            (0, 0.0, -45.0, 1.3),
+            (1, 90.0, -10.0, 0.9),
+            (2, 30.0, -35.0, 0.8),
+            (3, 0.0, -88.0, 1.3),
+        ] {
+            let view = crate::render::CameraView::Orbit {
+                lookat,
+                distance: distance * scale,
+                azimuth,
+                elevation,
+            };
+            let f = r.render(rec.env.data_mut(), view)?;
+            f.save_png(&std::path::Path::new(&dir).join(format!("{name}_{k}.png")))?;
+        }
+        Ok(())
+    });
+    if let Err(e) = result {
+        eprintln!("snapshot {name}: {e}");
+    }
+}
+
+/// Plans bimanual_microwave_cook on an environment just restored from its initial state.
+pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
+    let s = env.state();
+    let right_home = [s[3], s[4], s[5], s[6]];
+    let mut rec = Recorder::new(env);
+    let door = |e: &TaskEnv| kin::joint(e, "microjoint");
+    let show = |rec: &Recorder, what: &str| {
+        if debug() {
+            let e = rec.env();
+            eprintln!(
+                "{what}: step {} door {:.3} hot dog {:.3?} closed {:?} inside {:?} pressed {:?}",
+                e.steps(),
+                door(e).unwrap_or(f64::NAN),
+                kin::body(e, "hot_dog").map(|b| b.0).unwrap_or_default(),
+                e.checker().value("door_closed"),
+                e.checker().value("food_inside"),
+                e.checker().value("start_pressed"),
+            );
+        }
+    };
+    let view = [-0.3, 0.0, 1.1];
+    let e = rec.env();
+    let geom_id = |name: &str| {
+        name_id(e.data().model(), NameKind::Geom, name)
+            .ok_or_else(|| SimError::Spec(format!("the scene has no geom '{name}'")))
+    };
+    // The door's frame: offsets from the hinge as they are with the door closed.
+    let hinge = kin::anchor(e, "microjoint")?;
+    let theta0 = door(e)?;
+    let bar = rz(kin::sub(kin::geom(e, "door_handle")?.0, hinge), -theta0);
+    // The bar's half width along the door and half depth (its box, microwave frame).
+    let [bar_width, bar_depth, _] = e.data().model().geom_size()[geom_id("door_handle")?];
+    // The hook: left fingers pointing along the door toward its free edge through the gap
+    // between the bar and the door, palm toward the door (thumb down), turned about the
+    // vertical through the gap at the bar.
+    let gap = (bar[0] + bar_depth) / 2.0;
+    let pivot = [gap, bar[1], 0.0];
+    let hook_rel = [
+        gap - FINGERS_OUT,
+        bar[1] + bar_width + HOOK_IN,
+        bar[2] + HOOK_UP,
+    ];
+    let hook = |theta: f64, out: f64, along: f64, h: [f64; HAND_DOF]| {
+        let local = kin::add(hook_rel, [out, along, 0.0]);
+        let local = kin::add(pivot, rz(kin::sub(local, pivot), HOOK_YAW));
+        Pose {
+            p: kin::add(hinge, rz(local, theta)),
+            q: frame(
+                rz([0.0, -1.0, 0.0], theta + HOOK_YAW),
+                rz([1.0, 0.0, 0.0], theta + HOOK_YAW),
+            ),
+            h,
+        }
+    };
+    // The right hand's clamp across the hot dog, fingers along its width (+x-ish).
+    let dog = super::geom_of_body(e, "hot_dog")
+        .ok_or_else(|| SimError::Spec("no hot dog collision geom".into()))?;
+    let (dp, dm) = (e.data().geom_xpos()[dog], e.data().geom_xmat()[dog]);
+    let mut d = [dm[1], dm[4], 0.0];
+    if d[0] < 0.0 {
+        d = [-d[0], -d[1], 0.0];
+    }
+    let d = kin::horizontal(d);
+    let rq = kin::qmul(kin::yaw(d[1].atan2(d[0])), right_home);
+    let mut grip = kin::sub(dp, kin::scale(d, FOOD_X));
+    grip[2] = dp[2] + FOOD_DOWN;
+    let clamp = |p: V3, h: [f64; HAND_DOF]| Pose { p, q: rq, h };
+    // The oven's frame; the hand placing (yawed, pitched) and pressing (level).
+    let (mp, mm) = kin::body(e, "microwave_object")?;
+    let oven = |p: V3| kin::add(mp, kin::mulv(&mm, p));
+    let into = kin::horizontal(kin::mulv(&mm, [0.0, 1.0, 0.0]));
+    let floor = mp[2] - 0.126;
+    let iyaw = into[1].atan2(into[0]);
+    let level = kin::qmul(kin::yaw(iyaw), right_home);
+    let pyaw = iyaw + PLACE_YAW;
+    let pq = kin::qmul(
+        kin::axis_angle([-pyaw.sin(), pyaw.cos(), 0.0], -PITCH),
+        kin::qmul(kin::yaw(pyaw), right_home),
+    );
+    let button = geom_id("start_button")?;
+    let button_depth = e.data().model().geom_size()[button][1];
+
+    // Both hands above their grips, then in: the left fingers slide into the gap while
+    // the right hand clamps the hot dog.
+    rec.go_many(
+        &[
+            hook(theta0, -0.1, 0.15, HOOK).goal(LEFT),
+            clamp(kin::add(grip, [0.0, 0.0, 0.1]), CLAMP_OPEN).goal(RIGHT),
+        ],
+        90,
+        |_| false,
+    )?;
+    rec.settle(0.01, 30)?;
+    rec.go_many(
+        &[
+            hook(theta0, 0.0, 0.15, HOOK).goal(LEFT),
+            clamp(grip, CLAMP_OPEN).goal(RIGHT),
+        ],
+        40,
+        |_| false,
+    )?;
+    rec.settle(0.005, 30)?;
+    show(&rec, "at the handle and the hot dog");
+    snap(&mut rec, "a_grip", dp, 0.4);
+    rec.go_many(
+        &[
+            hook(theta0, 0.0, 0.0, HOOK).goal(LEFT),
+            clamp(grip, CLOSE).goal(RIGHT),
+        ],
+        10,
+        |_| false,
+    )?;
+    rec.wait(30)?;
+    show(&rec, "hooked and clamped");
+    snap(&mut rec, "b_hooked", view, 1.0);
+
+    // Pull the door open; the right hand lifts the hot dog and takes it beside the
+    // opening, clear of the door's sweep, turning to its placing orientation.
+    let mut spot = oven([PLACE_X, DROP_Y, 0.0]);
+    spot[2] = floor + 0.03 + DROP_UP;
+    let aside = kin::add(spot, [-0.35, -0.2, 0.1]);
+    let mut track = Track::default()
+        .then(clamp(kin::add(grip, [0.0, 0.0, 0.15]), CLOSE), 50)
+        .then(
+            Pose {
+                p: aside,
+                q: pq,
+                h: CLOSE,
+            },
+            70,
+        );
+    let start = rec.env().steps();
+    let mut pulling = true;
+    while !rec.done() {
+        let theta = door(rec.env())?;
+        pulling &= theta > OPEN_TO && rec.env().steps() < start + PULL_STEPS;
+        let left = hook(theta, if pulling { -PULL } else { 0.0 }, 0.0, HOOK);
+        let Some(right) = track
+            .next(now(&rec, RIGHT))
+            .or(pulling.then(|| now(&rec, RIGHT)))
+        else {
+            break;
+        };
+        step(&mut rec, left, right)?;
+    }
+    show(&rec, "door open, hot dog lifted");
+    snap(&mut rec, "c_open", view, 1.0);
+
+    // In over the floor's front edge, down, let go (the fingers straighten upward, the
+    // thumb folds up), back out.
+    let e = rec.env();
+    let place = kin::sub(
+        spot,
+        kin::sub(e.data().geom_xpos()[dog], kin::tcp(e, RIGHT).0),
+    );
+    let front = kin::add(kin::sub(place, kin::scale(into, 0.14)), [0.0, 0.0, 0.02]);
+    rec.go(RIGHT, front, pq, CLOSE, 50)?;
+    rec.go(RIGHT, kin::add(place, [0.0, 0.0, 0.02]), pq, CLOSE, 50)?;
+    rec.go(RIGHT, place, pq, CLOSE, 15)?;
+    rec.settle(0.005, 30)?;
+    show(&rec, "placed");
+    if debug() {
+        eprintln!(
+            "  right arm touching {:?}",
+            contacts(rec.env(), None, "_right")
+        );
+    }
+    snap(&mut rec, "d_placed", spot, 0.5);
+    rec.go(RIGHT, place, pq, RELEASE, 10)?;
+    rec.wait(12)?;
+    let back = kin::sub(place, kin::scale(into, 0.14));
+    rec.go(RIGHT, back, pq, RELEASE, 30)?;
+    show(&rec, "let go");
+
+    // The right hand waits aside, clear of the door's sweep and of the left arm; once
+    // it is clear the left hand pushes the door shut.
+    let e = rec.env();
+    let face = kin::sub(e.data().geom_xpos()[button], kin::scale(into, button_depth));
+    let ready = kin::sub(kin::sub(face, kin::scale(into, 0.03)), rz(INDEX_TIP, iyaw));
+    let wait = kin::add(ready, [-0.12, -0.25, 0.15]);
+    let mut track = Track::default()
+        .then(
+            Pose {
+                p: kin::add(back, [0.0, -0.15, 0.0]),
+                q: pq,
+                h: RELEASE,
+            },
+            40,
+        )
+        .then(
+            Pose {
+                p: wait,
+                q: level,
+                h: PRESS,
+            },
+            50,
+        );
+    for _ in 0..250 {
+        if rec.done() {
+            break;
+        }
+        let e = rec.env();
+        let theta = door(e)?;
+        let r = kin::sub(kin::tcp(e, RIGHT).0, hinge);
+        let out = if (r[0] * r[0] + r[1] * r[1]).sqrt() > CLEAR {
+            SHUT_HOLD + (SHUT - SHUT_HOLD) * (-theta / 0.05).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let right = track.next(now(&rec, RIGHT));
+        if right.is_none() && theta.abs() < 0.004 {
+            break;
+        }
+        let right = right.unwrap_or(now(&rec, RIGHT));
+        step(&mut rec, hook(theta, out, 0.0, SHUT_HAND), right)?;
+    }
+    show(&rec, "door shut");
+    snap(&mut rec, "e_shut", view, 1.0);
+
+    // The left fingers slide out of the handle and the hand backs away; the right index
+    // finger comes in front of the button, then presses it with a guarded move.
+    let theta = door(rec.env())?;
+    let slid = hook(theta, 0.0, 0.13, HOOK);
+    rec.go_many(
+        &[
+            slid.goal(LEFT),
+            Goal::new(RIGHT, kin::sub(ready, kin::scale(into, 0.03)), level, PRESS),
+        ],
+        25,
+        |_| false,
+    )?;
+    let away = kin::add(hook(theta, -0.15, 0.13, HOOK).p, [0.0, 0.0, 0.08]);
+    rec.go_many(
+        &[
+            Goal::new(LEFT, away, slid.q, HOOK),
+            Goal::new(RIGHT, ready, level, PRESS),
+        ],
+        25,
+        |_| false,
+    )?;
+    let arrived = |e: &TaskEnv| kin::norm(kin::sub(kin::tcp(e, RIGHT).0, ready)) < 0.004;
+    rec.go_many(&[], 30, arrived)?;
+    let pressed = |e: &TaskEnv| e.checker().value("start_pressed") == Some(true);
+    let deep = kin::add(ready, kin::scale(into, 0.045));
+    rec.go_many(&[Goal::new(RIGHT, deep, level, PRESS)], 25, pressed)?;
+    show(&rec, "pressed");
+    if debug() {
+        eprintln!(
+            "  button touched by {:?}",
+            contacts(rec.env(), Some(button), "")
+        );
+    }
+    rec.wait(20)?;
+    snap(&mut rec, "f_end", view, 1.0);
+    rec.finish(id)
+}
