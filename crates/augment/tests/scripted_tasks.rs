@@ -96,6 +96,11 @@ fn bimanual_hanoi_plans_and_replays() {
 }
 
 #[test]
+fn bimanual_microwave_cook_plans_and_replays() {
+    plan_record_replay("bimanual_microwave_cook", 22);
+}
+
+#[test]
 fn bimanual_photograph_plans_and_replays() {
     plan_record_replay("bimanual_photograph", 19);
 }
@@ -135,6 +140,7 @@ fn every_task_with_a_planner_is_tested_here() {
     let tested = [
         "bimanual_assembly",
         "bimanual_hanoi",
+        "bimanual_microwave_cook",
         "bimanual_photograph",
         "bimanual_unlock_ipad",
         "click_mouse",
@@ -145,6 +151,11 @@ fn every_task_with_a_planner_is_tested_here() {
         "water_plant",
     ];
     assert_eq!(scripted::PLANNED_TASKS, tested);
+    // Every DexJoCo task has a planner.
+    assert_eq!(
+        dexjoco_core::TaskSet::builtin().ids(),
+        tested.to_vec()
+    );
 }
 
 #[test]
