@@ -68,9 +68,16 @@ fn scripted_refuses_an_unknown_task_as_a_usage_error() {
         .arg(tmp.path())
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(2), "unknown task: exit 2 in every command");
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "unknown task: exit 2 in every command"
+    );
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("unknown task 'no_such_task'"), "{err}");
-    assert!(err.contains("bimanual_hanoi"), "the hint lists the tasks: {err}");
+    assert!(
+        err.contains("bimanual_hanoi"),
+        "the hint lists the tasks: {err}"
+    );
     assert!(std::fs::read_dir(tmp.path()).unwrap().next().is_none());
 }

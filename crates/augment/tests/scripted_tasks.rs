@@ -152,10 +152,7 @@ fn every_task_with_a_planner_is_tested_here() {
     ];
     assert_eq!(scripted::PLANNED_TASKS, tested);
     // Every DexJoCo task has a planner.
-    assert_eq!(
-        dexjoco_core::TaskSet::builtin().ids(),
-        tested.to_vec()
-    );
+    assert_eq!(dexjoco_core::TaskSet::builtin().ids(), tested.to_vec());
 }
 
 #[test]
