@@ -17,7 +17,7 @@ BIN="$ROOT/target/release/dexjoco-data"
 "$BIN" render --depth --steps 600
 "$BIN" render --video --steps 1000 --camera front --quality fast
 # The embedded sample demonstrations (datasets/demos: one scripted demonstration per task
-# with a planner, made by `dexjoco-data scripted` on the built-in scenes): the first
+# (all 11 tasks), made by `dexjoco-data scripted` on the built-in scenes): the first
 # episode of each task validated into the episode store; replayed 4 times each under
 # camera/light/table randomization (224 px, fast preset, so it takes minutes on a 2-core
 # CPU; `--replays 10` is the reference's count, about 2.5 times as long; drop the size and

@@ -273,8 +273,8 @@ fn bench_augment_compares_processes_with_the_reference_and_the_render_only_limit
         "| 32x32 | fast | reference (re-simulate every replay, 1 process) | 1 |",
         "| 32x32 | fast | ours, worker processes | 1 |",
         "| 32x32 | fast | ours, worker processes | 2 |",
-        "| 32x32 | fast | render-only limit (no physics, no encoding) | 1 |",
-        "| 32x32 | fast | render-only limit (no physics, no encoding) | 2 |",
+        "| 32x32 | fast | render-only limit (trajectory states, no stepping, no encoding) | 1 |",
+        "| 32x32 | fast | render-only limit (trajectory states, no stepping, no encoding) | 2 |",
     ] {
         assert!(table.contains(row), "{row} missing:\n{table}");
     }

@@ -165,6 +165,9 @@ pub struct BenchRenderLimitArgs {
     /// Replays whose sampled views are cycled.
     #[arg(long)]
     pub replays: usize,
+    /// Only the first N frames of the episode's trajectory (0: all of it).
+    #[arg(long, default_value_t = 0)]
+    pub max_frames: usize,
 }
 
 /// `bench convert` options.

@@ -1,7 +1,8 @@
 //! `dexjoco-data bench augment`: the reference approach (re-simulate and render every
 //! replay, one after another, in one process), ours with one and with N worker processes,
-//! and the render-only limit of N processes (the same views drawn with no physics and no
-//! encoding, the processes started together), on the same episodes, seed and settings.
+//! and the render-only limit of N processes (the same views of the episode's simulated
+//! states drawn with no stepping and no encoding, the processes started together), on the
+//! same episodes, seed and settings.
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::PathBuf;
@@ -118,7 +119,13 @@ fn render_limit_of(
             .arg(input)
             .args(["--size", &size.to_string(), "--quality", quality.name()])
             .args(["--frames", &args.limit_frames.to_string()])
-            .args(["--replays", &args.replays.to_string()]);
+            .args(["--replays", &args.replays.to_string()])
+            .args(["--max-frames", &args.max_frames.to_string()]);
+        // The same share of llvmpipe's raster threads as augment's worker processes get.
+        if std::env::var_os("LP_NUM_THREADS").is_none() {
+            let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+            c.env("LP_NUM_THREADS", (cores / n.max(1)).max(1).to_string());
+        }
         if let Some(d) = &args.scene_dir {
             c.arg("--scene-dir").arg(d);
         }
@@ -164,7 +171,7 @@ pub fn render_limit(
         inputs: vec![args.input.clone()],
         scene_dir: args.scene_dir.clone(),
         replays: args.replays,
-        max_frames: 0,
+        max_frames: args.max_frames,
         sizes: vec![args.size],
         qualities: vec![args.quality],
         no_reference: true,
@@ -298,7 +305,8 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
                     runs.push(Run {
                         size,
                         quality: quality.name(),
-                        approach: "render-only limit (no physics, no encoding)".into(),
+                        approach: "render-only limit (trajectory states, no stepping, no encoding)"
+                            .into(),
                         workers: n,
                         frames: 0,
                         seconds: 0.0,

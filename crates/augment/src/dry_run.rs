@@ -7,6 +7,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::time::Instant;
 
 use dexjoco_core::{Episode, TaskSet};
+use dexjoco_sim::mujoco_rs::prelude::MjtState;
 use dexjoco_sim::{CameraView, RenderSettings, Renderer};
 use dexjoco_video::{Codec, VideoSpec, VideoWriter};
 use serde::Serialize;
@@ -15,7 +16,7 @@ use crate::config::{AugmentConfig, replay_name};
 use crate::error::{AugmentError, sim_err, video_err};
 use crate::fingerprint::OutputSettings;
 use crate::inputs::read_sources;
-use crate::physics::{action_row, new_env, recorded_frames};
+use crate::physics::{action_row, new_env, recorded_frames, replay};
 use crate::plan::{existing_replays, owned_replays};
 use crate::randomize::{VisualSample, apply_visuals};
 use crate::run::load_assets;
@@ -207,11 +208,12 @@ fn calibrate(
     Ok(rendered as f64 / started.elapsed().as_secs_f64().max(1e-9))
 }
 
-/// The render-only cost of `config`'s first episode: its scene drawn from the views a
-/// replay renders (the sampled third-person view and the fixed cameras, with the sampled
-/// looks), with no physics and no encoding. After loading and a warm-up, `ready` is called
-/// (a benchmark starts several processes together there); then `frames` frames are timed.
-/// Returns frames/s.
+/// The render-only cost of `config`'s first episode: its scene drawn in the states of its
+/// simulated trajectory (simulated once before timing; each drawn state set and forwarded)
+/// from the views a replay renders (the sampled third-person view and the fixed cameras,
+/// with the sampled looks), with no stepping and no encoding. After loading, simulating and
+/// a warm-up, `ready` is called (a benchmark starts several processes together there);
+/// then `frames` frames are timed, spread evenly over the trajectory. Returns frames/s.
 pub fn render_only(
     config: &AugmentConfig,
     frames: usize,
@@ -228,11 +230,24 @@ pub fn render_only(
     let fixed = assets.fixed_cameras(&config.cameras, id)?;
     let mut renderer = Renderer::new(&assets.scene.model, config.settings).map_err(sim_err(id))?;
     let mut env = new_env(src, &assets.scene, &src.spec)?;
+    let full = MjtState::mjSTATE_FULLPHYSICS as u32;
+    let mut trajectory = Vec::new();
+    replay(src, &mut env, config, |env, _| {
+        trajectory.push(env.data().state(full));
+        Ok(())
+    })?;
     let samples: Vec<VisualSample> = (0..config.replays.max(1))
         .map(|r| assets.sample(config.seed, &src.key(), r))
         .collect();
+    // Draw calls (each draws every view) over which the trajectory is spread.
+    let span = frames.div_ceil(1 + fixed.len()).max(1);
     let mut draw = |k: usize| -> Result<usize, AugmentError> {
         let sample = &samples[k % samples.len()];
+        let state = &trajectory[(k % span) * trajectory.len() / span];
+        let data = env.data_mut();
+        data.set_state(state, full)
+            .map_err(|e| AugmentError::Input(format!("episode '{id}': {e}")))?;
+        data.forward();
         let views = std::iter::once(sample.camera.view())
             .chain(fixed.iter().map(|i| CameraView::Fixed(*i)));
         let mut n = 0;

@@ -156,25 +156,49 @@ pub(crate) fn source_state(
     Ok(SourceState { outcomes, todo })
 }
 
-/// Replays per unit: one with `--dynamics` or the reference approach, else enough units
-/// to keep every worker busy (the output never depends on it).
+/// Replays per unit: one with `--dynamics` or the reference approach, else as few units as
+/// keep every worker busy, since each unit simulates its episode once: one per episode
+/// when there are at least twice as many episodes as workers, else as many per episode as
+/// make the unit count a multiple of the worker count (the output never depends on it).
 pub(crate) fn replays_per_unit(
     todo: usize,
-    config: &AugmentConfig,
+    one_per_unit: bool,
     workers: usize,
     sources_with_work: usize,
 ) -> usize {
-    if config.resimulate_per_replay || config.dynamics {
+    if one_per_unit {
         1
     } else {
-        let units_per_episode = (2 * workers).div_ceil(sources_with_work.max(1)).max(1);
+        let (workers, sources) = (workers.max(1), sources_with_work.max(1));
+        let units_per_episode = if sources >= 2 * workers {
+            1
+        } else {
+            workers / gcd(workers, sources)
+        };
         todo.div_ceil(units_per_episode).max(1)
     }
+}
+
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 { a } else { gcd(b, a % b) }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn units_keep_workers_busy_with_few_simulations() {
+        // One episode, two workers: two units of two replays.
+        assert_eq!(replays_per_unit(4, false, 2, 1), 2);
+        // Three episodes, two workers: halves, six units in all.
+        assert_eq!(replays_per_unit(10, false, 2, 3), 5);
+        // Many episodes: whole episodes, each simulated once.
+        assert_eq!(replays_per_unit(10, false, 16, 1100), 10);
+        assert_eq!(replays_per_unit(10, false, 1, 1), 10);
+        // The reference approach and --dynamics: one replay per unit.
+        assert_eq!(replays_per_unit(10, true, 2, 1), 1);
+    }
 
     #[test]
     fn shards_are_contiguous_balanced_and_cover_everything_once() {

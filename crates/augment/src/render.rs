@@ -51,6 +51,42 @@ fn with_renderer<T>(
     })
 }
 
+/// Creates this thread's renderer for a task's scene (its textures uploaded) and draws a
+/// few randomized views of the scene's initial state, so that the first unit of the task
+/// finds the driver's shaders compiled (llvmpipe compiles them on first use, seconds per
+/// process). Nothing is written; outputs do not depend on it.
+pub(crate) fn preload_renderer(
+    assets: &TaskAssets,
+    config: &AugmentConfig,
+) -> Result<(), AugmentError> {
+    const WARM_UP_VIEWS: usize = 3;
+    let model = &assets.scene.model;
+    let mut data = dexjoco_sim::mujoco_rs::prelude::MjData::new(model.clone());
+    data.forward();
+    with_renderer(
+        &assets.key,
+        model,
+        unit_render_settings(config),
+        |renderer| {
+            for r in 0..WARM_UP_VIEWS {
+                let sample = assets.sample(config.seed, "warm-up", r);
+                renderer.update_scene(&mut data, sample.camera.view());
+                apply_visuals(renderer, &sample, &assets.table);
+                renderer.draw().map_err(sim_err(&assets.key))?;
+            }
+            Ok(())
+        },
+    )
+}
+
+/// The renderer settings of a unit.
+fn unit_render_settings(config: &AugmentConfig) -> RenderSettings {
+    RenderSettings {
+        depth: config.depth,
+        ..config.settings
+    }
+}
+
 /// Closes this thread's renderer (and its EGL context).
 pub(crate) fn close_renderer() {
     RENDERER.with(|cell| cell.borrow_mut().take());
@@ -222,10 +258,7 @@ pub(crate) fn render_unit(
     let rendered: Physics = with_renderer(
         &assets.key,
         &assets.scene.model,
-        RenderSettings {
-            depth: config.depth,
-            ..config.settings
-        },
+        unit_render_settings(config),
         |renderer| {
             replay(src, &mut env, config, |env, k| {
                 for p in &mut pending {

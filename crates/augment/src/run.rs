@@ -20,7 +20,7 @@ use crate::randomize::{CameraPool, TableLibrary, builtin_pool};
 use crate::render::UnitJob;
 use crate::report::{AugmentReport, EpisodeOutcome, FailedUnit, contact_sheet, write_report};
 use crate::staging::Outcome;
-use crate::worker::{Executor, LocalInputs, run_jobs};
+use crate::worker::{Executor, LocalInputs, WorkerPool, run_jobs};
 
 /// A task's scene and what randomization needs of it, shared by every worker thread.
 pub(crate) struct TaskAssets {
@@ -125,6 +125,18 @@ pub fn augment_with(
     fs_err::create_dir_all(out).map_err(io_err("create", out))?;
     let _lock = crate::staging::lock_output(out, config.shard)?;
 
+    // This run's share; worker processes start now and load the scenes of its tasks while
+    // this process loads and simulates.
+    let cameras = 1 + config.cameras.len();
+    let owned = owned_replays(&sources, config, cameras);
+    let preload: BTreeSet<String> = sources
+        .iter()
+        .zip(&owned)
+        .filter(|(_, o)| !o.is_empty())
+        .map(|(s, _)| s.spec.id.clone())
+        .collect();
+    let pool = WorkerPool::start(executor, config, &preload.into_iter().collect::<Vec<_>>())?;
+
     // One scene per task, shared by the workers; the settings that decide the output's
     // bytes, checked against what the folder was made with.
     let mut assets: BTreeMap<String, Arc<TaskAssets>> = BTreeMap::new();
@@ -161,8 +173,6 @@ pub fn augment_with(
     // This run's share, and the physics of every episode it touches (the unsharded run,
     // which writes the report, simulates them all). An episode the simulator rejects
     // (e.g. a state that does not fit the scene) is skipped, not the batch.
-    let cameras = 1 + config.cameras.len();
-    let owned = owned_replays(&sources, config, cameras);
     if config.shard.is_some() {
         // A shard needs only its own episodes' arrays (at DexJoCo scale, the others weigh
         // a gigabyte).
@@ -230,7 +240,12 @@ pub fn augment_with(
     let mut jobs: Vec<(usize, UnitJob)> = Vec::new();
     for (i, replays) in &todo {
         let s = &sources[*i];
-        let per_unit = replays_per_unit(replays.len(), config, workers, todo.len());
+        let per_unit = replays_per_unit(
+            replays.len(),
+            config.resimulate_per_replay || config.dynamics,
+            workers,
+            todo.len(),
+        );
         for chunk in replays.chunks(per_unit) {
             jobs.push((
                 *i,
@@ -251,7 +266,7 @@ pub fn augment_with(
         sources: &sources,
         assets: &assets,
     };
-    let results = run_jobs(executor, &jobs, &local, config, cameras, progress)?;
+    let results = run_jobs(executor, pool, &jobs, &local, config, cameras, progress)?;
     if config.shard.is_none() {
         let _ = fs_err::remove_dir(&staging);
     }

@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 use crate::config::AugmentConfig;
 use crate::error::AugmentError;
 use crate::inputs::{Source, check_fields};
-use crate::render::{UnitInputs, UnitJob, close_renderer, render_unit};
+use crate::render::{UnitInputs, UnitJob, close_renderer, preload_renderer, render_unit};
 use crate::run::{TaskAssets, load_assets};
 use crate::staging::Outcome;
 
@@ -68,6 +68,7 @@ pub(crate) struct LocalInputs<'a> {
 /// Runs every job (index-aligned results), retrying a failed one once.
 pub(crate) fn run_jobs(
     executor: &Executor,
+    pool: WorkerPool,
     jobs: &[(usize, UnitJob)],
     local: &LocalInputs<'_>,
     config: &AugmentConfig,
@@ -120,7 +121,13 @@ pub(crate) fn run_jobs(
             rayon::broadcast(|_| close_renderer());
             Ok(results)
         }
-        Executor::Processes(w) => run_on_processes(w, jobs, config, cameras, total, progress),
+        Executor::Processes(w) => {
+            if jobs.is_empty() {
+                pool.discard();
+                return Ok(Vec::new());
+            }
+            run_on_processes(w, pool, jobs, config, cameras, total, progress)
+        }
     }
 }
 
@@ -128,7 +135,12 @@ pub(crate) fn run_jobs(
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 enum ToWorker {
-    Hello(Box<AugmentConfig>),
+    /// The run's configuration, and the tasks whose scenes (and renderer) to load before the
+    /// first job, while the parent still loads and simulates.
+    Hello {
+        config: Box<AugmentConfig>,
+        preload: Vec<String>,
+    },
     Job(Box<UnitJob>),
 }
 
@@ -153,6 +165,7 @@ impl Worker {
         w: &WorkerProcesses,
         slot: usize,
         config: &AugmentConfig,
+        preload: &[String],
     ) -> Result<Self, AugmentError> {
         let mut cmd = Command::new(&w.program);
         cmd.args(&w.args)
@@ -162,6 +175,13 @@ impl Worker {
         if !w.egl_devices.is_empty() {
             let dev = w.egl_devices[slot % w.egl_devices.len()];
             cmd.env(dexjoco_sim::EGL_DEVICE_ENV, dev.to_string());
+        }
+        // Mesa's llvmpipe gives each process as many raster threads as there are cores; N
+        // processes would oversubscribe the cores N times over. The cores are shared out
+        // instead (unless set by the user; other drivers ignore the variable).
+        if std::env::var_os(LP_THREADS_ENV).is_none() {
+            let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+            cmd.env(LP_THREADS_ENV, (cores / w.count.max(1)).max(1).to_string());
         }
         let mut child = cmd.spawn().map_err(|e| {
             AugmentError::Input(format!(
@@ -177,7 +197,10 @@ impl Worker {
             stdout,
         };
         worker
-            .send(&ToWorker::Hello(Box::new(config.clone())))
+            .send(&ToWorker::Hello {
+                config: Box::new(config.clone()),
+                preload: preload.to_vec(),
+            })
             .map_err(|e| AugmentError::Input(format!("worker process {slot}: {e}")))?;
         Ok(worker)
     }
@@ -214,8 +237,49 @@ impl Worker {
     }
 }
 
+/// Mesa llvmpipe's raster thread count.
+const LP_THREADS_ENV: &str = "LP_NUM_THREADS";
+
+/// Worker processes started ahead of the jobs: they load their scenes and renderers while
+/// the parent loads and simulates, so that loading is not paid twice in a row.
+pub(crate) struct WorkerPool {
+    workers: Vec<Worker>,
+}
+
+impl WorkerPool {
+    /// Starts `w.count` workers that preload the scenes of `tasks`; none for the thread
+    /// executor.
+    pub(crate) fn start(
+        executor: &Executor,
+        config: &AugmentConfig,
+        tasks: &[String],
+    ) -> Result<Self, AugmentError> {
+        let mut workers = Vec::new();
+        if let Executor::Processes(w) = executor {
+            for slot in 0..w.count.max(1) {
+                workers.push(Worker::spawn(w, slot, config, tasks)?);
+            }
+        }
+        Ok(Self { workers })
+    }
+
+    /// Ends workers that are not needed (nothing to render, or the run stopped before
+    /// rendering): they have written nothing.
+    fn discard(self) {}
+}
+
+impl Drop for WorkerPool {
+    fn drop(&mut self) {
+        for wk in &mut self.workers {
+            let _ = wk.child.kill();
+            let _ = wk.child.wait();
+        }
+    }
+}
+
 fn run_on_processes(
     w: &WorkerProcesses,
+    pool: WorkerPool,
     jobs: &[(usize, UnitJob)],
     config: &AugmentConfig,
     cameras: usize,
@@ -231,18 +295,33 @@ fn run_on_processes(
     let first_errors: Mutex<BTreeMap<usize, String>> = Mutex::new(BTreeMap::new());
     let extra_frames = Mutex::new(0u64);
     let fatal: Mutex<Option<AugmentError>> = Mutex::new(None);
+    // More workers than jobs: the extra ones are not needed.
+    let mut pool = pool;
+    let mut started: Vec<Option<Worker>> = std::mem::take(&mut pool.workers)
+        .into_iter()
+        .map(Some)
+        .collect();
+    let slots = w.count.min(jobs.len()).max(1);
+    WorkerPool {
+        workers: started
+            .drain(slots.min(started.len())..)
+            .flatten()
+            .collect(),
+    }
+    .discard();
+    started.resize_with(slots, || None);
     std::thread::scope(|scope| {
-        for slot in 0..w.count.min(jobs.len()).max(1) {
+        for (slot, first) in started.into_iter().enumerate() {
             let (queue, results, first_errors, extra_frames, fatal) =
                 (&queue, &results, &first_errors, &extra_frames, &fatal);
             scope.spawn(move || {
-                let mut worker: Option<Worker> = None;
+                let mut worker: Option<Worker> = first;
                 loop {
                     let Some((k, attempt)) = queue.lock().expect("queue").pop_front() else {
                         break;
                     };
                     if worker.is_none() {
-                        match Worker::spawn(w, slot, config) {
+                        match Worker::spawn(w, slot, config, &[]) {
                             Ok(wk) => worker = Some(wk),
                             Err(e) => {
                                 fatal.lock().expect("fatal").get_or_insert(e);
@@ -315,8 +394,8 @@ pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), A
     let Some(first) = lines.next() else {
         return Ok(());
     };
-    let config = match serde_json::from_str::<ToWorker>(&first.map_err(io)?) {
-        Ok(ToWorker::Hello(c)) => *c,
+    let (config, preload) = match serde_json::from_str::<ToWorker>(&first.map_err(io)?) {
+        Ok(ToWorker::Hello { config, preload }) => (*config, preload),
         _ => return Err(AugmentError::Input("worker: expected a hello first".into())),
     };
     let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
@@ -324,6 +403,22 @@ pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), A
     let fault = std::env::var(FAULT_ENV).ok();
     let mut sources: BTreeMap<PathBuf, Source> = BTreeMap::new();
     let mut assets: BTreeMap<String, Arc<TaskAssets>> = BTreeMap::new();
+    // The scenes this run will need, and this worker's renderer, before the first job.
+    // A failure here is not fatal: the job that needs the scene reports it.
+    for task in &preload {
+        let Some(spec) = tasks.get(task) else {
+            continue;
+        };
+        match load_assets(&config, spec) {
+            Ok(a) => {
+                if let Err(e) = preload_renderer(&a, &config) {
+                    tracing::debug!(task, "renderer not preloaded: {e}");
+                }
+                assets.insert(task.clone(), Arc::new(a));
+            }
+            Err(e) => tracing::debug!(task, "scene not preloaded: {e}"),
+        }
+    }
     let send = |out: &mut dyn Write, msg: &FromWorker| -> Result<(), AugmentError> {
         let mut line = serde_json::to_vec(msg).expect("serializes");
         line.push(b'\n');

@@ -3,7 +3,9 @@
 //! [`VideoWriter`] streams RGB frames into an ffmpeg process as they are rendered, so a
 //! whole episode of images is never held in memory, and publishes the file atomically
 //! (temporary name, renamed by [`VideoWriter::finish`]). Output is bit-exact for the same
-//! frames and settings (ffmpeg's bitexact flags; x264 is deterministic across threads).
+//! frames and settings on every machine (ffmpeg's bitexact flags, and one x264 thread:
+//! x264's output depends on its thread count, which by default follows the machine's cores,
+//! so shards on nodes of different sizes would otherwise encode different bytes).
 //! [`probe`] and [`decode_rgb`] read videos back, for checks and tests; [`VideoReader`]
 //! streams decoded frames one at a time; [`concat_copy`] joins videos of the same codec
 //! and size into one file by stream copy (no re-encode), with continuous timestamps.
@@ -163,6 +165,10 @@ impl VideoWriter {
                 cmd.args([
                     "-c:v",
                     "libx264",
+                    // Bytes independent of the machine's core count (see the crate doc);
+                    // parallelism comes from the workers, one encoder each.
+                    "-threads",
+                    "1",
                     "-profile:v",
                     "high",
                     "-crf",
