@@ -169,6 +169,10 @@ pub fn augment_with(
     if config.shard.is_none() && staging.exists() {
         remove_staging(&staging)?;
     }
+    if config.shard.is_none() {
+        // And the temporaries of its atomic writes (report, settings, dropped records).
+        crate::staging::remove_partial_files(out)?;
+    }
 
     // This run's share, and the physics of every episode it touches (the unsharded run,
     // which writes the report, simulates them all). An episode the simulator rejects

@@ -45,6 +45,22 @@ pub(crate) fn read_record_file(path: &Path) -> Option<ReplayRecord> {
     serde_json::from_slice(&bytes).ok()
 }
 
+/// Removes the temporary files that killed atomic writes left in `out` (the report and
+/// settings), in `.dropped/<task>/` (dropped records); only for the folder's one writer.
+pub(crate) fn remove_partial_files(out: &Path) -> Result<(), AugmentError> {
+    dexjoco_formats::fs::remove_partial_files(out)?;
+    let dropped = out.join(DROPPED);
+    dexjoco_formats::fs::remove_partial_files(&dropped)?;
+    if let Ok(rd) = fs_err::read_dir(&dropped) {
+        for e in rd.flatten() {
+            if e.path().is_dir() {
+                dexjoco_formats::fs::remove_partial_files(&e.path())?;
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Keeps only the record of a replay that failed under its dynamics draw.
 pub(crate) fn write_dropped(out: &Path, record: &ReplayRecord) -> Result<(), AugmentError> {
     let path = dropped_path(out, &record.task, &record.name);

@@ -10,14 +10,53 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{FormatError, Result, io_err};
 
+/// What names the temporary file of an atomic write: `.<file name>.partial-<random>`.
+pub const PARTIAL_MARK: &str = ".partial-";
+
 /// Writes a file atomically: a temporary file in the same folder, synced, renamed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    fs_err::create_dir_all(dir).map_err(io_err("create", dir))?;
-    let mut tmp =
-        tempfile::NamedTempFile::new_in(dir).map_err(io_err("create a temporary file in", dir))?;
+    let mut tmp = temp_file_beside(path)?;
     tmp.write_all(bytes).map_err(io_err("write", tmp.path()))?;
     persist_synced(tmp, path)
+}
+
+/// A temporary file in `path`'s folder (created if needed), named
+/// `.<file name>.partial-<random>` so that a killed writer's leftover is recognized
+/// ([`remove_partial_files`]).
+pub fn temp_file_beside(path: &Path) -> Result<tempfile::NamedTempFile> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    fs_err::create_dir_all(dir).map_err(io_err("create", dir))?;
+    let name = path
+        .file_name()
+        .map_or_else(|| "file".into(), |n| n.to_string_lossy().into_owned());
+    tempfile::Builder::new()
+        .prefix(&format!(".{name}{PARTIAL_MARK}"))
+        .tempfile_in(dir)
+        .map_err(io_err("create a temporary file in", dir))
+}
+
+/// Removes the temporary files of atomic writes that a killed writer left directly in
+/// `dir` (files named `.<name>.partial-<random>`; folders are left alone). Only the
+/// folder's one writer, holding its lock, may call it: another writer's file in progress
+/// has the same kind of name. Returns how many were removed.
+pub fn remove_partial_files(dir: &Path) -> Result<usize> {
+    let rd = match fs_err::read_dir(dir) {
+        Ok(rd) => rd,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(io_err("list", dir)(e)),
+    };
+    let mut removed = 0;
+    for e in rd.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let is_file = e.file_type().is_ok_and(|t| t.is_file());
+        if is_file && name.starts_with('.') && name.contains(PARTIAL_MARK) {
+            let p = e.path();
+            fs_err::remove_file(&p).map_err(io_err("remove", &p))?;
+            tracing::debug!(file = %p.display(), "removed a killed write's temporary file");
+            removed += 1;
+        }
+    }
+    Ok(removed)
 }
 
 /// Syncs a fully written temporary file and renames it to `path` (mode 0644).
@@ -319,4 +358,29 @@ pub fn sync_tree(dir: &Path) {
 /// True when `dir` exists and has any entry.
 pub fn is_non_empty_dir(dir: &Path) -> bool {
     fs_err::read_dir(dir).is_ok_and(|mut d| d.next().is_some())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_killed_atomic_write_leaves_a_temporary_that_the_next_writer_removes() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("manifest.json");
+        // What a writer killed between create and rename leaves.
+        let tmp = temp_file_beside(&target).unwrap();
+        let (_, left) = tmp.keep().unwrap();
+        let name = left.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(name.starts_with(".manifest.json.partial-"), "{name}");
+        // Not to be touched: finished files, other dot files, folders.
+        write_atomic(&target, b"{}").unwrap();
+        fs_err::write(dir.path().join(".lock"), b"1").unwrap();
+        fs_err::create_dir(dir.path().join(".data.partial-123")).unwrap();
+        assert_eq!(remove_partial_files(dir.path()).unwrap(), 1);
+        assert!(!left.exists());
+        assert!(target.exists() && dir.path().join(".lock").exists());
+        assert!(dir.path().join(".data.partial-123").is_dir());
+        assert_eq!(remove_partial_files(&dir.path().join("absent")).unwrap(), 0);
+    }
 }

@@ -258,6 +258,9 @@ impl DirLock {
             .flatten()
             .filter_map(|e| e.file_name().to_str().map(str::to_owned))
             .filter(|n| n == LOCK_FILE || n.starts_with(".lock-"))
+            // A lock file being created (see `create_exclusive`): the lock is its final
+            // name, linked once the file is complete; the temporary is not a lock.
+            .filter(|n| !n.contains(LOCK_TEMP_MARK))
             .collect();
         names.sort();
         for name in names {
@@ -309,6 +312,9 @@ fn locked(dir: &Path, owner: LockOwner) -> FormatError {
     }
 }
 
+/// What names a lock file's temporary while it is written (`<lock>.tmp-<pid>-<n>`).
+const LOCK_TEMP_MARK: &str = ".tmp-";
+
 /// Creates `path` holding `bytes`, complete before it becomes visible; `Ok(false)` when
 /// it exists.
 fn create_exclusive(path: &Path, bytes: &[u8]) -> Result<bool> {
@@ -317,7 +323,7 @@ fn create_exclusive(path: &Path, bytes: &[u8]) -> Result<bool> {
         .file_name()
         .map_or_else(|| "lock".into(), |n| n.to_string_lossy().into_owned());
     let tmp = dir.join(format!(
-        "{name}.tmp-{}-{}",
+        "{name}{LOCK_TEMP_MARK}{}-{}",
         std::process::id(),
         TEMP_COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
@@ -509,6 +515,23 @@ mod tests {
             .set_modified(std::time::SystemTime::now() - age)
             .unwrap();
         path
+    }
+
+    #[test]
+    fn a_lock_being_written_by_another_shard_is_not_a_lock() {
+        // Seen on a real Slurm run: shard 2 listed the locks while shard 3 was between
+        // writing its temporary and linking it, and refused the folder.
+        let dir = tempfile::tempdir().unwrap();
+        let me = LockOwner::current();
+        let tmp = dir
+            .path()
+            .join(format!(".lock-shard-3-of-4{LOCK_TEMP_MARK}{}-0", me.pid));
+        fs_err::write(&tmp, me.to_bytes()).unwrap();
+        assert!(DirLock::live_locks(dir.path()).unwrap().is_empty());
+        let _lock = DirLock::acquire_named(dir.path(), ".lock-shard-2-of-4").unwrap();
+        let live = DirLock::live_locks(dir.path()).unwrap();
+        assert_eq!(live.len(), 1);
+        assert!(live[0].file.ends_with(".lock-shard-2-of-4"));
     }
 
     #[test]

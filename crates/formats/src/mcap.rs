@@ -100,10 +100,7 @@ pub fn write_episode_mcap(
     task: &TaskSpec,
     meta: &EpisodeMeta,
 ) -> Result<()> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    fs_err::create_dir_all(dir).map_err(io_err("create", dir))?;
-    let tmp =
-        tempfile::NamedTempFile::new_in(dir).map_err(io_err("create a temporary file in", dir))?;
+    let tmp = crate::fs::temp_file_beside(path)?;
     let at = Location::episode(&ep.id).path(path);
     let mcap_err = |source| FormatError::Mcap {
         at: at.clone(),

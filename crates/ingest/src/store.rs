@@ -177,8 +177,10 @@ impl Store {
         let root = root.into();
         fs_err::create_dir_all(&root).map_err(io_err("create", &root))?;
         let lock = DirLock::acquire(&root)?;
-        // A run killed while replacing a folder (under force) left its old copy aside.
+        // A run killed while replacing a folder (under force) left its old copy aside;
+        // one killed in an atomic write (the manifest) left its temporary file.
         fs_replace::recover_replaced_in(&root)?;
+        fs_replace::remove_partial_files(&root)?;
         for e in fs_err::read_dir(&root)
             .map_err(io_err("list", &root))?
             .flatten()
