@@ -122,10 +122,7 @@ fn render_limit_of(
             .args(["--replays", &args.replays.to_string()])
             .args(["--max-frames", &args.max_frames.to_string()]);
         // The same share of llvmpipe's raster threads as augment's worker processes get.
-        if std::env::var_os("LP_NUM_THREADS").is_none() {
-            let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
-            c.env("LP_NUM_THREADS", (cores / n.max(1)).max(1).to_string());
-        }
+        dexjoco_augment::share_llvmpipe_threads(&mut c, n);
         if let Some(d) = &args.scene_dir {
             c.arg("--scene-dir").arg(d);
         }

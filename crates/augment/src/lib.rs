@@ -47,4 +47,4 @@ pub use randomize::{
 };
 pub use report::{AugmentReport, EpisodeOutcome, FailedUnit, ReplayRecord};
 pub use run::{augment, augment_with};
-pub use worker::{Executor, FAULT_ENV, WorkerProcesses, serve_worker};
+pub use worker::{Executor, FAULT_ENV, WorkerProcesses, serve_worker, share_llvmpipe_threads};

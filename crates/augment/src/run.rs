@@ -135,7 +135,9 @@ pub fn augment_with(
         .filter(|(_, o)| !o.is_empty())
         .map(|(s, _)| s.spec.id.clone())
         .collect();
-    let pool = WorkerPool::start(executor, config, &preload.into_iter().collect::<Vec<_>>())?;
+    let max_units = owned.iter().map(Vec::len).sum();
+    let preload: Vec<String> = preload.into_iter().collect();
+    let pool = WorkerPool::start(executor, config, &preload, max_units)?;
 
     // One scene per task, shared by the workers; the settings that decide the output's
     // bytes, checked against what the folder was made with.

@@ -121,13 +121,9 @@ pub(crate) fn run_jobs(
             rayon::broadcast(|_| close_renderer());
             Ok(results)
         }
-        Executor::Processes(w) => {
-            if jobs.is_empty() {
-                pool.discard();
-                return Ok(Vec::new());
-            }
-            run_on_processes(w, pool, jobs, config, cameras, total, progress)
-        }
+        // Nothing to render: the pool's workers, which have written nothing, end on drop.
+        Executor::Processes(_) if jobs.is_empty() => Ok(Vec::new()),
+        Executor::Processes(w) => run_on_processes(w, pool, jobs, config, cameras, total, progress),
     }
 }
 
@@ -176,13 +172,7 @@ impl Worker {
             let dev = w.egl_devices[slot % w.egl_devices.len()];
             cmd.env(dexjoco_sim::EGL_DEVICE_ENV, dev.to_string());
         }
-        // Mesa's llvmpipe gives each process as many raster threads as there are cores; N
-        // processes would oversubscribe the cores N times over. The cores are shared out
-        // instead (unless set by the user; other drivers ignore the variable).
-        if std::env::var_os(LP_THREADS_ENV).is_none() {
-            let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
-            cmd.env(LP_THREADS_ENV, (cores / w.count.max(1)).max(1).to_string());
-        }
+        share_llvmpipe_threads(&mut cmd, w.count);
         let mut child = cmd.spawn().map_err(|e| {
             AugmentError::Input(format!(
                 "cannot start a worker process '{}': {e}",
@@ -237,35 +227,55 @@ impl Worker {
     }
 }
 
-/// Mesa llvmpipe's raster thread count.
-const LP_THREADS_ENV: &str = "LP_NUM_THREADS";
+/// Gives one of `processes` rendering processes its share of the cores for Mesa's
+/// llvmpipe, which otherwise gives each process a raster thread per core (N processes
+/// would oversubscribe the cores N times over). A value the user set is kept; other
+/// drivers ignore the variable.
+pub fn share_llvmpipe_threads(cmd: &mut Command, processes: usize) {
+    const LP_THREADS_ENV: &str = "LP_NUM_THREADS";
+    if std::env::var_os(LP_THREADS_ENV).is_none() {
+        let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+        cmd.env(
+            LP_THREADS_ENV,
+            (cores / processes.max(1)).max(1).to_string(),
+        );
+    }
+}
 
 /// Worker processes started ahead of the jobs: they load their scenes and renderers while
-/// the parent loads and simulates, so that loading is not paid twice in a row.
+/// the parent loads and simulates, so that loading is not paid twice in a row. Workers
+/// not taken by [`WorkerPool::into_slots`] (nothing to render, or the run stopped before
+/// rendering) are ended on drop: they have written nothing.
 pub(crate) struct WorkerPool {
     workers: Vec<Worker>,
 }
 
 impl WorkerPool {
-    /// Starts `w.count` workers that preload the scenes of `tasks`; none for the thread
-    /// executor.
+    /// Starts `w.count` workers (no more than `max_units`, the most units the run can
+    /// have) that preload the scenes of `tasks`; none for the thread executor.
     pub(crate) fn start(
         executor: &Executor,
         config: &AugmentConfig,
         tasks: &[String],
+        max_units: usize,
     ) -> Result<Self, AugmentError> {
         let mut workers = Vec::new();
         if let Executor::Processes(w) = executor {
-            for slot in 0..w.count.max(1) {
+            for slot in 0..w.count.min(max_units).max(1) {
                 workers.push(Worker::spawn(w, slot, config, tasks)?);
             }
         }
         Ok(Self { workers })
     }
 
-    /// Ends workers that are not needed (nothing to render, or the run stopped before
-    /// rendering): they have written nothing.
-    fn discard(self) {}
+    /// One entry per slot: the started workers first, `None` for slots that start theirs
+    /// when they take a job; workers beyond `slots` are ended.
+    fn into_slots(mut self, slots: usize) -> Vec<Option<Worker>> {
+        let keep = slots.min(self.workers.len());
+        let mut out: Vec<Option<Worker>> = self.workers.drain(..keep).map(Some).collect();
+        out.resize_with(slots, || None);
+        out
+    }
 }
 
 impl Drop for WorkerPool {
@@ -295,21 +305,7 @@ fn run_on_processes(
     let first_errors: Mutex<BTreeMap<usize, String>> = Mutex::new(BTreeMap::new());
     let extra_frames = Mutex::new(0u64);
     let fatal: Mutex<Option<AugmentError>> = Mutex::new(None);
-    // More workers than jobs: the extra ones are not needed.
-    let mut pool = pool;
-    let mut started: Vec<Option<Worker>> = std::mem::take(&mut pool.workers)
-        .into_iter()
-        .map(Some)
-        .collect();
-    let slots = w.count.min(jobs.len()).max(1);
-    WorkerPool {
-        workers: started
-            .drain(slots.min(started.len())..)
-            .flatten()
-            .collect(),
-    }
-    .discard();
-    started.resize_with(slots, || None);
+    let started = pool.into_slots(w.count.min(jobs.len()).max(1));
     std::thread::scope(|scope| {
         for (slot, first) in started.into_iter().enumerate() {
             let (queue, results, first_errors, extra_frames, fatal) =
