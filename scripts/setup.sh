@@ -95,9 +95,11 @@ if ((want_python)); then
   fi
 fi
 
-# --- 2. MuJoCo shared library from the PyPI wheel -----------------------------------
-if [ ! -f "$MUJOCO_DIR/libmujoco.so.$MUJOCO_VERSION" ]; then
-  log "fetching mujoco==$MUJOCO_VERSION wheel for libmujoco.so.$MUJOCO_VERSION"
+# --- 2. MuJoCo shared library (and its licences) from the PyPI wheel -----------------
+MUJOCO_LICENSES=("$ROOT/.deps/mujoco/LICENSE" "$ROOT/.deps/mujoco/LICENSES_THIRD_PARTY.md")
+if [ ! -f "$MUJOCO_DIR/libmujoco.so.$MUJOCO_VERSION" ] || [ ! -f "${MUJOCO_LICENSES[0]}" ] \
+   || [ ! -f "${MUJOCO_LICENSES[1]}" ]; then
+  log "fetching mujoco==$MUJOCO_VERSION wheel for libmujoco.so.$MUJOCO_VERSION and its licences"
   tmp="$(mktemp -d)"
   trap 'rm -rf "$tmp"' EXIT
   "$PYTHON" -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 \
@@ -107,12 +109,20 @@ if [ ! -f "$MUJOCO_DIR/libmujoco.so.$MUJOCO_VERSION" ]; then
   "$PYTHON" - "$tmp"/mujoco-*.whl "$MUJOCO_DIR.tmp" "$MUJOCO_VERSION" <<'PY'
 import sys, zipfile, shutil, os
 whl, out, ver = sys.argv[1:4]
-name = f"mujoco/libmujoco.so.{ver}"
-with zipfile.ZipFile(whl) as z, z.open(name) as src, open(os.path.join(out, os.path.basename(name)), "wb") as dst:
-    shutil.copyfileobj(src, dst)
+wanted = {
+    f"mujoco/libmujoco.so.{ver}": os.path.join(out, f"libmujoco.so.{ver}"),
+    f"mujoco-{ver}.dist-info/licenses/LICENSE": os.path.join(out, "LICENSE"),
+    f"mujoco-{ver}.dist-info/licenses/LICENSES_THIRD_PARTY.md": os.path.join(out, "LICENSES_THIRD_PARTY.md"),
+}
+with zipfile.ZipFile(whl) as z:
+    for name, dest in wanted.items():
+        with z.open(name) as src, open(dest, "wb") as dst:
+            shutil.copyfileobj(src, dst)
 PY
+  mv "$MUJOCO_DIR.tmp/LICENSE" "$MUJOCO_DIR.tmp/LICENSES_THIRD_PARTY.md" "$tmp/"
   ln -sf "libmujoco.so.$MUJOCO_VERSION" "$MUJOCO_DIR.tmp/libmujoco.so"
   rm -rf "$MUJOCO_DIR"; mkdir -p "$(dirname "$MUJOCO_DIR")"; mv "$MUJOCO_DIR.tmp" "$MUJOCO_DIR"
+  mv "$tmp/LICENSE" "$tmp/LICENSES_THIRD_PARTY.md" "$ROOT/.deps/mujoco/"
   rm -rf "$tmp"; trap - EXIT
 fi
 

@@ -6,6 +6,7 @@ mod out;
 mod cli;
 mod commands;
 mod exit;
+mod locate;
 mod progress;
 mod settings;
 

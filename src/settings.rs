@@ -158,6 +158,8 @@ pub struct AugmentSettings {
     pub workers: usize,
     /// EGL devices for the workers, round-robin.
     pub egl_devices: Vec<usize>,
+    /// A worker's deadline for its first frame.
+    pub first_frame_timeout: std::time::Duration,
     /// Plan and estimate only.
     pub dry_run: bool,
 }
@@ -187,6 +189,7 @@ impl AugmentSettings {
             shard,
             dry_run,
             egl_devices,
+            first_frame_timeout,
             overwrite,
         } = args;
         if replays == 0 {
@@ -228,9 +231,19 @@ impl AugmentSettings {
         let workers = global.jobs.unwrap_or_else(|| {
             std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
         });
+        let first_frame_timeout = std::time::Duration::try_from_secs_f64(first_frame_timeout)
+            .ok()
+            .filter(|d| !d.is_zero())
+            .ok_or_else(|| {
+                usage(
+                    format!("--first-frame-timeout {first_frame_timeout} is not a positive number of seconds"),
+                    "the default, 120, suits a GPU node; a slow CPU machine loading large scenes may want more",
+                )
+            })?;
         Ok(Self {
             workers,
             egl_devices,
+            first_frame_timeout,
             dry_run,
             config: AugmentConfig {
                 inputs,

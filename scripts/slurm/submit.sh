@@ -19,13 +19,20 @@
 #   --sbatch OPT    one more option for both sbatch calls (repeatable), e.g.
 #                   --sbatch --cpus-per-task=4 --sbatch --time=2:00:00
 #
-# Prints "ARRAY_JOB_ID FINALIZE_JOB_ID" on stdout. DEXJOCO_BIN (default dexjoco-data on
-# PATH) names the binary the jobs run. SUBMIT_POLL_SECONDS sets the --wait poll interval
-# (default 1).
+# Prints "ARRAY_JOB_ID FINALIZE_JOB_ID" on stdout. DEXJOCO_BIN names the binary the jobs
+# run; by default, run from a release bundle (share/dexjoco-data/slurm/submit.sh), the
+# bundle's own bin/dexjoco-data, else dexjoco-data on PATH. The bundle must lie on a file
+# system every node sees. SUBMIT_POLL_SECONDS sets the --wait poll interval (default 1).
 set -euo pipefail
 
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 SCRIPT="$HERE/augment.sbatch"
+# Slurm copies the batch script to each node's spool, so the script cannot find the
+# bundle by its own path: the binary is resolved here and exported to the jobs.
+if [ -z "${DEXJOCO_BIN:-}" ] && [ -x "$HERE/../../../bin/dexjoco-data" ]; then
+  DEXJOCO_BIN="$(cd "$HERE/../../../bin" && pwd)/dexjoco-data"
+fi
+export DEXJOCO_BIN="${DEXJOCO_BIN:-dexjoco-data}"
 log() { printf '[submit] %s\n' "$*" >&2; }
 usage() { sed -n '2,24p' "$0" >&2; exit 2; }
 

@@ -305,6 +305,16 @@ pub struct AugmentArgs {
         value_name = "LIST"
     )]
     pub egl_devices: Vec<usize>,
+    /// Seconds a worker process may take from its start to its first rendered frame; a
+    /// worker that has drawn nothing by then (a hung EGL driver) is killed and named, and
+    /// its work goes to the other workers.
+    #[arg(
+        long,
+        default_value_t = dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
+        env = "DEXJOCO_FIRST_FRAME_TIMEOUT",
+        value_name = "SECONDS"
+    )]
+    pub first_frame_timeout: f64,
     /// When --out was made with other settings, start clean: remove what augment wrote
     /// there (replays, records, report), nothing else.
     #[arg(long)]

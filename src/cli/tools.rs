@@ -105,17 +105,22 @@ Examples:
   dexjoco-data -j 2 bench augment hammer.raw/ --scene-dir ../shared/dexjoco-upstream/xmls \\
       --replays 4 --size 224 --quality no-msaa-no-shadows
   dexjoco-data -j 16 bench augment data/ --size 224,640 --quality fast,paper --max-frames 300
+  dexjoco-data bench augment --workers 1,4,8,16 --no-reference --limit-frames 0 --max-frames 0
 
 Each configuration (size x quality) runs, on the same episodes and seed:
   reference        re-simulate and render every replay, one after another, in one process
                    (what the DexJoCo replay script does)
   ours, 1 worker   one worker process: each episode simulated once, every replay rendered
                    from it, streamed to ffmpeg
-  ours, N workers  the same with -j N worker processes (default: all cores)
+  ours, N workers  the same with -j N worker processes (default: all cores; --workers
+                   gives several counts)
   render-only      N processes drawing the same views with no physics and no encoding,
                    started together: the limit augment can approach on this machine
-Outputs are written to a temporary folder and removed; the table goes to stdout and
-<work-dir>/bench/augment.json.")]
+A second table says where a frame's time goes in each run: physics, scene update,
+rasterization (until glFinish), pixel read-back, x264 encoding (CPU seconds of the
+encoder processes) and the wait to hand frames to them, in milliseconds per frame and as
+shares, so the bottleneck of this machine is plain. Outputs are written to a temporary
+folder and removed; the tables go to stdout and <work-dir>/bench/augment.json.")]
 pub struct BenchAugmentArgs {
     /// Episodes to replay (default: the sample demos in datasets/demos).
     pub inputs: Vec<PathBuf>,
@@ -143,6 +148,10 @@ pub struct BenchAugmentArgs {
     /// Frames per process of the render-only limit (0 skips it).
     #[arg(long, default_value_t = 300)]
     pub limit_frames: usize,
+    /// Worker-process counts of our runs, comma-separated (default: 1 and -j), e.g.
+    /// 1,4,8,16 on a GPU node.
+    #[arg(long, value_delimiter = ',', value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    pub workers: Vec<usize>,
 }
 
 /// `bench render-limit`: internal, one process of the render-only limit.

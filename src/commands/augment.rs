@@ -1,7 +1,7 @@
 //! `dexjoco-data augment`: randomized, validated replays of episodes, rendered from one
 //! simulation per episode, written in the DexJoCo raw layout with a report.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::Context;
 use dexjoco_augment::{AugmentConfig, Executor, WorkerProcesses, augment_with};
@@ -11,24 +11,24 @@ use crate::exit::{CliError, ExitStatus};
 use crate::progress::Bar;
 use crate::settings::AugmentSettings;
 
-const DEMOS: &str = "datasets/demos";
-
-/// The sample data: `datasets/demos` here, else in the checkout the binary was built from.
+/// The sample data's demonstrations (`demos/` of [`crate::locate::data_dir`]).
 pub(crate) fn sample_data() -> anyhow::Result<PathBuf> {
-    [
-        PathBuf::from(DEMOS),
-        Path::new(env!("CARGO_MANIFEST_DIR")).join(DEMOS),
-    ]
-    .into_iter()
-    .find(|p| p.is_dir())
-    .ok_or_else(|| {
-        CliError {
-            message: format!("no input given and the sample data {DEMOS} is not here"),
-            hint: Some("pass raw episode folders, an episode store or MCAP files".into()),
-            status: ExitStatus::Failure,
-        }
-        .into()
-    })
+    crate::locate::data_dir()
+        .map(|d| d.path.join("demos"))
+        .filter(|p| p.is_dir())
+        .ok_or_else(|| {
+            CliError {
+                message: "no input given and the sample data (datasets/demos) is not found".into(),
+                hint: Some(format!(
+                    "pass raw episode folders, an episode store or MCAP files; or point ${} at a \
+                     datasets folder (looked beside the binary, in a bundle's share/dexjoco-data, \
+                     and in the current folder)",
+                    crate::locate::DATA_ENV
+                )),
+                status: ExitStatus::Failure,
+            }
+            .into()
+        })
 }
 
 /// Runs `augment`.
@@ -37,6 +37,7 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
         config,
         workers,
         egl_devices,
+        first_frame_timeout,
         dry_run,
     } = AugmentSettings::resolve(args, global, sample_data)?;
     if dry_run {
@@ -44,10 +45,13 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
     }
     let out = config.out.clone();
     let executor = Executor::Processes(WorkerProcesses {
-        program: std::env::current_exe().context("locating the dexjoco-data binary")?,
-        args: worker_args(global),
-        count: workers,
         egl_devices,
+        first_frame_timeout,
+        ..WorkerProcesses::new(
+            std::env::current_exe().context("locating the dexjoco-data binary")?,
+            worker_args(global),
+            workers,
+        )
     });
     let bar = Bar::new("augment", global.quiet);
     let started = std::time::Instant::now();
@@ -76,6 +80,13 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
                 "  {extended} episode(s) succeeded only after their recording ended (--extend-steps): see the report's shift column"
             );
         }
+    }
+    if report.times.frames > 0 {
+        outln!(
+            "  where a frame's time went (bottleneck: {}): {}",
+            report.times.bottleneck(),
+            report.times.summary()
+        );
     }
     if !report.dropped.is_empty() {
         outln!(
@@ -184,6 +195,14 @@ fn print_plan(config: &AugmentConfig, workers: usize) -> anyhow::Result<ExitStat
             config.out.display(),
             plan.settings_differ.join("; ")
         );
+    }
+    if let Some(t) = plan.times() {
+        outln!();
+        outln!(
+            "Where a frame's time goes here (calibration, per frame; the bottleneck is {}):",
+            t.bottleneck()
+        );
+        outln!("  {}", t.summary());
     }
     outln!();
     if let Some(s) = plan.seconds_one_worker {

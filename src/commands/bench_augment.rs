@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use dexjoco_augment::{
-    AugmentConfig, AugmentReport, Executor, WorkerProcesses, augment_with, render_only,
+    AugmentConfig, AugmentReport, Executor, StageTimes, WorkerProcesses, augment_with, render_only,
 };
 use dexjoco_sim::SceneSource;
 use serde::Serialize;
@@ -36,6 +36,8 @@ struct Run {
     vs_one_worker: Option<f64>,
     /// This run's frames/s over the render-only limit of as many processes.
     of_limit: Option<f64>,
+    /// Where its time went (augment runs).
+    times: Option<StageTimes>,
 }
 
 fn config(
@@ -89,6 +91,7 @@ fn measured(
         vs_reference: None,
         vs_one_worker: None,
         of_limit: None,
+        times: Some(report.times),
     }
 }
 
@@ -173,6 +176,7 @@ pub fn render_limit(
         qualities: vec![args.quality],
         no_reference: true,
         limit_frames: args.frames,
+        workers: Vec::new(),
     };
     let c = config(
         &bench,
@@ -192,6 +196,104 @@ pub fn render_limit(
     Ok(ExitStatus::Success)
 }
 
+/// One configuration's runs: the reference approach, ours with each worker count, and the
+/// render-only limits.
+fn bench_config(
+    ctx: &BenchContext<'_>,
+    size: u32,
+    quality: QualityArg,
+    bar: &indicatif::ProgressBar,
+) -> anyhow::Result<Vec<Run>> {
+    let args = ctx.args;
+    let cfg = config(args, &ctx.inputs, ctx.out.clone(), size, quality, ctx.seed);
+    let label = |what: String| format!("{size}px {} {what}", quality.name());
+    let mut runs: Vec<Run> = Vec::new();
+    if !args.no_reference {
+        bar.set_message(label("reference".into()));
+        let mut c = cfg.clone();
+        c.resimulate_per_replay = true;
+        let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+        let (report, s) = one_thread.install(|| timed(&c, &Executor::Threads))?;
+        runs.push(measured(size, quality, REFERENCE, 1, &report, s));
+        bar.inc(1);
+    }
+    for &n in &ctx.workers {
+        bar.set_message(label(format!("ours x{n}")));
+        let (report, s) = timed(&cfg, &processes(n)?)?;
+        runs.push(measured(size, quality, OURS, n, &report, s));
+        bar.inc(1);
+    }
+    let mut limits = Vec::new();
+    if args.limit_frames > 0 {
+        for &n in &ctx.workers {
+            bar.set_message(label(format!("render-only x{n}")));
+            limits.push((
+                n,
+                render_limit_of(args, &ctx.first_input, size, quality, n)?,
+            ));
+        }
+        bar.inc(1);
+    }
+    let reference_fps = runs
+        .iter()
+        .find(|r| r.approach == REFERENCE)
+        .map(|r| r.frames_per_s);
+    let one_fps = runs
+        .iter()
+        .find(|r| r.approach == OURS && r.workers == 1)
+        .map(|r| r.frames_per_s);
+    for (n, l) in &limits {
+        runs.push(Run {
+            size,
+            quality: quality.name(),
+            approach: LIMIT.into(),
+            workers: *n,
+            frames: 0,
+            seconds: 0.0,
+            frames_per_s: *l,
+            vs_reference: None,
+            vs_one_worker: None,
+            of_limit: None,
+            times: None,
+        });
+    }
+    for r in &mut runs {
+        r.vs_reference = reference_fps.map(|f| r.frames_per_s / f);
+        r.vs_one_worker = one_fps.map(|f| r.frames_per_s / f);
+        if r.approach != LIMIT {
+            r.of_limit = limits
+                .iter()
+                .find(|(n, _)| *n == r.workers)
+                .map(|(_, l)| r.frames_per_s / l);
+        }
+    }
+    Ok(runs)
+}
+
+const REFERENCE: &str = "reference (re-simulate every replay, 1 process)";
+const OURS: &str = "ours, worker processes";
+const LIMIT: &str = "render-only limit (trajectory states, no stepping, no encoding)";
+
+/// Worker processes of this binary.
+fn processes(count: usize) -> anyhow::Result<Executor> {
+    Ok(Executor::Processes(WorkerProcesses::new(
+        std::env::current_exe()?,
+        vec!["-q".into(), "augment-worker".into()],
+        count,
+    )))
+}
+
+/// What every configuration shares.
+struct BenchContext<'a> {
+    args: &'a BenchAugmentArgs,
+    inputs: Vec<PathBuf>,
+    first_input: PathBuf,
+    out: PathBuf,
+    seed: u64,
+    /// Worker counts of our runs.
+    workers: Vec<usize>,
+}
+
 /// Runs `bench augment`.
 pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitStatus> {
     let inputs = if args.inputs.is_empty() {
@@ -204,132 +306,69 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
         .next()
         .context("no episode in the inputs")?
         .path;
-    let workers = global.jobs.unwrap_or_else(|| {
-        std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
-    });
-    let processes = |count| {
-        Ok::<_, anyhow::Error>(Executor::Processes(WorkerProcesses {
-            program: std::env::current_exe()?,
-            args: vec!["-q".into(), "augment-worker".into()],
-            count,
-            egl_devices: Vec::new(),
-        }))
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    let mut workers = if args.workers.is_empty() {
+        vec![1, global.jobs.unwrap_or(cores)]
+    } else {
+        args.workers.clone()
     };
-    let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    workers.sort_unstable();
+    workers.dedup();
     let tmp = tempfile::tempdir()?;
-    let per_config = 3 + usize::from(!args.no_reference) + usize::from(args.limit_frames > 0);
+    let ctx = BenchContext {
+        args,
+        inputs,
+        first_input,
+        out: tmp.path().join("out"),
+        seed: global.seed,
+        workers,
+    };
+    let per_config =
+        ctx.workers.len() + usize::from(!args.no_reference) + usize::from(args.limit_frames > 0);
     let bar = crate::progress::bar(
         (args.sizes.len() * args.qualities.len() * per_config) as u64,
         "bench augment",
         global.quiet,
     );
     let mut runs: Vec<Run> = Vec::new();
-    let mut device = String::new();
     for &size in &args.sizes {
         for &quality in &args.qualities {
-            let cfg = config(
-                args,
-                &inputs,
-                tmp.path().join("out"),
-                size,
-                quality,
-                global.seed,
-            );
-            let start = runs.len();
-            let mut reference = None;
-            if !args.no_reference {
-                bar.set_message(format!("{size}px {} reference", quality.name()));
-                let mut c = cfg.clone();
-                c.resimulate_per_replay = true;
-                let (report, s) = one_thread.install(|| timed(&c, &Executor::Threads))?;
-                runs.push(measured(
-                    size,
-                    quality,
-                    "reference (re-simulate every replay, 1 process)",
-                    1,
-                    &report,
-                    s,
-                ));
-                bar.inc(1);
-                reference = Some(runs.len() - 1);
-            }
-            bar.set_message(format!("{size}px {} ours x1", quality.name()));
-            let (report, s) = timed(&cfg, &processes(1)?)?;
-            runs.push(measured(
-                size,
-                quality,
-                "ours, worker processes",
-                1,
-                &report,
-                s,
-            ));
-            bar.inc(1);
-            let one = runs.len() - 1;
-            bar.set_message(format!("{size}px {} ours x{workers}", quality.name()));
-            let (report, s) = timed(&cfg, &processes(workers)?)?;
-            runs.push(measured(
-                size,
-                quality,
-                "ours, worker processes",
-                workers,
-                &report,
-                s,
-            ));
-            bar.inc(1);
-            let limit = if args.limit_frames > 0 {
-                bar.set_message(format!(
-                    "{size}px {} render-only x{workers}",
-                    quality.name()
-                ));
-                let l1 = render_limit_of(args, &first_input, size, quality, 1)?;
-                let ln = render_limit_of(args, &first_input, size, quality, workers)?;
-                bar.inc(1);
-                Some((l1, ln))
-            } else {
-                None
-            };
-            let reference_fps = reference.map(|i| runs[i].frames_per_s);
-            let one_fps = runs[one].frames_per_s;
-            for r in &mut runs[start..] {
-                r.vs_reference = reference_fps.map(|f| r.frames_per_s / f);
-                r.vs_one_worker = Some(r.frames_per_s / one_fps);
-                if let Some((l1, ln)) = limit {
-                    r.of_limit = Some(r.frames_per_s / if r.workers == 1 { l1 } else { ln });
-                }
-            }
-            if let Some((l1, ln)) = limit {
-                for (n, l) in [(1, l1), (workers, ln)] {
-                    runs.push(Run {
-                        size,
-                        quality: quality.name(),
-                        approach: "render-only limit (trajectory states, no stepping, no encoding)"
-                            .into(),
-                        workers: n,
-                        frames: 0,
-                        seconds: 0.0,
-                        frames_per_s: l,
-                        vs_reference: reference_fps.map(|f| l / f),
-                        vs_one_worker: Some(l / one_fps),
-                        of_limit: None,
-                    });
-                }
-            }
-            if device.is_empty() {
-                device = dexjoco_sim::Renderer::new(
-                    &dexjoco_sim::Scene::from_xml_str(super::TABLETOP_XML, "probe")?.model,
-                    cfg.settings,
-                )
-                .map(|r| r.device().label())
-                .unwrap_or_default();
-            }
+            runs.extend(bench_config(&ctx, size, quality, &bar)?);
         }
     }
     bar.finish_and_clear();
+    let settings = render_settings(args.sizes[0], args.qualities[0]);
+    let device = dexjoco_sim::Renderer::new(
+        &dexjoco_sim::Scene::from_xml_str(super::TABLETOP_XML, "probe")?.model,
+        settings,
+    )
+    .map(|r| r.device().label())
+    .unwrap_or_default();
+    print_runs(&ctx, &runs, &device, cores);
+    let out = global.work_dir.join("bench");
+    fs_err::create_dir_all(&out)?;
+    let json = out.join("augment.json");
+    dexjoco_formats::write_atomic(
+        &json,
+        serde_json::to_string_pretty(&serde_json::json!({
+            "device": device,
+            "cores": cores,
+            "replays_per_episode": args.replays,
+            "max_frames": args.max_frames,
+            "runs": runs,
+        }))?
+        .as_bytes(),
+    )?;
+    errln!("wrote {}", json.display());
+    Ok(ExitStatus::Success)
+}
 
-    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+/// The speed table and the per-stage table.
+fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) {
+    let args = ctx.args;
     outln!(
         "Augment of {} x {} replays{}, third-person view, H.264 encode included; {cores} core(s); device: {device}",
-        inputs
+        ctx.inputs
             .iter()
             .map(|p| p.display().to_string())
             .collect::<Vec<_>>()
@@ -351,7 +390,7 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
         (Some(v), false) => format!("{v:.2}x"),
         (None, _) => "-".into(),
     };
-    for r in &runs {
+    for r in runs {
         outln!(
             "| {0}x{0} | {1} | {2} | {3} | {4:.1} | {5} | {6} | {7} | {8} |",
             r.size,
@@ -369,20 +408,33 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
             ratio(r.of_limit, true)
         );
     }
-    let out = global.work_dir.join("bench");
-    fs_err::create_dir_all(&out)?;
-    let json = out.join("augment.json");
-    dexjoco_formats::write_atomic(
-        &json,
-        serde_json::to_string_pretty(&serde_json::json!({
-            "device": device,
-            "cores": cores,
-            "replays_per_episode": args.replays,
-            "max_frames": args.max_frames,
-            "runs": runs,
-        }))?
-        .as_bytes(),
-    )?;
-    errln!("wrote {}", json.display());
-    Ok(ExitStatus::Success)
+    outln!();
+    outln!(
+        "Where a frame's time goes: milliseconds of work per rendered frame, summed over the processes (the x264 encoders run in processes of their own), and each stage's share"
+    );
+    outln!();
+    let names = StageTimes::default().stages().map(|(n, _)| n);
+    outln!(
+        "| size | quality | approach | processes | {} | bottleneck |",
+        names.join(" | ")
+    );
+    outln!("|---:|---|---|---:|{}---|", "---:|".repeat(names.len()));
+    for r in runs {
+        let Some(t) = &r.times else { continue };
+        let total = t.total().max(f64::MIN_POSITIVE);
+        let cells: Vec<String> = t
+            .stages()
+            .iter()
+            .map(|(_, s)| format!("{:.2} ({:.0} %)", t.ms_per_frame(*s), 100.0 * s / total))
+            .collect();
+        outln!(
+            "| {0}x{0} | {1} | {2} | {3} | {4} | {5} |",
+            r.size,
+            r.quality,
+            r.approach,
+            r.workers,
+            cells.join(" | "),
+            t.bottleneck()
+        );
+    }
 }

@@ -86,14 +86,9 @@ fn timed(program: &Path, args: &[&str]) -> anyhow::Result<(f64, f64, String)> {
 }
 
 fn python() -> anyhow::Result<PathBuf> {
-    if let Some(p) = std::env::var_os("DEXJOCO_PYTHON") {
-        return Ok(p.into());
-    }
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let recorded = fs_err::read_to_string(root.join(".deps/python-path")).context(
-        "the test venv is missing: run scripts/setup.sh --python (or set DEXJOCO_PYTHON)",
-    )?;
-    Ok(PathBuf::from(recorded.trim()))
+    crate::locate::python().map(|l| l.path).context(
+        "no Python with lerobot: run scripts/setup.sh --python in the checkout (or set DEXJOCO_PYTHON)",
+    )
 }
 
 fn ours(
@@ -148,8 +143,9 @@ pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitS
     )?];
     tracing::info!("ours: {:?}", runs[0]);
     if !args.no_lerobot {
-        let script =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/bench_lerobot_writer.py");
+        let script = crate::locate::checkout()
+            .context("bench convert runs lerobot's writer from the source checkout's tests/python: run it from a checkout, or pass --no-lerobot")?
+            .join("tests/python/bench_lerobot_writer.py");
         let out = tmp.path().join("lerobot");
         let (seconds, peak, _) = timed(
             &python()?,

@@ -1,12 +1,13 @@
 //! `dexjoco-data doctor`: what this machine has for the pipeline.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 
 use serde::Serialize;
 
 use crate::cli::{DoctorArgs, GlobalArgs};
 use crate::exit::ExitStatus;
+use crate::locate::Located;
 
 /// MuJoCo version the project is built for.
 const EXPECTED_MUJOCO: &str = "3.17.0";
@@ -39,7 +40,8 @@ struct Report {
     egl: Result<dexjoco_sim::EglProbe, String>,
     ffmpeg: Option<FfmpegReport>,
     python: Option<PythonReport>,
-    reference_scenes: Option<PathBuf>,
+    sample_data: Option<Located>,
+    reference_scenes: Option<Located>,
 }
 
 #[derive(Debug, Serialize)]
@@ -59,21 +61,15 @@ struct FfmpegReport {
 #[derive(Debug, Serialize)]
 struct PythonReport {
     interpreter: PathBuf,
+    found_by: String,
     version: String,
     modules: Vec<(String, Option<String>)>,
-}
-
-fn which(program: &str) -> Option<PathBuf> {
-    let path = std::env::var_os("PATH")?;
-    std::env::split_paths(&path)
-        .map(|d| d.join(program))
-        .find(|p| p.is_file())
 }
 
 fn ffmpeg() -> Option<FfmpegReport> {
     let path = std::env::var_os("DEXJOCO_FFMPEG")
         .map(PathBuf::from)
-        .or_else(|| which("ffmpeg"))?;
+        .or_else(|| crate::locate::which("ffmpeg"))?;
     let version = Command::new(&path).arg("-version").output().ok()?;
     let version = String::from_utf8_lossy(&version.stdout)
         .lines()
@@ -101,23 +97,9 @@ fn ffmpeg() -> Option<FfmpegReport> {
     })
 }
 
-/// The Python of the cached test venv (written by scripts/setup.sh), else `python3`.
-fn python() -> Option<PathBuf> {
-    if let Some(p) = std::env::var_os("DEXJOCO_PYTHON") {
-        return Some(p.into());
-    }
-    let recorded = Path::new(env!("CARGO_MANIFEST_DIR")).join(".deps/python-path");
-    if let Ok(p) = fs_err::read_to_string(recorded) {
-        let p = PathBuf::from(p.trim());
-        if p.is_file() {
-            return Some(p);
-        }
-    }
-    which("python3")
-}
-
 fn python_report() -> Option<PythonReport> {
-    let interpreter = python()?;
+    let located = crate::locate::python()?;
+    let (interpreter, found_by) = (located.path, located.how);
     let script = format!(
         "import importlib, sys\nprint(sys.version.split()[0])\nfor m in {:?}:\n    try:\n        mod = importlib.import_module(m)\n        print(m, getattr(mod, '__version__', 'present'))\n    except Exception:\n        print(m, '-')\n",
         PY_MODULES
@@ -135,6 +117,7 @@ fn python_report() -> Option<PythonReport> {
         .collect();
     Some(PythonReport {
         interpreter,
+        found_by,
         version,
         modules,
     })
@@ -152,7 +135,8 @@ pub fn run(_global: &GlobalArgs, args: &DoctorArgs) -> anyhow::Result<ExitStatus
         egl: dexjoco_sim::probe_egl().map_err(|e| e.to_string()),
         ffmpeg: ffmpeg(),
         python: python_report(),
-        reference_scenes: super::reference_scene_dir(),
+        sample_data: crate::locate::data_dir(),
+        reference_scenes: crate::locate::reference_scenes(),
     };
     let mujoco_ok = report.mujoco.version == EXPECTED_MUJOCO;
     let egl_ok = report.egl.as_ref().is_ok_and(|p| p.selected.is_some());
@@ -241,9 +225,10 @@ fn print_human(r: &Report, mujoco_ok: bool) {
         None => outln!("  [ -  ] no Python found (run scripts/setup.sh --python)"),
         Some(p) => {
             outln!(
-                "  [ok  ] {} (Python {})",
+                "  [ok  ] {} (Python {}; from {})",
                 p.interpreter.display(),
-                p.version
+                p.version,
+                p.found_by
             );
             for (m, v) in &p.modules {
                 match v {
@@ -254,11 +239,34 @@ fn print_human(r: &Report, mujoco_ok: bool) {
         }
     }
     outln!();
-    outln!("DexJoCo reference scenes (for --scene-dir and the tests)");
-    match &r.reference_scenes {
-        Some(p) => outln!("  [ok  ] {}", p.display()),
-        None => outln!(
-            "  [ -  ] not found (looked at $DEXJOCO_UPSTREAM and ../shared/dexjoco-upstream)"
+    outln!("Sample data (the default input of augment, ingest and stats)");
+    print_located(
+        r.sample_data.as_ref(),
+        &format!(
+            "looked at ${}, beside the binary (a bundle's share/dexjoco-data/datasets, a checkout's datasets) and ./datasets",
+            crate::locate::DATA_ENV
         ),
+    );
+    outln!();
+    outln!("DexJoCo reference scenes (for --scene-dir and the tests)");
+    print_located(
+        r.reference_scenes.as_ref(),
+        &format!(
+            "looked at ${}/xmls and ../shared/dexjoco-upstream/xmls; pass --scene-dir to the commands",
+            crate::locate::UPSTREAM_ENV
+        ),
+    );
+}
+
+/// One found-or-not line.
+fn print_located(found: Option<&Located>, missing: &str) {
+    match found {
+        Some(l) if l.path.exists() => outln!("  [ok  ] {} (from {})", l.path.display(), l.how),
+        Some(l) => outln!(
+            "  [MISSING] {} (from {}) does not exist",
+            l.path.display(),
+            l.how
+        ),
+        None => outln!("  [ -  ] not found ({missing})"),
     }
 }

@@ -16,18 +16,11 @@ pub mod stats;
 /// The built-in tabletop scene (also the default of `render` and `bench render`).
 pub const TABLETOP_XML: &str = include_str!("../../crates/sim/assets/tabletop.xml");
 
-/// The DexJoCo reference scenes, when the shared folder is beside the checkout.
+/// The DexJoCo reference scenes' `xmls/`, when found (see [`crate::locate::reference_scenes`]).
 pub fn reference_scene_dir() -> Option<std::path::PathBuf> {
-    let candidates = [
-        std::env::var_os("DEXJOCO_UPSTREAM").map(std::path::PathBuf::from),
-        Some(std::path::PathBuf::from("../shared/dexjoco-upstream")),
-        Some(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/dexjoco-upstream")),
-    ];
-    candidates
-        .into_iter()
-        .flatten()
-        .map(|p| p.join("xmls"))
-        .find(|p| p.is_dir())
+    crate::locate::reference_scenes()
+        .map(|l| l.path)
+        .filter(|p| p.is_dir())
 }
 
 /// Loads a scene file, or the built-in tabletop scene when none is given.

@@ -10,28 +10,20 @@ use crate::cli::{GlobalArgs, StatsArgs};
 use crate::exit::{CliError, ExitStatus};
 use crate::settings::StatsSettings;
 
-/// Where the example inputs live in the repository.
-const EXAMPLES: &str = "datasets/examples";
-
-/// An example input shipped in `datasets/examples/`: looked up from the current folder,
-/// then from the source checkout the binary was built from.
+/// An example input shipped in the sample data's `examples/` (see
+/// [`crate::locate::data_dir`]).
 fn example_input(name: &str) -> anyhow::Result<PathBuf> {
-    let candidates = [
-        PathBuf::from(EXAMPLES).join(name),
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join(EXAMPLES)
-            .join(name),
-    ];
-    candidates
-        .iter()
-        .find(|p| p.is_dir())
-        .cloned()
+    crate::locate::data_dir()
+        .map(|d| d.path.join("examples").join(name))
+        .filter(|p| p.is_dir())
         .ok_or_else(|| {
             CliError {
-                message: format!("the example input {EXAMPLES}/{name} is not here"),
+                message: format!("the example input datasets/examples/{name} is not found"),
                 hint: Some(format!(
-                    "run from the repository root, or pass your own input (see `dexjoco-data stats --help`); \
-                     `python3 {EXAMPLES}/generate_examples.py` recreates the examples"
+                    "pass your own input (see `dexjoco-data stats --help`), or point ${} at a \
+                     datasets folder; in a checkout, `python3 datasets/examples/generate_examples.py` \
+                     recreates the examples",
+                    crate::locate::DATA_ENV
                 )),
                 status: ExitStatus::Failure,
             }

@@ -18,6 +18,7 @@ use crate::fingerprint::OutputSettings;
 use crate::inputs::read_sources;
 use crate::physics::{action_row, new_env, recorded_frames, replay};
 use crate::plan::{existing_replays, owned_replays};
+use crate::profile::{StageTimes, timed};
 use crate::randomize::{VisualSample, apply_visuals};
 use crate::run::load_assets;
 
@@ -38,6 +39,8 @@ pub struct PlannedTask {
     /// Calibrated frames/s of one worker on this task's scene (render + encode + physics),
     /// when calibrated.
     pub frames_per_s: Option<f64>,
+    /// Where the calibration frames' time went, when calibrated.
+    pub times: Option<StageTimes>,
 }
 
 /// A planned run and its estimate.
@@ -60,6 +63,15 @@ impl DryRun {
     /// Frames still to render.
     pub fn frames_to_render(&self) -> u64 {
         self.tasks.iter().map(|t| t.frames_to_render).sum()
+    }
+
+    /// The calibration's stages over every task, when calibrated.
+    pub fn times(&self) -> Option<StageTimes> {
+        let mut all = StageTimes::default();
+        for t in self.tasks.iter().filter_map(|t| t.times.as_ref()) {
+            all.add(t);
+        }
+        (all.frames > 0).then_some(all)
     }
 }
 
@@ -85,6 +97,7 @@ pub fn dry_run(config: &AugmentConfig, calibration: usize) -> Result<DryRun, Aug
                 done: 0,
                 frames_to_render: 0,
                 frames_per_s: None,
+                times: None,
             });
         first_of_task.entry(s.spec.id.clone()).or_insert(i);
         t.episodes += 1;
@@ -133,7 +146,9 @@ pub fn dry_run(config: &AugmentConfig, calibration: usize) -> Result<DryRun, Aug
                 continue;
             }
             let s = &sources[first_of_task[task]];
-            t.frames_per_s = Some(calibrate(s, config, calibration)?);
+            let (fps, times) = calibrate(s, config, calibration)?;
+            t.frames_per_s = Some(fps);
+            t.times = Some(times);
         }
     }
     let seconds_one_worker = (calibration > 0).then(|| {
@@ -151,13 +166,14 @@ pub fn dry_run(config: &AugmentConfig, calibration: usize) -> Result<DryRun, Aug
     })
 }
 
-/// Frames/s of one worker on `src`'s task: `frames` steps of its actions, every camera
-/// rendered with the first sampled look and encoded, after three warm-up steps.
+/// Frames/s of one worker on `src`'s task, and where its time went: `frames` steps of its
+/// actions, every camera rendered with the first sampled look and encoded, after three
+/// warm-up steps.
 fn calibrate(
     src: &crate::inputs::Source,
     config: &AugmentConfig,
     frames: usize,
-) -> Result<f64, AugmentError> {
+) -> Result<(f64, StageTimes), AugmentError> {
     let id = &src.episode.id;
     let assets = load_assets(config, &src.spec)?;
     let fixed = assets.fixed_cameras(&config.cameras, id)?;
@@ -186,26 +202,38 @@ fn calibrate(
     let warmup = 3;
     let mut started = Instant::now();
     let mut rendered = 0usize;
+    let mut times = StageTimes::default();
     for k in 0..warmup + frames {
         if k == warmup {
             started = Instant::now();
             rendered = 0;
+            times = StageTimes::default();
+            renderer.take_times();
         }
         let views = std::iter::once(sample.camera.view())
             .chain(fixed.iter().map(|i| CameraView::Fixed(*i)));
         for (view, w) in views.zip(writers.iter_mut()) {
             renderer.update_scene(env.data_mut(), view);
-            apply_visuals(&mut renderer, &sample, &assets.table);
+            timed(&mut times.scene, || {
+                apply_visuals(&mut renderer, &sample, &assets.table)
+            });
             let frame = renderer.draw().map_err(sim_err(id))?;
-            w.write_frame(&frame.rgb).map_err(video_err(id))?;
+            timed(&mut times.encode_feed, || w.write_frame(&frame.rgb)).map_err(video_err(id))?;
             rendered += 1;
         }
-        env.step(action_row(actions, k)).map_err(sim_err(id))?;
+        timed(&mut times.physics, || env.step(action_row(actions, k))).map_err(sim_err(id))?;
     }
+    let fps = rendered as f64 / started.elapsed().as_secs_f64().max(1e-9);
+    times.add_render(&renderer.take_times());
+    // The encoders' CPU time, warm-up frames included (a few per cent of it).
+    let before = dexjoco_video::finished_children_cpu_seconds();
     for w in writers {
         w.finish().map_err(video_err(id))?;
     }
-    Ok(rendered as f64 / started.elapsed().as_secs_f64().max(1e-9))
+    if let (Some(b), Some(a)) = (before, dexjoco_video::finished_children_cpu_seconds()) {
+        times.encode_cpu = (a - b) * frames as f64 / (frames + warmup) as f64;
+    }
+    Ok((fps, times))
 }
 
 /// The render-only cost of `config`'s first episode: its scene drawn in the states of its

@@ -10,8 +10,8 @@
 //! Modules by job: `inputs` (episodes and their specs, the unreadable ones skipped),
 //! `fingerprint` (the settings that decide an output's bytes), `physics` (the replay
 //! simulated once: success, deviation, `--extend-steps`), `plan` (shards, resume, units),
-//! `render` (a unit of replays drawn from one simulation), `worker` (units on threads or
-//! worker processes), `staging` (replay folders staged and renamed whole; the records of
+//! `render` (a unit of replays drawn from one simulation), `profile` (where a frame's time
+//! goes), `worker` (units on threads or worker processes, first-frame deadlines), `staging` (replay folders staged and renamed whole; the records of
 //! dropped replays), `report` (report and contact sheet), `run` (the orchestration);
 //! `randomize`, `dynamics` and `camera_pool` the randomization.
 
@@ -24,6 +24,7 @@ mod fingerprint;
 mod inputs;
 mod physics;
 mod plan;
+mod profile;
 mod randomize;
 mod render;
 mod report;
@@ -41,10 +42,14 @@ pub use dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, read_dynamics, 
 pub use error::AugmentError;
 pub use fingerprint::{OutputSettings, TaskInputs};
 pub use inputs::SkippedInput;
+pub use profile::StageTimes;
 pub use randomize::{
     CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,
     replay_seed,
 };
 pub use report::{AugmentReport, EpisodeOutcome, FailedUnit, ReplayRecord};
 pub use run::{augment, augment_with};
-pub use worker::{Executor, FAULT_ENV, WorkerProcesses, serve_worker, share_llvmpipe_threads};
+pub use worker::{
+    DEFAULT_FIRST_FRAME_TIMEOUT, Executor, FAULT_ENV, STALL_ENV, WorkerProcesses, serve_worker,
+    share_llvmpipe_threads,
+};

@@ -6,6 +6,7 @@
 use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::time::Instant;
 
 use dexjoco_formats::SourceKind;
 use dexjoco_formats::npz::DepthWriter;
@@ -20,6 +21,7 @@ use crate::dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, sample_dynam
 use crate::error::{AugmentError, io_err, sim_err, video_err};
 use crate::inputs::Source;
 use crate::physics::{Physics, PhysicsSummary, new_env, replay};
+use crate::profile::{StageTimes, timed};
 use crate::randomize::{VisualSample, apply_visuals};
 use crate::report::ReplayRecord;
 use crate::run::TaskAssets;
@@ -51,13 +53,15 @@ fn with_renderer<T>(
     })
 }
 
-/// Creates this thread's renderer for a task's scene (its textures uploaded) and draws a
-/// few randomized views of the scene's initial state, so that the first unit of the task
-/// finds the driver's shaders compiled (llvmpipe compiles them on first use, seconds per
-/// process). Nothing is written; outputs do not depend on it.
+/// Creates this thread's renderer for a task's scene (its textures uploaded), tells
+/// `opened` which EGL device it drew on, and draws a few randomized views of the scene's
+/// initial state, so that the first unit of the task finds the driver's shaders compiled
+/// (llvmpipe compiles them on first use, seconds per process). Nothing is written; outputs
+/// do not depend on it.
 pub(crate) fn preload_renderer(
     assets: &TaskAssets,
     config: &AugmentConfig,
+    opened: &mut dyn FnMut(&dexjoco_sim::EglDevice),
 ) -> Result<(), AugmentError> {
     const WARM_UP_VIEWS: usize = 3;
     let model = &assets.scene.model;
@@ -68,6 +72,7 @@ pub(crate) fn preload_renderer(
         model,
         unit_render_settings(config),
         |renderer| {
+            opened(renderer.device());
             for r in 0..WARM_UP_VIEWS {
                 let sample = assets.sample(config.seed, "warm-up", r);
                 renderer.update_scene(&mut data, sample.camera.view());
@@ -156,14 +161,14 @@ pub(crate) struct UnitInputs<'a> {
 }
 
 /// Renders one unit and writes its replays (or, failed under `--dynamics`, their
-/// records); `frames_done` is told every rendered frame count as it happens (and with 0
-/// before each replay is committed): an error from it (the run that asked for the unit has
-/// ended) stops the unit before anything more is written.
+/// records), and says where its time went; `frames_done` is told every rendered frame
+/// count as it happens (and with 0 before each replay is committed): an error from it (the
+/// run that asked for the unit has ended) stops the unit before anything more is written.
 pub(crate) fn render_unit(
     job: &UnitJob,
     inputs: &UnitInputs<'_>,
     frames_done: &mut dyn FnMut(u64) -> Result<(), AugmentError>,
-) -> Result<Vec<Outcome>, AugmentError> {
+) -> Result<(Vec<Outcome>, StageTimes), AugmentError> {
     let UnitInputs {
         src,
         assets,
@@ -174,6 +179,8 @@ pub(crate) fn render_unit(
     let ep_key = job.key();
     let fixed = assets.fixed_cameras(&config.cameras, id)?;
     let cameras = replay_cameras(&config.cameras);
+    let mut times = StageTimes::default();
+    let encoders_before = dexjoco_video::finished_children_cpu_seconds();
 
     // The simulation to render: the validated one, or with --dynamics the replay's own on
     // a model copy (one replay per unit), simulated first so a failed draw is not rendered.
@@ -187,7 +194,9 @@ pub(crate) fn render_unit(
             path: assets.scene.path.clone(),
         };
         let mut env = new_env(src, &scene, &src.spec)?;
-        let physics = replay(src, &mut env, config, |_, _| Ok(()))?;
+        let physics = timed(&mut times.physics, || {
+            replay(src, &mut env, config, |_, _| Ok(()))
+        })?;
         if physics.summary.first_success.is_none() && !config.keep_failed {
             // The task failed under these dynamics: only the record of the draw is kept.
             let sample = assets.sample(config.seed, &ep_key, r);
@@ -195,7 +204,7 @@ pub(crate) fn render_unit(
             frames_done(0)?;
             write_dropped(out, &record)?;
             tracing::debug!(episode = %id, replay = r, "failed under randomized dynamics; dropped");
-            return Ok(vec![Outcome::Dropped(record)]);
+            return Ok((vec![Outcome::Dropped(record)], times));
         }
         (scene, physics.summary)
     } else {
@@ -260,14 +269,22 @@ pub(crate) fn render_unit(
         &assets.scene.model,
         unit_render_settings(config),
         |renderer| {
-            replay(src, &mut env, config, |env, k| {
+            // What the renderer did before this unit (a warm-up, another unit) is not ours.
+            renderer.take_times();
+            let started = Instant::now();
+            let mut drawing = 0.0;
+            let physics = replay(src, &mut env, config, |env, k| {
+                let step_started = Instant::now();
                 for p in &mut pending {
                     let views = p.sample.views(&fixed);
                     for (c, (view, writer)) in views.zip(p.writers.iter_mut()).enumerate() {
                         renderer.update_scene(env.data_mut(), view);
-                        apply_visuals(renderer, &p.sample, &assets.table);
+                        timed(&mut times.scene, || {
+                            apply_visuals(renderer, &p.sample, &assets.table)
+                        });
                         let frame = renderer.draw().map_err(sim_err(id))?;
-                        writer.write_frame(&frame.rgb).map_err(video_err(id))?;
+                        timed(&mut times.encode_feed, || writer.write_frame(&frame.rgb))
+                            .map_err(video_err(id))?;
                         if let (Some(d), Some(depth)) = (p.depth.get_mut(c), &frame.depth) {
                             d.write_frame(depth)?;
                         }
@@ -276,8 +293,13 @@ pub(crate) fn render_unit(
                         }
                     }
                 }
-                frames_done(per_step)
-            })
+                let r = frames_done(per_step);
+                drawing += step_started.elapsed().as_secs_f64();
+                r
+            });
+            times.physics += started.elapsed().as_secs_f64() - drawing;
+            times.add_render(&renderer.take_times());
+            physics
         },
     )?;
     // The rendering simulation must be the validated one, bit for bit.
@@ -322,7 +344,13 @@ pub(crate) fn render_unit(
         )?;
         outcomes.push(Outcome::Kept(record));
     }
-    Ok(outcomes)
+    if let (Some(before), Some(after)) = (
+        encoders_before,
+        dexjoco_video::finished_children_cpu_seconds(),
+    ) {
+        times.encode_cpu = after - before;
+    }
+    Ok((outcomes, times))
 }
 
 /// A replay's record (no videos yet).

@@ -134,6 +134,10 @@ pub struct AugmentReport {
     /// never interrupted.
     #[serde(skip)]
     pub rendered_now: usize,
+    /// Where this run's time went, per stage of making its frames (the parent's
+    /// validation pass counted as physics). Not written, like `rendered_now`.
+    #[serde(skip)]
+    pub times: crate::profile::StageTimes,
 }
 
 /// A unit of work that failed on its retry too.

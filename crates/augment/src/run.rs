@@ -193,17 +193,24 @@ pub fn augment_with(
         .map(|o| config.shard.is_none() || !o.is_empty())
         .collect();
     progress.phase("physics", simulate_it.iter().filter(|x| **x).count() as u64);
+    // Each simulation's seconds, summed over the threads that ran them.
+    let validation_seconds = std::sync::Mutex::new(0.0);
     let simulated: Vec<Option<Result<PhysicsSummary, AugmentError>>> = sources
         .par_iter()
         .zip(&simulate_it)
         .map(|(s, &go)| {
             go.then(|| {
-                let r = simulate(s, &assets[&s.spec.id].scene, config).map(|p| p.summary);
+                let mut seconds = 0.0;
+                let r = crate::profile::timed(&mut seconds, || {
+                    simulate(s, &assets[&s.spec.id].scene, config).map(|p| p.summary)
+                });
+                *validation_seconds.lock().expect("seconds") += seconds;
                 progress.advance(1, &s.key());
                 r
             })
         })
         .collect();
+    let validation_seconds = validation_seconds.into_inner().expect("seconds");
     let mut physics: Vec<Option<PhysicsSummary>> = Vec::with_capacity(sources.len());
     for (s, p) in sources.iter().zip(simulated) {
         physics.push(match p {
@@ -272,7 +279,8 @@ pub fn augment_with(
         sources: &sources,
         assets: &assets,
     };
-    let results = run_jobs(executor, pool, &jobs, &local, config, cameras, progress)?;
+    let (results, mut times) = run_jobs(executor, pool, &jobs, &local, config, cameras, progress)?;
+    times.physics += validation_seconds;
     if config.shard.is_none() {
         let _ = fs_err::remove_dir(&staging);
     }
@@ -301,7 +309,7 @@ pub fn augment_with(
         }
     }
 
-    let report = build_report(
+    let mut report = build_report(
         config,
         &sources,
         &physics,
@@ -311,6 +319,7 @@ pub fn augment_with(
         failed_units,
         rendered_now,
     );
+    report.times = times;
     // A shard writes no report: the unsharded run after the shards writes it (and renders
     // nothing new), the same bytes as one unsharded run.
     if config.shard.is_none() {
@@ -408,5 +417,6 @@ fn build_report(
         skipped,
         failed_units,
         rendered_now,
+        times: crate::profile::StageTimes::default(),
     }
 }

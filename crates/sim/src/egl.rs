@@ -63,7 +63,12 @@ pub(crate) struct EglContext {
     context: PossiblyCurrentContext,
     surface: Surface<PbufferSurface>,
     pub(crate) device: EglDevice,
+    /// `glFinish` of this context's driver, when it has one.
+    finish: Option<GlFinish>,
 }
+
+/// `void glFinish(void)`.
+type GlFinish = unsafe extern "C" fn();
 
 impl std::fmt::Debug for EglContext {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -197,11 +202,26 @@ impl EglContext {
             gl_version: gl_string(&display, 0x1F02),
             error: None,
         };
+        let finish = display.get_proc_address(c"glFinish");
+        // SAFETY: `glFinish` has this signature in every GL version; null means absent.
+        let finish = (!finish.is_null())
+            .then(|| unsafe { std::mem::transmute::<*const std::ffi::c_void, GlFinish>(finish) });
         Ok(Self {
             context,
             surface,
             device,
+            finish,
         })
+    }
+
+    /// Waits until the GL commands issued so far have completed (`glFinish`), so that a
+    /// timer tells rasterization from the read-back that follows. Pixels are unaffected.
+    pub(crate) fn finish(&self) {
+        if let Some(f) = self.finish {
+            // SAFETY: this context is current on this thread (the renderer made it so
+            // before drawing); glFinish takes no arguments.
+            unsafe { f() }
+        }
     }
 
     /// Makes the context current on this thread.

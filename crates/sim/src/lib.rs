@@ -32,7 +32,7 @@ pub use egl::{EGL_DEVICE_ENV, EglDevice, EglProbe, probe_egl};
 pub use env::{EnvOptions, Rollout, SceneSource, TaskEnv, load_task_scene};
 pub use error::SimError;
 pub use feedback::Feedback;
-pub use render::{CameraView, Frame, RenderQuality, RenderSettings, Renderer};
+pub use render::{CameraView, Frame, RenderQuality, RenderSettings, RenderTimes, Renderer};
 pub use scene::{Scene, mujoco_library_path, mujoco_version};
 
 /// Re-exported so callers can step and inspect the simulation without naming the crate.

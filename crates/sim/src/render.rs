@@ -1,6 +1,7 @@
 //! Offscreen rendering of a MuJoCo scene: RGB and metric depth, with quality presets.
 
 use std::path::Path;
+use std::time::Instant;
 
 use mujoco_rs::mujoco_c::mjtRndFlag;
 use mujoco_rs::prelude::{
@@ -217,6 +218,30 @@ impl Frame {
     }
 }
 
+/// Seconds a renderer spent per stage of its frames, summed (see [`Renderer::take_times`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct RenderTimes {
+    /// Frames drawn.
+    pub frames: u64,
+    /// Building the abstract scene from the simulation state (`mjv_updateScene`).
+    pub scene: f64,
+    /// Drawing it (`mjr_render`, until the driver has finished rasterizing: `glFinish`).
+    pub render: f64,
+    /// Reading the pixels back into memory (`mjr_readPixels`), flipped top-down (and
+    /// depth linearized).
+    pub readback: f64,
+}
+
+impl RenderTimes {
+    /// Adds `other`'s frames and seconds to these.
+    pub fn add(&mut self, other: &Self) {
+        self.frames += other.frames;
+        self.scene += other.scene;
+        self.render += other.render;
+        self.readback += other.readback;
+    }
+}
+
 /// An offscreen renderer for one model, owned by one thread (its GL context is bound to
 /// the thread that created it).
 #[derive(Debug)]
@@ -229,6 +254,7 @@ pub struct Renderer {
     settings: RenderSettings,
     near: f32,
     far: f32,
+    times: RenderTimes,
     /// The GL context is bound to the creating thread: keep the renderer there.
     _not_send: std::marker::PhantomData<*const ()>,
 }
@@ -287,6 +313,7 @@ impl Renderer {
             settings,
             near: map.znear * extent,
             far: map.zfar * extent,
+            times: RenderTimes::default(),
             _not_send: std::marker::PhantomData,
         })
     }
@@ -303,9 +330,16 @@ impl Renderer {
 
     /// Builds the abstract scene from `data` as seen from `view`.
     pub fn update_scene<M: ModelType>(&mut self, data: &mut MjData<M>, view: CameraView) {
+        let started = Instant::now();
         let mut cam = view.to_mjv();
         self.scene
             .update(data, &self.option, &MjvPerturb::default(), &mut cam);
+        self.times.scene += started.elapsed().as_secs_f64();
+    }
+
+    /// The time spent per stage since the renderer was created or this was last called.
+    pub fn take_times(&mut self) -> RenderTimes {
+        std::mem::take(&mut self.times)
     }
 
     /// The abstract scene, for per-render visual edits (lights, materials) before [`Self::draw`].
@@ -325,8 +359,13 @@ impl Renderer {
     pub fn draw(&mut self) -> Result<Frame, SimError> {
         let (w, h) = (self.settings.width as usize, self.settings.height as usize);
         self.egl.make_current()?;
+        let started = Instant::now();
         let vp = MjrRectangle::new(0, 0, w as i32, h as i32);
         self.scene.render(&vp, &self.context);
+        // Rasterization ends here rather than inside the read-back, so that the two are
+        // timed apart; the read-back would wait for it anyway.
+        self.egl.finish();
+        let drawn = Instant::now();
         let mut rgb = vec![0u8; w * h * 3];
         let mut depth = self.settings.depth.then(|| vec![0f32; w * h]);
         self.context
@@ -340,6 +379,9 @@ impl Renderer {
                 *v = near / (1.0 - *v * (1.0 - near / far));
             }
         }
+        self.times.frames += 1;
+        self.times.render += (drawn - started).as_secs_f64();
+        self.times.readback += drawn.elapsed().as_secs_f64();
         Ok(Frame {
             width: w as u32,
             height: h as u32,

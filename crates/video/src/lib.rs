@@ -109,6 +109,22 @@ pub fn ffmpeg_program() -> PathBuf {
     std::env::var_os("DEXJOCO_FFMPEG").map_or_else(|| "ffmpeg".into(), PathBuf::from)
 }
 
+/// CPU seconds (user + system) of this process's finished child processes, such as the
+/// encoders of finished [`VideoWriter`]s, from `/proc/self/stat` (Linux); the difference
+/// over a piece of work is what its encoders cost. `None` where that file is unreadable.
+pub fn finished_children_cpu_seconds() -> Option<f64> {
+    // The kernel reports these in USER_HZ ticks, 100 per second on Linux.
+    const TICKS_PER_SECOND: f64 = 100.0;
+    let stat = fs_err::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may hold spaces) start with field 3, `state`;
+    // cutime and cstime are fields 16 and 17.
+    let rest = &stat[stat.rfind(')')? + 1..];
+    let mut fields = rest.split_whitespace().skip(13);
+    let cutime: f64 = fields.next()?.parse().ok()?;
+    let cstime: f64 = fields.next()?.parse().ok()?;
+    Some((cutime + cstime) / TICKS_PER_SECOND)
+}
+
 /// Starts an ffmpeg command; a failure to start names the video file.
 fn spawn_ffmpeg(cmd: &mut Command, path: &Path) -> Result<Child, VideoError> {
     cmd.spawn().map_err(|source| VideoError::Spawn {

@@ -147,3 +147,15 @@ fn a_failing_encoder_reports_ffmpeg_s_message() {
     assert!(err.contains("odd.mp4"), "{err}");
     assert!(!path.exists());
 }
+
+#[test]
+fn finished_encoders_cpu_time_is_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let before = dexjoco_video::finished_children_cpu_seconds().expect("/proc/self/stat");
+    for k in 0..3 {
+        encode(&dir.path().join(format!("{k}.mp4")), Codec::DEXJOCO, 60);
+    }
+    let after = dexjoco_video::finished_children_cpu_seconds().unwrap();
+    // Three ffmpeg processes started, encoded 60 frames each and were reaped.
+    assert!(after - before >= 0.01, "{before} -> {after}");
+}

@@ -1,0 +1,266 @@
+//! Units of work handed to worker slots, biggest first. A slot holds one worker process
+//! at a time: a worker that dies mid-unit is replaced and the unit retried once; a worker
+//! that stalls before its first frame retires its slot and its unit goes back to the
+//! queue for another slot; with no slot left to render, the run fails.
+
+use std::collections::VecDeque;
+use std::sync::{Condvar, Mutex};
+
+use dexjoco_core::Progress;
+
+use super::process::{Silence, Worker, WorkerPool};
+use super::protocol::{FromWorker, ToWorker};
+use super::{UnitResult, WorkerProcesses};
+use crate::config::AugmentConfig;
+use crate::error::AugmentError;
+use crate::profile::StageTimes;
+use crate::render::UnitJob;
+use crate::staging::Outcome;
+
+/// What to do when no worker can render.
+const STALL_HINT: &str = "several processes opening EGL contexts on one GPU have been seen to \
+hang on their first render (mujoco issue 3444): run fewer workers per GPU (-j), spread them over \
+GPUs with --egl-devices, check `dexjoco-data doctor`, or allow more time with --first-frame-timeout";
+
+/// The queue and what the slots are doing, under one lock.
+struct Schedule {
+    /// (job index, attempt) still to run.
+    queue: VecDeque<(usize, u32)>,
+    /// Units a slot is running.
+    in_flight: usize,
+    /// Slots that can still render.
+    live: usize,
+    results: Vec<Option<UnitResult>>,
+    times: StageTimes,
+    /// Frames rendered by attempts that failed (rendered again by the retry).
+    extra_frames: u64,
+    /// Why slots were retired.
+    stalls: Vec<String>,
+    fatal: Option<AugmentError>,
+}
+
+impl Schedule {
+    /// Rendering processes that have work now (their share of the cores).
+    fn busy(&self) -> usize {
+        self.live.min(self.queue.len() + self.in_flight).max(1)
+    }
+}
+
+/// How one attempt at a unit ended.
+enum Attempt {
+    Done(Vec<Outcome>, StageTimes),
+    /// The unit failed; `ended` when its worker process is gone (crashed, killed).
+    Failed {
+        reason: String,
+        ended: bool,
+    },
+    Stalled(String),
+}
+
+pub(super) fn run_on_processes(
+    w: &WorkerProcesses,
+    pool: WorkerPool,
+    jobs: &[(usize, UnitJob)],
+    config: &AugmentConfig,
+    cameras: usize,
+    total: u64,
+    progress: &dyn Progress,
+) -> Result<(Vec<UnitResult>, StageTimes), AugmentError> {
+    // Biggest units first, so the last ones to finish are small.
+    let mut order: Vec<usize> = (0..jobs.len()).collect();
+    order.sort_by_key(|&k| std::cmp::Reverse(jobs[k].1.frames(cameras)));
+    let slots = pool.into_slots(w.count.min(jobs.len()).max(1));
+    let schedule = Mutex::new(Schedule {
+        queue: order.into_iter().map(|k| (k, 0)).collect(),
+        in_flight: 0,
+        live: slots.len(),
+        results: vec![None; jobs.len()],
+        times: StageTimes::default(),
+        extra_frames: 0,
+        stalls: Vec::new(),
+        fatal: None,
+    });
+    let changed = Condvar::new();
+    let ctx = SlotContext {
+        w,
+        jobs,
+        config,
+        total,
+        progress,
+        schedule: &schedule,
+        changed: &changed,
+    };
+    std::thread::scope(|scope| {
+        for (slot, first) in slots.into_iter().enumerate() {
+            let ctx = &ctx;
+            scope.spawn(move || ctx.run_slot(slot, first));
+        }
+    });
+    let s = schedule.into_inner().expect("schedule");
+    if let Some(e) = s.fatal {
+        return Err(e);
+    }
+    if !s.queue.is_empty() {
+        return Err(AugmentError::Input(format!(
+            "no worker process could render ({}); hint: {STALL_HINT}",
+            s.stalls.join("; ")
+        )));
+    }
+    let results = s
+        .results
+        .into_iter()
+        .map(|r| r.unwrap_or_else(|| Err("not run".into())))
+        .collect();
+    Ok((results, s.times))
+}
+
+/// What every slot shares.
+struct SlotContext<'a> {
+    w: &'a WorkerProcesses,
+    jobs: &'a [(usize, UnitJob)],
+    config: &'a AugmentConfig,
+    total: u64,
+    progress: &'a dyn Progress,
+    schedule: &'a Mutex<Schedule>,
+    changed: &'a Condvar,
+}
+
+impl SlotContext<'_> {
+    /// A slot's loop: take a unit, have its worker (started when needed) render it, record
+    /// the result; until no unit is left or in flight, or the slot is retired.
+    fn run_slot(&self, slot: usize, mut worker: Option<Worker>) {
+        while let Some((k, attempt, busy)) = self.take() {
+            if worker.is_none() {
+                match Worker::spawn(self.w, slot, busy, self.config, &[]) {
+                    Ok(wk) => worker = Some(wk),
+                    Err(e) => {
+                        self.retire(k, attempt, None, Some(e));
+                        return;
+                    }
+                }
+            }
+            let wk = worker.as_mut().expect("spawned");
+            let mut job = self.jobs[k].1.clone();
+            job.attempt = attempt;
+            let (attempt_result, done) = self.attempt(wk, &job);
+            match attempt_result {
+                Attempt::Done(o, t) => self.finish(k, Ok((o, t))),
+                Attempt::Failed { reason, ended } => {
+                    if ended {
+                        // Crashed or killed: a fresh worker for the next unit.
+                        worker = None;
+                    }
+                    job.clear_staging(&self.config.out);
+                    self.failed(k, &job, reason, done);
+                }
+                Attempt::Stalled(why) => {
+                    job.clear_staging(&self.config.out);
+                    tracing::warn!("{why}; its unit {} goes to another worker", job.key());
+                    self.progress.note(&why);
+                    self.retire(k, attempt, Some(why), None);
+                    return;
+                }
+            }
+        }
+        if let Some(wk) = worker {
+            wk.close();
+        }
+    }
+
+    /// The next unit and the number of busy slots, waiting while others may still hand
+    /// units back; `None` when all is done.
+    fn take(&self) -> Option<(usize, u32, usize)> {
+        let mut s = self.schedule.lock().expect("schedule");
+        loop {
+            if let Some((k, attempt)) = s.queue.pop_front() {
+                s.in_flight += 1;
+                let busy = s.busy();
+                return Some((k, attempt, busy));
+            }
+            if s.in_flight == 0 {
+                return None;
+            }
+            s = self.changed.wait(s).expect("schedule");
+        }
+    }
+
+    /// One attempt at a unit on `wk`, and the frames it rendered.
+    fn attempt(&self, wk: &mut Worker, job: &UnitJob) -> (Attempt, u64) {
+        let mut done = 0u64;
+        if let Err(s) = wk.send(&ToWorker::Job(Box::new(job.clone()))) {
+            return (silence(s), done);
+        }
+        loop {
+            match wk.receive() {
+                Ok(FromWorker::Frames(n)) => {
+                    done += n;
+                    self.progress.advance(n, "");
+                }
+                Ok(FromWorker::Done { outcomes, times }) => {
+                    return (Attempt::Done(outcomes, times), done);
+                }
+                Ok(FromWorker::Error(reason)) => {
+                    return (
+                        Attempt::Failed {
+                            reason,
+                            ended: false,
+                        },
+                        done,
+                    );
+                }
+                Ok(FromWorker::Device(_) | FromWorker::Ready) => {}
+                Err(s) => return (silence(s), done),
+            }
+        }
+    }
+
+    fn finish(&self, k: usize, result: Result<(Vec<Outcome>, StageTimes), String>) {
+        let mut s = self.schedule.lock().expect("schedule");
+        s.in_flight -= 1;
+        s.results[k] = Some(result.map(|(o, t)| {
+            s.times.add(&t);
+            o
+        }));
+        self.changed.notify_all();
+    }
+
+    /// A failed attempt: the first is retried (its frames are rendered again), the second
+    /// is the unit's result.
+    fn failed(&self, k: usize, job: &UnitJob, reason: String, done: u64) {
+        tracing::warn!(unit = %job.key(), "unit failed (attempt {}): {reason}", job.attempt + 1);
+        if job.attempt > 0 {
+            return self.finish(k, Err(reason));
+        }
+        let mut s = self.schedule.lock().expect("schedule");
+        s.in_flight -= 1;
+        s.extra_frames += done;
+        self.progress.start(self.total + s.extra_frames);
+        self.progress
+            .note(&format!("retrying {}: {reason}", job.key()));
+        s.queue.push_back((k, 1));
+        self.changed.notify_all();
+    }
+
+    /// Retires this slot: its unit goes back to the front of the queue, unattempted.
+    fn retire(&self, k: usize, attempt: u32, stall: Option<String>, fatal: Option<AugmentError>) {
+        let mut s = self.schedule.lock().expect("schedule");
+        s.in_flight -= 1;
+        s.live -= 1;
+        s.queue.push_front((k, attempt));
+        s.stalls.extend(stall);
+        if let Some(e) = fatal {
+            s.fatal.get_or_insert(e);
+        }
+        self.changed.notify_all();
+    }
+}
+
+fn silence(s: Silence) -> Attempt {
+    match s {
+        Silence::Ended(reason) => Attempt::Failed {
+            reason,
+            ended: true,
+        },
+        Silence::Stalled(why) => Attempt::Stalled(why),
+    }
+}
