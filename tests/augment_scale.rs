@@ -17,6 +17,8 @@ fn cli() -> Command {
         .env_remove("DEXJOCO_SEED")
         .env_remove("DEXJOCO_EGL_DEVICES")
         .env_remove(dexjoco_augment::FAULT_ENV)
+        .env_remove(dexjoco_augment::STALL_ENV)
+        .env_remove("DEXJOCO_FIRST_FRAME_TIMEOUT")
         .env_remove("SLURM_ARRAY_TASK_ID")
         .env_remove("SLURM_ARRAY_TASK_COUNT")
         .env_remove("SLURM_ARRAY_TASK_MIN")
@@ -109,6 +111,56 @@ fn worker_processes_give_identical_bytes_and_a_crashed_worker_is_retried_or_repo
     );
     ok(&augment(2, &failed, &[]).output().unwrap());
     assert_eq!(tree(&failed), reference);
+}
+
+#[test]
+fn a_worker_that_stalls_before_its_first_frame_is_killed_named_and_its_work_done_elsewhere() {
+    let tmp = tempfile::tempdir().unwrap();
+    let one = tmp.path().join("one");
+    ok(&augment(1, &one, &[]).output().unwrap());
+    let reference = tree(&one);
+
+    // Worker 0 opens its renderer and hangs, as a driver can on its first render: killed
+    // at the deadline and named with its EGL device; worker 1 renders everything.
+    let stalled = tmp.path().join("stalled");
+    let started = std::time::Instant::now();
+    let out = augment(2, &stalled, &["--first-frame-timeout", "3"])
+        .env(dexjoco_augment::STALL_ENV, "0")
+        .output()
+        .unwrap();
+    ok(&out);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("worker process 0 drew no frame within 3 s of starting (on EGL device 0 (")
+            && stderr.contains("it was killed"),
+        "{stderr}"
+    );
+    assert!(
+        started.elapsed().as_secs() < 60,
+        "the run waited for the stalled worker"
+    );
+    assert_eq!(tree(&stalled), reference);
+
+    // No worker renders: the run fails (exit 1), naming each worker and what to do, and
+    // writes no replay.
+    let none = tmp.path().join("none");
+    let out = augment(2, &none, &["--first-frame-timeout", "3"])
+        .env(dexjoco_augment::STALL_ENV, "all")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    for needle in [
+        "no worker process could render",
+        "worker process 0 drew no frame",
+        "worker process 1 drew no frame",
+        "mujoco issue 3444",
+        "--first-frame-timeout",
+    ] {
+        assert!(stderr.contains(needle), "missing '{needle}' in:\n{stderr}");
+    }
+    assert!(!none.join("click_mouse").exists());
+    assert!(!none.join(".staging").exists());
 }
 
 #[test]

@@ -152,6 +152,15 @@ pub struct BenchAugmentArgs {
     /// 1,4,8,16 on a GPU node.
     #[arg(long, value_delimiter = ',', value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub workers: Vec<usize>,
+    /// Seconds a worker process may take to its first frame before it is killed (as
+    /// `augment --first-frame-timeout`).
+    #[arg(
+        long,
+        default_value_t = dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
+        env = "DEXJOCO_FIRST_FRAME_TIMEOUT",
+        value_name = "SECONDS"
+    )]
+    pub first_frame_timeout: f64,
 }
 
 /// `bench render-limit`: internal, one process of the render-only limit.

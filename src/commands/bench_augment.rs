@@ -177,6 +177,7 @@ pub fn render_limit(
         no_reference: true,
         limit_frames: args.frames,
         workers: Vec::new(),
+        first_frame_timeout: dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
     };
     let c = config(
         &bench,
@@ -219,7 +220,7 @@ fn bench_config(
     }
     for &n in &ctx.workers {
         bar.set_message(label(format!("ours x{n}")));
-        let (report, s) = timed(&cfg, &processes(n)?)?;
+        let (report, s) = timed(&cfg, &processes(args, n)?)?;
         runs.push(measured(size, quality, OURS, n, &report, s));
         bar.inc(1);
     }
@@ -274,13 +275,18 @@ const REFERENCE: &str = "reference (re-simulate every replay, 1 process)";
 const OURS: &str = "ours, worker processes";
 const LIMIT: &str = "render-only limit (trajectory states, no stepping, no encoding)";
 
-/// Worker processes of this binary.
-fn processes(count: usize) -> anyhow::Result<Executor> {
-    Ok(Executor::Processes(WorkerProcesses::new(
-        std::env::current_exe()?,
-        vec!["-q".into(), "augment-worker".into()],
-        count,
-    )))
+/// `count` worker processes of this binary.
+fn processes(args: &BenchAugmentArgs, count: usize) -> anyhow::Result<Executor> {
+    let first_frame_timeout = std::time::Duration::try_from_secs_f64(args.first_frame_timeout)
+        .context("--first-frame-timeout must be a positive number of seconds")?;
+    Ok(Executor::Processes(WorkerProcesses {
+        first_frame_timeout,
+        ..WorkerProcesses::new(
+            std::env::current_exe()?,
+            vec!["-q".into(), "augment-worker".into()],
+            count,
+        )
+    }))
 }
 
 /// What every configuration shares.
