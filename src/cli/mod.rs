@@ -69,8 +69,8 @@ pub struct GlobalArgs {
     /// Only errors; no progress bars.
     #[arg(short, long, global = true)]
     pub quiet: bool,
-    /// Workers (default: all cores): threads, and for `augment` worker processes. Results
-    /// do not depend on it.
+    /// Workers (default: all cores): threads, and for `augment` worker processes (default
+    /// on a GPU node: at most 8 per GPU, spread over the GPUs). Results do not depend on it.
     #[arg(short, long, global = true, env = "DEXJOCO_JOBS",
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub jobs: Option<usize>,

@@ -152,6 +152,10 @@ pub struct BenchAugmentArgs {
     /// 1,4,8,16 on a GPU node.
     #[arg(long, value_delimiter = ',', value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub workers: Vec<usize>,
+    /// Our runs use threads of this one process (each with its own EGL context) instead
+    /// of worker processes, to compare the two.
+    #[arg(long)]
+    pub threads: bool,
     /// Seconds a worker process may take to its first frame before it is killed (as
     /// `augment --first-frame-timeout`).
     #[arg(

@@ -177,6 +177,7 @@ pub fn render_limit(
         no_reference: true,
         limit_frames: args.frames,
         workers: Vec::new(),
+        threads: false,
         first_frame_timeout: dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
     };
     let c = config(
@@ -220,8 +221,14 @@ fn bench_config(
     }
     for &n in &ctx.workers {
         bar.set_message(label(format!("ours x{n}")));
-        let (report, s) = timed(&cfg, &processes(args, n)?)?;
-        runs.push(measured(size, quality, OURS, n, &report, s));
+        let (report, s) = if args.threads {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build()?;
+            pool.install(|| timed(&cfg, &Executor::Threads))?
+        } else {
+            timed(&cfg, &processes(args, n)?)?
+        };
+        let approach = if args.threads { OURS_THREADS } else { OURS };
+        runs.push(measured(size, quality, approach, n, &report, s));
         bar.inc(1);
     }
     let mut limits = Vec::new();
@@ -241,7 +248,7 @@ fn bench_config(
         .map(|r| r.frames_per_s);
     let one_fps = runs
         .iter()
-        .find(|r| r.approach == OURS && r.workers == 1)
+        .find(|r| r.approach != REFERENCE && r.approach != LIMIT && r.workers == 1)
         .map(|r| r.frames_per_s);
     for (n, l) in &limits {
         runs.push(Run {
@@ -273,6 +280,7 @@ fn bench_config(
 
 const REFERENCE: &str = "reference (re-simulate every replay, 1 process)";
 const OURS: &str = "ours, worker processes";
+const OURS_THREADS: &str = "ours, threads of one process";
 const LIMIT: &str = "render-only limit (trajectory states, no stepping, no encoding)";
 
 /// `count` worker processes of this binary.
@@ -314,7 +322,10 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
         .path;
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
     let mut workers = if args.workers.is_empty() {
-        vec![1, global.jobs.unwrap_or(cores)]
+        vec![
+            1,
+            crate::settings::render_workers(global.jobs, Vec::new()).0,
+        ]
     } else {
         args.workers.clone()
     };
@@ -388,7 +399,7 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
     );
     outln!();
     outln!(
-        "| size | quality | approach | processes | frames/s | seconds | vs reference | vs 1 worker | of render-only limit |"
+        "| size | quality | approach | workers | frames/s | seconds | vs reference | vs 1 worker | of render-only limit |"
     );
     outln!("|---:|---|---|---:|---:|---:|---:|---:|---:|");
     let ratio = |x: Option<f64>, pct: bool| match (x, pct) {
@@ -421,7 +432,7 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
     outln!();
     let names = StageTimes::default().stages().map(|(n, _)| n);
     outln!(
-        "| size | quality | approach | processes | {} | bottleneck |",
+        "| size | quality | approach | workers | {} | bottleneck |",
         names.join(" | ")
     );
     outln!("|---:|---|---|---:|{}---|", "---:|".repeat(names.len()));

@@ -9,6 +9,7 @@ use glutin::api::egl::{
 };
 use glutin::config::{ConfigSurfaceTypes, ConfigTemplateBuilder};
 use glutin::context::{ContextApi, ContextAttributesBuilder, GlProfile, Version};
+use glutin::display::GetDisplayExtensions;
 use glutin::prelude::{GlDisplay, NotCurrentGlContext, PossiblyCurrentGlContext};
 use glutin::surface::{PbufferSurface, SurfaceAttributesBuilder};
 use serde::Serialize;
@@ -61,7 +62,8 @@ pub struct EglProbe {
 /// An offscreen GL context, current on the thread that created it.
 pub(crate) struct EglContext {
     context: PossiblyCurrentContext,
-    surface: Surface<PbufferSurface>,
+    /// A pbuffer, for drivers without surfaceless contexts; `None`: bound with no surface.
+    surface: Option<Surface<PbufferSurface>>,
     pub(crate) device: EglDevice,
     /// `glFinish` of this context's driver, when it has one.
     finish: Option<GlFinish>,
@@ -186,12 +188,20 @@ impl EglContext {
             .build(None);
         // SAFETY: display and config are valid; MuJoCo needs a compatibility profile.
         let not_current = unsafe { display.create_context(&config, &attrs)? };
-        let w = NonZeroU32::new(width.max(1)).expect("max(1)");
-        let h = NonZeroU32::new(height.max(1)).expect("max(1)");
-        let surface_attrs = SurfaceAttributesBuilder::<PbufferSurface>::new().build(w, h);
-        // SAFETY: display and config are valid; the size is non-zero.
-        let surface = unsafe { display.create_pbuffer_surface(&config, &surface_attrs)? };
-        let context = not_current.make_current(&surface)?;
+        // Bound with no surface where the driver allows it, as MuJoCo's own EGL backend
+        // does: MuJoCo then draws only into its offscreen framebuffer and sees no window
+        // one (with a pbuffer, NVIDIA's driver raised GL_INVALID_OPERATION in
+        // mjr_makeContext, printed as a warning for every renderer). Else a pbuffer.
+        let (context, surface) = if display.extensions().contains("EGL_KHR_surfaceless_context") {
+            (not_current.make_current_surfaceless()?, None)
+        } else {
+            let w = NonZeroU32::new(width.max(1)).expect("max(1)");
+            let h = NonZeroU32::new(height.max(1)).expect("max(1)");
+            let surface_attrs = SurfaceAttributesBuilder::<PbufferSurface>::new().build(w, h);
+            // SAFETY: display and config are valid; the size is non-zero.
+            let surface = unsafe { display.create_pbuffer_surface(&config, &surface_attrs)? };
+            (not_current.make_current(&surface)?, Some(surface))
+        };
         let (description, software) = describe(device);
         let device = EglDevice {
             index,
@@ -226,10 +236,23 @@ impl EglContext {
 
     /// Makes the context current on this thread.
     pub(crate) fn make_current(&self) -> Result<(), SimError> {
-        self.context
-            .make_current(&self.surface)
-            .map_err(|e| SimError::Egl(e.to_string()))
+        match &self.surface {
+            Some(surface) => self.context.make_current(surface),
+            None => self.context.make_current_surfaceless(),
+        }
+        .map_err(|e| SimError::Egl(e.to_string()))
     }
+}
+
+/// Indices of the EGL devices that are GPUs (not a software rasterizer), from EGL's list
+/// alone: no context is opened, so this is cheap.
+pub fn gpu_devices() -> Result<Vec<usize>, SimError> {
+    Ok(devices()?
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| !describe(d).1)
+        .map(|(i, _)| i)
+        .collect())
 }
 
 /// Lists the EGL devices and tries to open an offscreen context on each (for `doctor`).

@@ -28,7 +28,7 @@ pub use checker::{SuccessChecker, Verdict, name_id, unresolved_names};
 pub use control::{
     ARM_DOF, ARM_HOME, Arm, HOLD_EPS, OscGains, Robot, SUBSTEPS, mat_to_quat, orientation_error,
 };
-pub use egl::{EGL_DEVICE_ENV, EglDevice, EglProbe, probe_egl};
+pub use egl::{EGL_DEVICE_ENV, EglDevice, EglProbe, gpu_devices, probe_egl};
 pub use env::{EnvOptions, Rollout, SceneSource, TaskEnv, load_task_scene};
 pub use error::SimError;
 pub use feedback::Feedback;

@@ -136,6 +136,9 @@ fn run_on_threads(
 ) -> (Vec<UnitResult>, StageTimes) {
     let extra = std::sync::atomic::AtomicU64::new(0);
     let times = Mutex::new(StageTimes::default());
+    // Units run side by side in this process: each unit's share of the finished encoders'
+    // CPU time cannot be told apart, so it is taken once, for all of them.
+    let encoders_before = dexjoco_video::finished_children_cpu_seconds();
     let results = jobs
         .par_iter()
         .map(|(i, job)| {
@@ -179,7 +182,14 @@ fn run_on_threads(
     // Close every worker thread's renderer (and its EGL context) now, rather than at
     // process exit while other threads are still alive.
     rayon::broadcast(|_| close_renderer());
-    (results, times.into_inner().expect("times"))
+    let mut times = times.into_inner().expect("times");
+    if let (Some(b), Some(a)) = (
+        encoders_before,
+        dexjoco_video::finished_children_cpu_seconds(),
+    ) {
+        times.encode_cpu = a - b;
+    }
+    (results, times)
 }
 
 /// Gives one of `processes` rendering processes its share of the cores for Mesa's
