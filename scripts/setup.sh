@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up everything dexjoco-data needs on a Debian 12 machine with the Rust toolchain:
-#   1. Debian packages for offscreen rendering (Mesa EGL) and video (ffmpeg);
+#   1. Debian packages for offscreen rendering (Mesa EGL), video (ffmpeg) and g++ (the
+#      meshoptimizer crate);
 #   2. MuJoCo 3.17.0's shared library, taken from the `mujoco==3.17.0` wheel on PyPI
 #      into .deps/mujoco/lib (git-ignored);
 #   3. with --python: the cached Python venv of the real readers used by the tests
@@ -12,7 +13,8 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 MUJOCO_VERSION="3.17.0"
 MUJOCO_DIR="$ROOT/.deps/mujoco/lib"
-DEB_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri ffmpeg)
+# g++: meshoptimizer (the light geometry) is C++, built by the meshopt crate.
+DEB_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri ffmpeg g++)
 
 log() { printf '\033[1m[setup]\033[0m %s\n' "$*" >&2; }
 

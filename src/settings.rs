@@ -46,6 +46,7 @@ pub fn render_settings(size: u32, quality: QualityArg) -> RenderSettings {
         height: size,
         quality: RenderQuality::from_name(quality.name()).expect("every QualityArg is a preset"),
         depth: false,
+        geometry: dexjoco_sim::Geometry::Full,
     }
 }
 
@@ -179,6 +180,7 @@ impl AugmentSettings {
             cameras,
             size,
             quality,
+            geometry,
             keep_failed,
             tasks_dir,
             depth,
@@ -252,7 +254,10 @@ impl AugmentSettings {
                 scene: SceneSource::from_option(scene_dir),
                 camera_pool,
                 cameras,
-                settings: render_settings(size, quality),
+                settings: RenderSettings {
+                    geometry: geometry.geometry(),
+                    ..render_settings(size, quality)
+                },
                 keep_failed,
                 max_frames,
                 resimulate_per_replay: false,

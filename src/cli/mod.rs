@@ -133,6 +133,26 @@ pub enum QualityArg {
     Fast,
 }
 
+/// The renderer's meshes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GeometryArg {
+    /// The meshes as the scene has them (the reference look).
+    Full,
+    /// Meshes simplified until a surface moves by at most half a pixel (seen from 1 m):
+    /// far fewer triangles for a CPU rasterizer; physics and collision meshes untouched.
+    Light,
+}
+
+impl GeometryArg {
+    /// The renderer's setting.
+    pub fn geometry(self) -> dexjoco_sim::Geometry {
+        match self {
+            Self::Full => dexjoco_sim::Geometry::Full,
+            Self::Light => dexjoco_sim::Geometry::Light,
+        }
+    }
+}
+
 impl QualityArg {
     /// The preset's name in `RenderQuality::PRESETS`.
     pub fn name(self) -> &'static str {

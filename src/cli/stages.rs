@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
 
-use super::QualityArg;
+use super::{GeometryArg, QualityArg};
 
 /// `ingest` options.
 #[derive(Debug, Args)]
@@ -258,6 +258,11 @@ pub struct AugmentArgs {
     /// Quality preset (paper = the reference's 8x multisampling).
     #[arg(long, value_enum, default_value_t = QualityArg::Paper)]
     pub quality: QualityArg,
+    /// The renderer's meshes: full (the reference look), or light (simplified to half a
+    /// pixel's error at this size: faster on a CPU; `bench augment --geometry full,light`
+    /// measures the speed-up and the image difference).
+    #[arg(long, value_enum, default_value_t = GeometryArg::Full)]
+    pub geometry: GeometryArg,
     /// Keep replays whose task failed (flagged in the report).
     #[arg(long)]
     pub keep_failed: bool,

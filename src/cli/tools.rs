@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
-use super::QualityArg;
+use super::{GeometryArg, QualityArg};
 
 /// `doctor` options.
 #[derive(Debug, Args)]
@@ -45,6 +45,9 @@ pub struct RenderArgs {
     /// Quality preset.
     #[arg(long, value_enum, default_value_t = QualityArg::Paper)]
     pub quality: QualityArg,
+    /// The renderer's meshes: full, or light (simplified to half a pixel's error).
+    #[arg(long, value_enum, default_value_t = GeometryArg::Full)]
+    pub geometry: GeometryArg,
     /// Also write depth (16-bit PNG preview, near = dark) and report its range in metres.
     #[arg(long)]
     pub depth: bool,
@@ -152,6 +155,10 @@ pub struct BenchAugmentArgs {
     /// 1,4,8,16 on a GPU node.
     #[arg(long, value_delimiter = ',', value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub workers: Vec<usize>,
+    /// The renderer's meshes, comma-separated: full, light. With both, the light runs
+    /// also report their image difference to the full render (PSNR, SSIM over a replay).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [GeometryArg::Full])]
+    pub geometry: Vec<GeometryArg>,
     /// Our runs use threads of this one process (each with its own EGL context) instead
     /// of worker processes, to compare the two.
     #[arg(long)]
@@ -190,6 +197,9 @@ pub struct BenchRenderLimitArgs {
     /// Only the first N frames of the episode's trajectory (0: all of it).
     #[arg(long, default_value_t = 0)]
     pub max_frames: usize,
+    /// The renderer's meshes.
+    #[arg(long, value_enum, default_value_t = GeometryArg::Full)]
+    pub geometry: GeometryArg,
 }
 
 /// `bench convert` options.
@@ -248,6 +258,9 @@ pub struct BenchRenderArgs {
     /// Camera to render (default: `front` when the scene has it, else the first camera).
     #[arg(short, long)]
     pub camera: Option<String>,
+    /// The renderer's meshes, comma-separated: full, light.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [GeometryArg::Full])]
+    pub geometry: Vec<GeometryArg>,
 }
 
 /// `bench ingest` options.

@@ -26,6 +26,7 @@ struct Row {
     scene: String,
     size: u32,
     preset: &'static str,
+    geometry: &'static str,
     frames: usize,
     seconds: f64,
     fps: f64,
@@ -52,7 +53,7 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
     } else {
         args.presets.clone()
     };
-    let total = (scenes.len() * args.sizes.len() * presets.len()) as u64;
+    let total = (scenes.len() * args.sizes.len() * presets.len() * args.geometry.len()) as u64;
     let pb = crate::progress::bar(total, "bench", global.quiet);
     let mut rows = Vec::new();
     let mut device = String::new();
@@ -70,13 +71,21 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
         let mut data = MjData::new(&*scene.model);
         data.forward();
         for &size in &args.sizes {
-            for &preset in &presets {
-                pb.set_message(format!("{label} {size}px {}", preset.name()));
+            for (&preset, geometry) in presets
+                .iter()
+                .flat_map(|p| args.geometry.iter().map(move |g| (p, g.geometry())))
+            {
+                pb.set_message(format!(
+                    "{label} {size}px {} {}",
+                    preset.name(),
+                    geometry.name()
+                ));
                 let settings = RenderSettings {
                     width: size,
                     height: size,
                     quality: RenderQuality::from_name(preset.name()).expect("preset"),
                     depth: false,
+                    geometry,
                 };
                 let mut r = Renderer::new(&scene.model, settings)?;
                 device = r.device().label();
@@ -92,6 +101,7 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
                     scene: label.clone(),
                     size,
                     preset: preset.name(),
+                    geometry: geometry.name(),
                     frames: args.frames,
                     seconds,
                     fps: args.frames as f64 / seconds,
@@ -106,15 +116,16 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
         "Offscreen rendering, one camera, update scene + draw + read back RGB; device: {device}"
     );
     outln!();
-    outln!("| scene | size | preset | frames/s | ms/frame |");
-    outln!("|---|---:|---|---:|---:|");
+    outln!("| scene | size | preset | geometry | frames/s | ms/frame |");
+    outln!("|---|---:|---|---|---:|---:|");
     for r in &rows {
         outln!(
-            "| {} | {}x{} | {} | {:.1} | {:.1} |",
+            "| {} | {}x{} | {} | {} | {:.1} | {:.1} |",
             r.scene,
             r.size,
             r.size,
             r.preset,
+            r.geometry,
             r.fps,
             1000.0 / r.fps
         );

@@ -11,12 +11,14 @@ use std::time::Instant;
 
 use anyhow::Context;
 use dexjoco_augment::{
-    AugmentConfig, AugmentReport, Executor, StageTimes, WorkerProcesses, augment_with, render_only,
+    AugmentConfig, AugmentReport, Executor, GeometryDifference, StageTimes, WorkerProcesses,
+    augment_with, geometry_difference, render_only,
 };
+use dexjoco_sim::RenderSettings;
 use dexjoco_sim::SceneSource;
 use serde::Serialize;
 
-use crate::cli::{BenchAugmentArgs, BenchRenderLimitArgs, GlobalArgs, QualityArg};
+use crate::cli::{BenchAugmentArgs, BenchRenderLimitArgs, GeometryArg, GlobalArgs, QualityArg};
 use crate::exit::ExitStatus;
 use crate::settings::render_settings;
 
@@ -25,6 +27,7 @@ use crate::settings::render_settings;
 struct Run {
     size: u32,
     quality: &'static str,
+    geometry: &'static str,
     approach: String,
     workers: usize,
     frames: usize,
@@ -44,10 +47,10 @@ fn config(
     args: &BenchAugmentArgs,
     inputs: &[PathBuf],
     out: PathBuf,
-    size: u32,
-    q: QualityArg,
+    look: Look,
     seed: u64,
 ) -> AugmentConfig {
+    let Look(size, q, geometry) = look;
     AugmentConfig {
         inputs: inputs.to_vec(),
         out,
@@ -57,7 +60,10 @@ fn config(
         scene: SceneSource::from_option(args.scene_dir.clone()),
         camera_pool: None,
         cameras: Vec::new(),
-        settings: render_settings(size, q),
+        settings: RenderSettings {
+            geometry: geometry.geometry(),
+            ..render_settings(size, q)
+        },
         keep_failed: true,
         max_frames: (args.max_frames > 0).then_some(args.max_frames),
         resimulate_per_replay: false,
@@ -70,10 +76,13 @@ fn config(
     }
 }
 
+/// What a configuration renders: size, preset and geometry.
+#[derive(Debug, Clone, Copy)]
+struct Look(u32, QualityArg, GeometryArg);
+
 /// A run's row: rendered frames (every replay's steps) per second.
 fn measured(
-    size: u32,
-    quality: QualityArg,
+    Look(size, quality, geometry): Look,
     approach: &str,
     workers: usize,
     report: &AugmentReport,
@@ -83,6 +92,7 @@ fn measured(
     Run {
         size,
         quality: quality.name(),
+        geometry: geometry.geometry().name(),
         approach: approach.to_owned(),
         workers,
         frames,
@@ -110,8 +120,7 @@ fn timed(config: &AugmentConfig, executor: &Executor) -> anyhow::Result<(Augment
 fn render_limit_of(
     args: &BenchAugmentArgs,
     input: &std::path::Path,
-    size: u32,
-    quality: QualityArg,
+    Look(size, quality, geometry): Look,
     n: usize,
 ) -> anyhow::Result<f64> {
     let exe = std::env::current_exe()?;
@@ -121,6 +130,7 @@ fn render_limit_of(
         c.args(["-q", "bench", "render-limit"])
             .arg(input)
             .args(["--size", &size.to_string(), "--quality", quality.name()])
+            .args(["--geometry", geometry.geometry().name()])
             .args(["--frames", &args.limit_frames.to_string()])
             .args(["--replays", &args.replays.to_string()])
             .args(["--max-frames", &args.max_frames.to_string()]);
@@ -179,13 +189,13 @@ pub fn render_limit(
         workers: Vec::new(),
         threads: false,
         first_frame_timeout: dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
+        geometry: vec![args.geometry],
     };
     let c = config(
         &bench,
         &bench.inputs,
         PathBuf::new(),
-        args.size,
-        args.quality,
+        Look(args.size, args.quality, args.geometry),
         global.seed,
     );
     let fps = render_only(&c, args.frames, &mut || {
@@ -202,13 +212,19 @@ pub fn render_limit(
 /// render-only limits.
 fn bench_config(
     ctx: &BenchContext<'_>,
-    size: u32,
-    quality: QualityArg,
+    look: Look,
     bar: &indicatif::ProgressBar,
 ) -> anyhow::Result<Vec<Run>> {
     let args = ctx.args;
-    let cfg = config(args, &ctx.inputs, ctx.out.clone(), size, quality, ctx.seed);
-    let label = |what: String| format!("{size}px {} {what}", quality.name());
+    let Look(size, quality, geometry) = look;
+    let cfg = config(args, &ctx.inputs, ctx.out.clone(), look, ctx.seed);
+    let label = |what: String| {
+        format!(
+            "{size}px {} {} {what}",
+            quality.name(),
+            geometry.geometry().name()
+        )
+    };
     let mut runs: Vec<Run> = Vec::new();
     if !args.no_reference {
         bar.set_message(label("reference".into()));
@@ -216,7 +232,7 @@ fn bench_config(
         c.resimulate_per_replay = true;
         let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
         let (report, s) = one_thread.install(|| timed(&c, &Executor::Threads))?;
-        runs.push(measured(size, quality, REFERENCE, 1, &report, s));
+        runs.push(measured(look, REFERENCE, 1, &report, s));
         bar.inc(1);
     }
     for &n in &ctx.workers {
@@ -228,17 +244,14 @@ fn bench_config(
             timed(&cfg, &processes(args, n)?)?
         };
         let approach = if args.threads { OURS_THREADS } else { OURS };
-        runs.push(measured(size, quality, approach, n, &report, s));
+        runs.push(measured(look, approach, n, &report, s));
         bar.inc(1);
     }
     let mut limits = Vec::new();
     if args.limit_frames > 0 {
         for &n in &ctx.workers {
             bar.set_message(label(format!("render-only x{n}")));
-            limits.push((
-                n,
-                render_limit_of(args, &ctx.first_input, size, quality, n)?,
-            ));
+            limits.push((n, render_limit_of(args, &ctx.first_input, look, n)?));
         }
         bar.inc(1);
     }
@@ -254,6 +267,7 @@ fn bench_config(
         runs.push(Run {
             size,
             quality: quality.name(),
+            geometry: geometry.geometry().name(),
             approach: LIMIT.into(),
             workers: *n,
             frames: 0,
@@ -342,15 +356,27 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
     };
     let per_config =
         ctx.workers.len() + usize::from(!args.no_reference) + usize::from(args.limit_frames > 0);
+    let looks: Vec<Look> = args
+        .sizes
+        .iter()
+        .flat_map(|&s| args.qualities.iter().map(move |&q| (s, q)))
+        .flat_map(|(s, q)| args.geometry.iter().map(move |&g| Look(s, q, g)))
+        .collect();
     let bar = crate::progress::bar(
-        (args.sizes.len() * args.qualities.len() * per_config) as u64,
+        (looks.len() * per_config) as u64,
         "bench augment",
         global.quiet,
     );
     let mut runs: Vec<Run> = Vec::new();
-    for &size in &args.sizes {
-        for &quality in &args.qualities {
-            runs.extend(bench_config(&ctx, size, quality, &bar)?);
+    for &look in &looks {
+        runs.extend(bench_config(&ctx, look, &bar)?);
+    }
+    let mut differences = Vec::new();
+    if args.geometry.contains(&GeometryArg::Full) && args.geometry.contains(&GeometryArg::Light) {
+        for &look in looks.iter().filter(|l| l.2 == GeometryArg::Light) {
+            bar.set_message(format!("{}px {} image difference", look.0, look.1.name()));
+            let cfg = config(args, &ctx.inputs, ctx.out.clone(), look, ctx.seed);
+            differences.push((look, geometry_difference(&cfg, DIFFERENCE_FRAMES)?));
         }
     }
     bar.finish_and_clear();
@@ -362,6 +388,7 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
     .map(|r| r.device().label())
     .unwrap_or_default();
     print_runs(&ctx, &runs, &device, cores);
+    print_differences(&runs, &differences);
     let out = global.work_dir.join("bench");
     fs_err::create_dir_all(&out)?;
     let json = out.join("augment.json");
@@ -373,6 +400,9 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
             "replays_per_episode": args.replays,
             "max_frames": args.max_frames,
             "runs": runs,
+            "light_geometry": differences.iter().map(|(Look(size, q, _), d)| serde_json::json!({
+                "size": size, "quality": q.name(), "difference": d,
+            })).collect::<Vec<_>>(),
         }))?
         .as_bytes(),
     )?;
@@ -399,9 +429,9 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
     );
     outln!();
     outln!(
-        "| size | quality | approach | workers | frames/s | seconds | vs reference | vs 1 worker | of render-only limit |"
+        "| size | quality | geometry | approach | workers | frames/s | seconds | vs reference | vs 1 worker | of render-only limit |"
     );
-    outln!("|---:|---|---|---:|---:|---:|---:|---:|---:|");
+    outln!("|---:|---|---|---|---:|---:|---:|---:|---:|---:|");
     let ratio = |x: Option<f64>, pct: bool| match (x, pct) {
         (Some(v), true) => format!("{:.0} %", v * 100.0),
         (Some(v), false) => format!("{v:.2}x"),
@@ -409,7 +439,7 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
     };
     for r in runs {
         outln!(
-            "| {0}x{0} | {1} | {2} | {3} | {4:.1} | {5} | {6} | {7} | {8} |",
+            "| {0}x{0} | {1} | {9} | {2} | {3} | {4:.1} | {5} | {6} | {7} | {8} |",
             r.size,
             r.quality,
             r.approach,
@@ -422,7 +452,8 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
             },
             ratio(r.vs_reference, false),
             ratio(r.vs_one_worker, false),
-            ratio(r.of_limit, true)
+            ratio(r.of_limit, true),
+            r.geometry
         );
     }
     outln!();
@@ -432,10 +463,10 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
     outln!();
     let names = StageTimes::default().stages().map(|(n, _)| n);
     outln!(
-        "| size | quality | approach | workers | {} | bottleneck |",
+        "| size | quality | geometry | approach | workers | {} | bottleneck |",
         names.join(" | ")
     );
-    outln!("|---:|---|---|---:|{}---|", "---:|".repeat(names.len()));
+    outln!("|---:|---|---|---|---:|{}---|", "---:|".repeat(names.len()));
     for r in runs {
         let Some(t) = &r.times else { continue };
         let total = t.total().max(f64::MIN_POSITIVE);
@@ -445,13 +476,63 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
             .map(|(_, s)| format!("{:.2} ({:.0} %)", t.ms_per_frame(*s), 100.0 * s / total))
             .collect();
         outln!(
-            "| {0}x{0} | {1} | {2} | {3} | {4} | {5} |",
+            "| {0}x{0} | {1} | {6} | {2} | {3} | {4} | {5} |",
             r.size,
             r.quality,
             r.approach,
             r.workers,
             cells.join(" | "),
-            t.bottleneck()
+            t.bottleneck(),
+            r.geometry
+        );
+    }
+}
+
+/// Frames of a replay compared between the full and the light geometry.
+const DIFFERENCE_FRAMES: usize = 60;
+
+/// The light geometry's speed-up (per worker count) and image difference to the full one.
+fn print_differences(runs: &[Run], differences: &[(Look, GeometryDifference)]) {
+    if differences.is_empty() {
+        return;
+    }
+    outln!();
+    outln!(
+        "Light geometry against full: triangles drawn, speed-up of our runs, and the image difference over {DIFFERENCE_FRAMES} frames of a replay (RGB as rendered, before encoding)"
+    );
+    outln!();
+    outln!(
+        "| size | quality | triangles full -> light | speed-up (workers: x) | PSNR mean (min) | SSIM mean (min) |"
+    );
+    outln!("|---:|---|---:|---|---:|---:|");
+    for (Look(size, q, _), d) in differences {
+        let ours = |geometry: &'static str| {
+            runs.iter()
+                .filter(move |r| {
+                    r.size == *size
+                        && r.quality == q.name()
+                        && r.geometry == geometry
+                        && (r.approach == OURS || r.approach == OURS_THREADS)
+                })
+                .map(|r| (r.workers, r.frames_per_s))
+        };
+        let speedups: Vec<String> = ours("light")
+            .filter_map(|(n, light)| {
+                ours("full")
+                    .find(|(m, _)| *m == n)
+                    .map(|(_, full)| format!("{n}: {:.2}x", light / full))
+            })
+            .collect();
+        outln!(
+            "| {size}x{size} | {} | {} -> {} | {} | {:.1} dB ({:.1}) | {:.4} ({:.4}) |",
+            q.name(),
+            d.triangles_full,
+            d.triangles_light,
+            speedups.join(", "),
+            d.psnr_mean,
+            d.psnr_min,
+            d.ssim_mean,
+            d.ssim_min
         );
     }
 }

@@ -79,6 +79,7 @@ pub fn run(global: &GlobalArgs, args: CamerasArgs) -> anyhow::Result<ExitStatus>
                 height: 240,
                 quality: RenderQuality::FAST,
                 depth: false,
+                geometry: dexjoco_sim::Geometry::Full,
             },
         )?;
         let n = built.kept.len();

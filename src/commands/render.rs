@@ -59,6 +59,7 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
         quality: RenderQuality::from_name(args.quality.name())
             .expect("every QualityArg is a preset"),
         depth: args.depth,
+        geometry: args.geometry.geometry(),
     };
     let mut renderer = Renderer::new(&scene.model, settings)?;
     tracing::info!(
@@ -214,6 +215,7 @@ fn render_settings(args: &RenderArgs) -> RenderSettings {
         quality: RenderQuality::from_name(args.quality.name())
             .expect("every QualityArg is a preset"),
         depth: args.depth,
+        geometry: args.geometry.geometry(),
     }
 }
 

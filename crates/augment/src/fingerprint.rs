@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use dexjoco_core::{Episode, TaskSpec};
-use dexjoco_sim::{RenderQuality, SceneSource};
+use dexjoco_sim::{Geometry, RenderQuality, SceneSource};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
@@ -34,6 +34,10 @@ pub struct OutputSettings {
     pub height: u32,
     /// Render quality.
     pub quality: RenderQuality,
+    /// The renderer's meshes (written only when not the full ones, so folders made before
+    /// the option read the same).
+    #[serde(default, skip_serializing_if = "Geometry::is_full")]
+    pub geometry: Geometry,
     /// Fixed cameras rendered besides the third-person view.
     pub cameras: Vec<String>,
     /// Depth archives written.
@@ -117,6 +121,7 @@ impl OutputSettings {
             width: config.settings.width,
             height: config.settings.height,
             quality: config.settings.quality,
+            geometry: config.settings.geometry,
             cameras: config.cameras.clone(),
             depth: config.depth,
             max_frames: config.max_frames,
@@ -238,6 +243,7 @@ mod tests {
                 height: size,
                 quality: RenderQuality::FAST,
                 depth: false,
+                geometry: Geometry::Full,
             },
             keep_failed: false,
             max_frames: None,
@@ -290,6 +296,11 @@ mod tests {
             ("quality", {
                 let mut c = base.clone();
                 c.settings.quality = RenderQuality::PAPER;
+                OutputSettings::of(&c, task("s", &pool, "x"))
+            }),
+            ("geometry", {
+                let mut c = base.clone();
+                c.settings.geometry = Geometry::Light;
                 OutputSettings::of(&c, task("s", &pool, "x"))
             }),
             (

@@ -16,6 +16,7 @@
 //! `randomize`, `dynamics` and `camera_pool` the randomization.
 
 mod camera_pool;
+mod compare;
 mod config;
 mod dry_run;
 mod dynamics;
@@ -33,6 +34,7 @@ mod staging;
 mod worker;
 
 pub use camera_pool::{BuiltPool, PoolOptions, ScoredPose, build_pool, occlusion};
+pub use compare::{GeometryDifference, geometry_difference, psnr, ssim};
 pub use config::{
     AugmentConfig, CONTACT_SHEET, DEFAULT_EXTEND_STEPS, REPORT_JSON, REPORT_MD, SETTINGS_FILE,
     Shard, THIRD_PERSON, replay_name,

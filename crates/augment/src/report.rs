@@ -171,12 +171,17 @@ pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), Aug
     let mut md = String::new();
     md.push_str("# Augment report\n\n");
     md.push_str(&format!(
-        "Seed {}, {} replays per episode, {}x{}, {} render samples.\n\n",
+        "Seed {}, {} replays per episode, {}x{}, {} render samples{}.\n\n",
         report.seed,
         report.replays_per_episode,
         report.settings.width,
         report.settings.height,
         report.settings.quality.samples,
+        if report.settings.geometry.is_full() {
+            ""
+        } else {
+            ", light geometry (meshes simplified for drawing)"
+        },
     ));
     md.push_str("| task | episode | replay success | recorded steps | first success | shift | steps | max state deviation | replays kept |\n|---|---|---|---|---|---|---|---|---|\n");
     for e in &report.episodes {

@@ -28,6 +28,7 @@ fn config(inputs: Vec<PathBuf>, out: &Path) -> AugmentConfig {
             height: 64,
             quality: RenderQuality::FAST,
             depth: false,
+            geometry: dexjoco_sim::Geometry::Full,
         },
         keep_failed: true,
         max_frames: Some(8),

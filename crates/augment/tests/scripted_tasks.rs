@@ -51,6 +51,7 @@ fn plan_record_replay(task: &str, seed: u64) {
             height: 32,
             quality: RenderQuality::FAST,
             depth: false,
+            geometry: dexjoco_sim::Geometry::Full,
         },
         keep_failed: false,
         max_frames: None,

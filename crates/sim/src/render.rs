@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::egl::{EglContext, EglDevice};
 use crate::error::SimError;
+use crate::geometry::Geometry;
 
 /// What the renderer spends time on. Multisampling, shadows, reflections and the skybox
 /// each cost about as much as the geometry itself on a CPU rasterizer.
@@ -93,6 +94,10 @@ pub struct RenderSettings {
     pub quality: RenderQuality,
     /// Also read back depth (metres).
     pub depth: bool,
+    /// The meshes as they are, or simplified for the image size (opt-in; not written when
+    /// full, so settings and reports made before it read the same).
+    #[serde(default, skip_serializing_if = "Geometry::is_full")]
+    pub geometry: Geometry,
 }
 
 impl Default for RenderSettings {
@@ -102,6 +107,7 @@ impl Default for RenderSettings {
             height: 640,
             quality: RenderQuality::FAST,
             depth: false,
+            geometry: Geometry::Full,
         }
     }
 }
@@ -255,6 +261,8 @@ pub struct Renderer {
     near: f32,
     far: f32,
     times: RenderTimes,
+    /// The context holds simplified meshes (light geometry).
+    lightened: bool,
     /// The GL context is bound to the creating thread: keep the renderer there.
     _not_send: std::marker::PhantomData<*const ()>,
 }
@@ -274,6 +282,7 @@ impl Renderer {
             width,
             height,
             quality,
+            geometry,
             ..
         } = settings;
         if width == 0 || height == 0 {
@@ -282,9 +291,14 @@ impl Renderer {
             )));
         }
         let egl = EglContext::new(width, height)?;
+        // The meshes the context uploads: the model's, or simplified ones (the copy is only
+        // read here; scenes are built from the simulation's own model).
+        let lightened = (geometry == Geometry::Light)
+            .then(|| crate::geometry::lighten(model, Geometry::max_error(height)));
+        let drawn = lightened.as_ref().map_or(model, |l| &l.model);
         // SAFETY: the EGL context created above is current on this thread, stays on it (the
         // Renderer owns it and is not Send) and outlives `context` (field order).
-        let mut context = unsafe { MjrContext::new(model) };
+        let mut context = unsafe { MjrContext::new(drawn) };
         context.offscreen();
         // The offscreen buffer's sample count is taken at creation from the model; set ours
         // and re-create the buffer. mjr_resizeOffscreen skips same-size calls, hence the
@@ -314,6 +328,7 @@ impl Renderer {
             near: map.znear * extent,
             far: map.zfar * extent,
             times: RenderTimes::default(),
+            lightened: lightened.is_some(),
             _not_send: std::marker::PhantomData,
         })
     }
@@ -361,7 +376,18 @@ impl Renderer {
         self.egl.make_current()?;
         let started = Instant::now();
         let vp = MjrRectangle::new(0, 0, w as i32, h as i32);
-        self.scene.render(&vp, &self.context);
+        if self.lightened {
+            // SAFETY: the context was made from a copy of the scene's model that differs only
+            // in its mesh faces (fewer per mesh, in the same arrays): every id mjr_render
+            // reads from the scene (geoms, meshes, materials, textures, skins) indexes the
+            // context's arrays as it would for the model itself; the context is current.
+            // (`MjvScene::render` refuses it only because the face counts differ.)
+            unsafe {
+                mujoco_rs::mujoco_c::mjr_render(vp, self.scene.ffi_mut(), self.context.ffi());
+            }
+        } else {
+            self.scene.render(&vp, &self.context);
+        }
         // Rasterization ends here rather than inside the read-back, so that the two are
         // timed apart; the read-back would wait for it anyway.
         self.egl.finish();

@@ -187,6 +187,7 @@ fn visible_share(t: &Task, env: &mut TaskEnv) -> f64 {
         height: 224,
         quality: RenderQuality::FAST,
         depth: false,
+        geometry: dexjoco_sim::Geometry::Full,
     };
     let cam = t.scene.camera_id(&t.spec.cameras[0].camera).unwrap();
     let model = &*t.scene.model;

@@ -70,6 +70,7 @@ fn check_task(spec: &TaskSpec, renderer: &mut Option<Renderer>) -> Result<(), St
                 height: 72,
                 quality: RenderQuality::FAST,
                 depth: false,
+                geometry: dexjoco_sim::Geometry::Full,
             },
         )
         .expect("renderer")
@@ -215,6 +216,7 @@ fn replays(
         height: 96,
         quality: RenderQuality::FAST,
         depth: false,
+        geometry: dexjoco_sim::Geometry::Full,
     };
     let mut renderer = Renderer::new(&scene.model, settings).unwrap();
     let view = CameraView::Fixed(scene.camera_id(camera).unwrap());

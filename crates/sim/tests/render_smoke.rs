@@ -17,6 +17,7 @@ fn settings(quality: RenderQuality) -> RenderSettings {
         height: 120,
         quality,
         depth: true,
+        geometry: dexjoco_sim::Geometry::Full,
     }
 }
 
