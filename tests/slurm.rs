@@ -1,9 +1,10 @@
-//! `augment` on a real Slurm cluster: a one-node cluster (Debian's `slurm-wlm` and
-//! `munge`: slurmctld + slurmd, all state under one temporary folder) started by
-//! `scripts/slurm/local-cluster.sh`, the sharded job submitted by `scripts/slurm/submit.sh`
-//! (a job array of 4 shards running `scripts/slurm/augment.sbatch`, then the finalize job
-//! with `--dependency=afterok`), and its output compared byte for byte with one
-//! unsharded run. The daemons it started are stopped (by pid) and the folder removed, also
+//! `augment` on a real Slurm cluster, from an extracted release bundle as a cluster runs
+//! it: a one-node cluster (Debian's `slurm-wlm` and `munge`: slurmctld + slurmd, all
+//! state under one temporary folder) started by `scripts/slurm/local-cluster.sh`, the
+//! sharded job submitted by the bundle's `share/dexjoco-data/slurm/submit.sh` (a job array
+//! of 4 shards running its `augment.sbatch`, then the finalize job with
+//! `--dependency=afterok`), every job running the bundle's own binary, and the output
+//! compared byte for byte with one unsharded run. The daemons it started are stopped (by pid) and the folder removed, also
 //! when the test fails. Needs root and the packages (`scripts/setup.sh --python`).
 
 use std::path::{Path, PathBuf};
@@ -56,8 +57,9 @@ impl Drop for Cluster {
     }
 }
 
-fn augment_args(out: &Path) -> Vec<String> {
-    let episode = root().join("datasets/demos/click_mouse/episode_000000");
+/// The sample episode the bundle carries, augmented into `out`.
+fn augment_args(bundle: &Path, out: &Path) -> Vec<String> {
+    let episode = bundle.join("share/dexjoco-data/datasets/demos/click_mouse/episode_000000");
     vec![
         episode.display().to_string(),
         "--replays".into(),
@@ -71,16 +73,46 @@ fn augment_args(out: &Path) -> Vec<String> {
     ]
 }
 
+/// Packs this build into a release bundle and extracts it under `dir`; returns the
+/// bundle's folder.
+fn extracted_bundle(dir: &Path) -> PathBuf {
+    let out = Command::new(root().join("scripts/package.sh"))
+        .arg("--bin")
+        .arg(env!("CARGO_BIN_EXE_dexjoco-data"))
+        .arg("--out")
+        .arg(dir)
+        .output()
+        .expect("running scripts/package.sh");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let archive = PathBuf::from(String::from_utf8(out.stdout).unwrap().trim());
+    let st = Command::new("tar")
+        .arg("-xzf")
+        .arg(&archive)
+        .arg("-C")
+        .arg(dir)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let name = archive.file_name().unwrap().to_string_lossy();
+    dir.join(name.trim_end_matches(".tar.gz"))
+}
+
 #[test]
 fn a_sharded_augment_on_a_real_slurm_cluster_equals_one_run() {
-    let bin = env!("CARGO_BIN_EXE_dexjoco-data");
     let tmp = tempfile::tempdir().unwrap();
+    // The bundle lies on the "shared file system" (here: a folder every job sees).
+    let bundle = extracted_bundle(tmp.path());
+    let bin = bundle.join("bin/dexjoco-data");
 
     // The reference: one unsharded run.
     let single = tmp.path().join("single");
-    let out = Command::new(bin)
+    let out = Command::new(&bin)
         .args(["-q", "-j", "2", "augment"])
-        .args(augment_args(&single))
+        .args(augment_args(&bundle, &single))
         .env("DEXJOCO_LOG", "warn")
         .output()
         .unwrap();
@@ -91,13 +123,13 @@ fn a_sharded_augment_on_a_real_slurm_cluster_equals_one_run() {
     let cluster = Cluster::start(dir.clone());
     let sharded = tmp.path().join("sharded");
     let logs = tmp.path().join("logs");
-    let out = Command::new(root().join("scripts/slurm/submit.sh"))
+    let out = Command::new(bundle.join("share/dexjoco-data/slurm/submit.sh"))
         .args(["--wait", "--logs"])
         .arg(&logs)
         .arg("4")
-        .args(augment_args(&sharded))
+        .args(augment_args(&bundle, &sharded))
         .env("SLURM_CONF", cluster.conf())
-        .env("DEXJOCO_BIN", bin)
+        .env_remove("DEXJOCO_BIN")
         .env("DEXJOCO_LOG", "warn")
         .env("SUBMIT_POLL_SECONDS", "0.5")
         .current_dir(tmp.path())
@@ -143,6 +175,16 @@ fn a_sharded_augment_on_a_real_slurm_cluster_equals_one_run() {
     assert!(
         text.contains("(0 rendered now"),
         "the finalize rendered:\n{text}"
+    );
+    // Every job ran the bundle's binary, found by submit.sh beside itself.
+    assert_eq!(
+        text.matches(&format!(
+            "running {}",
+            bin.canonicalize().unwrap().display()
+        ))
+        .count(),
+        5,
+        "{text}"
     );
     drop(cluster);
     assert!(!dir.exists(), "the cluster's folder is left behind");
