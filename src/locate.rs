@@ -60,7 +60,13 @@ fn first(
         return Some(Located::new(PathBuf::from(v), format!("${var}")));
     }
     let found = candidates.into_iter().flatten().find(|c| exists(&c.path))?;
-    let path = found.path.canonicalize().unwrap_or(found.path);
+    // Folders are shown resolved; files are not (a venv's python is a link to the base
+    // interpreter, which lacks the venv's packages).
+    let path = if found.path.is_dir() {
+        found.path.canonicalize().unwrap_or(found.path)
+    } else {
+        found.path
+    };
     Some(Located::new(path, found.how))
 }
 

@@ -20,6 +20,7 @@ use crate::exit::{CliError, ExitStatus};
 fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging(cli.global.verbose, cli.global.quiet);
+    dexjoco_sim::route_mujoco_warnings();
     init_worker_pool(cli.global.jobs);
     let result = match cli.command {
         Command::Doctor(args) => commands::doctor::run(&cli.global, &args),

@@ -281,28 +281,34 @@ pub const WORKERS_PER_GPU: usize = 8;
 /// of the node unless `--egl-devices` (or `DEXJOCO_EGL_DEVICE`) chooses.
 pub fn render_workers(jobs: Option<usize>, egl_devices: Vec<usize>) -> (usize, Vec<usize>) {
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
-    let chosen = !egl_devices.is_empty() || std::env::var_os(dexjoco_sim::EGL_DEVICE_ENV).is_some();
-    let gpus = if chosen {
-        Vec::new()
-    } else {
-        dexjoco_sim::gpu_devices().unwrap_or_default()
-    };
-    let gpu_count = if egl_devices.is_empty() {
-        gpus.len()
-    } else {
+    let gpus = dexjoco_sim::gpu_devices().unwrap_or_default();
+    let requested: Option<usize> = std::env::var(dexjoco_sim::EGL_DEVICE_ENV)
+        .ok()
+        .and_then(|v| v.trim().parse().ok());
+    // The GPUs the workers will draw on.
+    let used = if !egl_devices.is_empty() {
         egl_devices
             .iter()
+            .filter(|d| gpus.contains(d))
             .collect::<std::collections::BTreeSet<_>>()
             .len()
+    } else if let Some(d) = requested {
+        usize::from(gpus.contains(&d))
+    } else {
+        gpus.len()
     };
-    let workers = jobs.unwrap_or(if gpu_count > 0 {
-        cores.min(WORKERS_PER_GPU * gpu_count)
+    let workers = jobs.unwrap_or(if used > 0 {
+        cores.min(WORKERS_PER_GPU * used)
     } else {
         cores
     });
-    // With one GPU, the default choice (that GPU, else Mesa) stays; with several, the
-    // workers are dealt over all of them.
-    let egl_devices = if gpus.len() > 1 { gpus } else { egl_devices };
+    // With one GPU, the default choice (that GPU, else Mesa) stays; with several and no
+    // choice made, the workers are dealt over all of them.
+    let egl_devices = if egl_devices.is_empty() && requested.is_none() && gpus.len() > 1 {
+        gpus
+    } else {
+        egl_devices
+    };
     (workers, egl_devices)
 }
 

@@ -270,11 +270,13 @@ fn bench_augment_compares_processes_with_the_reference_and_the_render_only_limit
     assert!(out.status.success(), "{}", text(&out.stderr));
     let table = text(&out.stdout);
     for row in [
-        "| 32x32 | fast | reference (re-simulate every replay, 1 process) | 1 |",
-        "| 32x32 | fast | ours, worker processes | 1 |",
-        "| 32x32 | fast | ours, worker processes | 2 |",
-        "| 32x32 | fast | render-only limit (trajectory states, no stepping, no encoding) | 1 |",
-        "| 32x32 | fast | render-only limit (trajectory states, no stepping, no encoding) | 2 |",
+        "| 32x32 | fast | full | reference (re-simulate every replay, 1 process) | 1 |",
+        "| 32x32 | fast | full | ours, worker processes | 1 |",
+        "| 32x32 | fast | full | ours, worker processes | 2 |",
+        "| 32x32 | fast | full | render-only limit (trajectory states, no stepping, no encoding) | 1 |",
+        "| 32x32 | fast | full | render-only limit (trajectory states, no stepping, no encoding) | 2 |",
+        "Where a frame's time goes",
+        "| physics | scene update | render | readback | encode (x264 CPU) | encoder feed | bottleneck |",
     ] {
         assert!(table.contains(row), "{row} missing:\n{table}");
     }
@@ -291,6 +293,14 @@ fn bench_augment_compares_processes_with_the_reference_and_the_render_only_limit
     }
     assert_eq!(runs[0]["vs_reference"], 1.0);
     assert_eq!(runs[1]["vs_one_worker"], 1.0);
+    // Where each augment run's time went: every frame counted, each stage measured.
+    for r in &runs[..3] {
+        let t = &r["times"];
+        assert_eq!(t["frames"], 8, "{r}");
+        for stage in ["physics", "render", "readback", "encode_cpu"] {
+            assert!(t[stage].as_f64().unwrap() > 0.0, "{stage}: {r}");
+        }
+    }
     assert!(runs[4]["frames_per_s"].as_f64().unwrap() > 0.0);
 }
 

@@ -29,7 +29,8 @@ HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 SCRIPT="$HERE/augment.sbatch"
 # Slurm copies the batch script to each node's spool, so the script cannot find the
 # bundle by its own path: the binary is resolved here and exported to the jobs.
-if [ -z "${DEXJOCO_BIN:-}" ] && [ -x "$HERE/../../../bin/dexjoco-data" ]; then
+if [ -z "${DEXJOCO_BIN:-}" ] && [[ "$HERE" == */share/dexjoco-data/slurm ]] \
+   && [ -x "$HERE/../../../bin/dexjoco-data" ]; then
   DEXJOCO_BIN="$(cd "$HERE/../../../bin" && pwd)/dexjoco-data"
 fi
 export DEXJOCO_BIN="${DEXJOCO_BIN:-dexjoco-data}"

@@ -140,11 +140,14 @@ fn worker_args(global: &GlobalArgs) -> Vec<std::ffi::OsString> {
     args
 }
 
-/// Runs `augment-worker` (started by `augment`).
+/// Runs `augment-worker` (started by `augment`). Its messages to the parent go through a
+/// copy of the stdout it was given, and stdout itself then points at stderr: whatever a
+/// library prints (a driver's notice, a C library's printf) cannot corrupt the messages.
 pub fn run_worker() -> anyhow::Result<ExitStatus> {
+    let messages = rustix::io::dup(std::io::stdout()).context("duplicating stdout")?;
+    rustix::stdio::dup2_stdout(std::io::stderr()).context("pointing stdout at stderr")?;
     let stdin = std::io::stdin().lock();
-    let stdout = std::io::stdout().lock();
-    dexjoco_augment::serve_worker(stdin, stdout)?;
+    dexjoco_augment::serve_worker(stdin, std::fs::File::from(messages))?;
     Ok(ExitStatus::Success)
 }
 

@@ -297,12 +297,15 @@ const OURS: &str = "ours, worker processes";
 const OURS_THREADS: &str = "ours, threads of one process";
 const LIMIT: &str = "render-only limit (trajectory states, no stepping, no encoding)";
 
-/// `count` worker processes of this binary.
+/// `count` worker processes of this binary, dealt over the node's GPUs as `augment` does.
 fn processes(args: &BenchAugmentArgs, count: usize) -> anyhow::Result<Executor> {
     let first_frame_timeout = std::time::Duration::try_from_secs_f64(args.first_frame_timeout)
+        .ok()
+        .filter(|d| !d.is_zero())
         .context("--first-frame-timeout must be a positive number of seconds")?;
     Ok(Executor::Processes(WorkerProcesses {
         first_frame_timeout,
+        egl_devices: crate::settings::render_workers(Some(count), Vec::new()).1,
         ..WorkerProcesses::new(
             std::env::current_exe()?,
             vec!["-q".into(), "augment-worker".into()],

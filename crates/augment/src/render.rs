@@ -84,6 +84,15 @@ pub(crate) fn preload_renderer(
     )
 }
 
+/// Whether this thread's renderer is open for `assets`' scene with `config`'s settings
+/// (and has drawn: it is only kept after its warm-up or a unit).
+pub(crate) fn renderer_ready(assets: &TaskAssets, config: &AugmentConfig) -> bool {
+    let settings = unit_render_settings(config);
+    RENDERER.with(|cell| {
+        matches!(&*cell.borrow(), Some((k, r)) if *k == assets.key && r.settings() == settings)
+    })
+}
+
 /// The renderer settings of a unit.
 fn unit_render_settings(config: &AugmentConfig) -> RenderSettings {
     RenderSettings {

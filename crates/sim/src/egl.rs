@@ -186,21 +186,30 @@ impl EglContext {
             .with_profile(GlProfile::Compatibility)
             .with_context_api(ContextApi::OpenGl(Some(Version::new(2, 0))))
             .build(None);
-        // SAFETY: display and config are valid; MuJoCo needs a compatibility profile.
-        let not_current = unsafe { display.create_context(&config, &attrs)? };
         // Bound with no surface where the driver allows it, as MuJoCo's own EGL backend
         // does: MuJoCo then draws only into its offscreen framebuffer and sees no window
         // one (with a pbuffer, NVIDIA's driver raised GL_INVALID_OPERATION in
-        // mjr_makeContext, printed as a warning for every renderer). Else a pbuffer.
-        let (context, surface) = if display.extensions().contains("EGL_KHR_surfaceless_context") {
-            (not_current.make_current_surfaceless()?, None)
-        } else {
-            let w = NonZeroU32::new(width.max(1)).expect("max(1)");
-            let h = NonZeroU32::new(height.max(1)).expect("max(1)");
-            let surface_attrs = SurfaceAttributesBuilder::<PbufferSurface>::new().build(w, h);
-            // SAFETY: display and config are valid; the size is non-zero.
-            let surface = unsafe { display.create_pbuffer_surface(&config, &surface_attrs)? };
-            (not_current.make_current(&surface)?, Some(surface))
+        // mjr_makeContext, printed as a warning for every renderer). Else, or when that
+        // fails, a pbuffer.
+        let surfaceless = display
+            .extensions()
+            .contains("EGL_KHR_surfaceless_context")
+            // SAFETY: display and config are valid; MuJoCo needs a compatibility profile.
+            .then(|| unsafe { display.create_context(&config, &attrs) })
+            .transpose()?
+            .and_then(|c| c.make_current_surfaceless().ok());
+        let (context, surface) = match surfaceless {
+            Some(context) => (context, None),
+            None => {
+                // SAFETY: as above.
+                let not_current = unsafe { display.create_context(&config, &attrs)? };
+                let w = NonZeroU32::new(width.max(1)).expect("max(1)");
+                let h = NonZeroU32::new(height.max(1)).expect("max(1)");
+                let surface_attrs = SurfaceAttributesBuilder::<PbufferSurface>::new().build(w, h);
+                // SAFETY: display and config are valid; the size is non-zero.
+                let surface = unsafe { display.create_pbuffer_surface(&config, &surface_attrs)? };
+                (not_current.make_current(&surface)?, Some(surface))
+            }
         };
         let (description, software) = describe(device);
         let device = EglDevice {

@@ -62,13 +62,15 @@ pub struct Lightened {
 const MIN_TRIANGLES: usize = 64;
 
 /// One face corner of a mesh as MuJoCo stores it: indices of its vertex, normal and
-/// texture coordinate (0 without texture), and the normal's direction.
+/// texture coordinate (0 without texture), the normal's direction and the texture
+/// coordinate's value (0, 0 without texture).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Corner {
     vertex: i32,
     normal: i32,
     texcoord: i32,
     direction: [f32; 3],
+    uv: [f32; 2],
 }
 
 /// A copy of `model` whose meshes are simplified to `max_error` metres.
@@ -82,13 +84,10 @@ pub fn lighten(model: &MjModel, max_error: f32) -> Lightened {
     let m = unsafe { copy.ffi_mut() };
     for i in 0..m.nmesh as usize {
         // SAFETY: i < nmesh.
-        let (vadr, nadr, fadr, fnum, tadr) = unsafe {
+        let (fadr, fnum) = unsafe {
             (
-                *m.mesh_vertadr.add(i) as usize,
-                *m.mesh_normaladr.add(i) as usize,
                 *m.mesh_faceadr.add(i) as usize,
                 *m.mesh_facenum.add(i) as usize,
-                *m.mesh_texcoordadr.add(i),
             )
         };
         before += fnum;
@@ -96,38 +95,27 @@ pub fn lighten(model: &MjModel, max_error: f32) -> Lightened {
             after += fnum;
             continue;
         }
-        let read3 = |p: *const f32, k: usize| unsafe {
-            [*p.add(3 * k), *p.add(3 * k + 1), *p.add(3 * k + 2)]
-        };
-        // SAFETY: faces [fadr, fadr + fnum); their vertex and normal indices are relative to
-        // the mesh's own vertex and normal ranges; texture coordinates exist when tadr >= 0.
-        let corners: Vec<Corner> = (0..3 * fnum)
-            .map(|c| unsafe {
-                let at = 3 * fadr + c;
-                let (vertex, normal) = (*m.mesh_face.add(at), *m.mesh_facenormal.add(at));
-                Corner {
-                    vertex,
-                    normal,
-                    texcoord: if tadr >= 0 {
-                        *m.mesh_facetexcoord.add(at)
-                    } else {
-                        0
-                    },
-                    direction: read3(m.mesh_normal, nadr + normal as usize),
-                }
-            })
-            .collect();
-        let position = |v: i32| read3(m.mesh_vert, vadr + v as usize);
-        let faces = simplify(&corners, position, max_error);
+        // SAFETY: mesh i's faces, vertices, normals and texture coordinates, as MuJoCo
+        // laid them out.
+        let (corners, positions) = unsafe { mesh_corners(m, i) };
+        let faces = simplify(&corners, |v| positions[v as usize], max_error);
+        if faces.is_empty() {
+            // Simplified away entirely (a small, dense part): drawn as it is.
+            after += fnum;
+            continue;
+        }
         after += faces.len();
+        // SAFETY: i < nmesh.
+        let textured = unsafe { *m.mesh_texcoordadr.add(i) } >= 0;
         for (j, face) in faces.iter().enumerate() {
             for (k, c) in face.iter().enumerate() {
                 let at = 3 * (fadr + j) + k;
-                // SAFETY: j < faces.len() <= fnum: inside the mesh's own face range.
+                // SAFETY: j < faces.len() <= fnum: inside the mesh's own face range; face
+                // texture coordinates exist when the mesh has any.
                 unsafe {
                     *m.mesh_face.add(at) = c.vertex;
                     *m.mesh_facenormal.add(at) = c.normal;
-                    if tadr >= 0 {
+                    if textured {
                         *m.mesh_facetexcoord.add(at) = c.texcoord;
                     }
                 }
@@ -143,25 +131,79 @@ pub fn lighten(model: &MjModel, max_error: f32) -> Lightened {
     }
 }
 
+/// Mesh `i`'s face corners and vertex positions.
+///
+/// # Safety
+/// `m` is a complete model and `i < m.nmesh`.
+unsafe fn mesh_corners(m: &mujoco_rs::mujoco_c::mjModel, i: usize) -> (Vec<Corner>, Vec<[f32; 3]>) {
+    // SAFETY: every index below stays inside mesh i's ranges of the arrays, per MuJoCo's
+    // layout: faces [faceadr, faceadr + facenum), vertices [vertadr, vertadr + vertnum),
+    // normal and texture-coordinate indices relative to normaladr and texcoordadr (face
+    // texture coordinates exist only when texcoordadr >= 0).
+    unsafe {
+        let vadr = *m.mesh_vertadr.add(i) as usize;
+        let vnum = *m.mesh_vertnum.add(i) as usize;
+        let nadr = *m.mesh_normaladr.add(i) as usize;
+        let (fadr, fnum) = (
+            *m.mesh_faceadr.add(i) as usize,
+            *m.mesh_facenum.add(i) as usize,
+        );
+        let tadr = *m.mesh_texcoordadr.add(i);
+        let xyz = |p: *const f32, k: usize| [*p.add(3 * k), *p.add(3 * k + 1), *p.add(3 * k + 2)];
+        let positions = (0..vnum).map(|v| xyz(m.mesh_vert, vadr + v)).collect();
+        let corners = (0..3 * fnum)
+            .map(|c| {
+                let at = 3 * fadr + c;
+                let (vertex, normal) = (*m.mesh_face.add(at), *m.mesh_facenormal.add(at));
+                let (texcoord, uv) = if tadr >= 0 {
+                    let t = *m.mesh_facetexcoord.add(at);
+                    let uv = m.mesh_texcoord.add(2 * (tadr as usize + t as usize));
+                    (t, [*uv, *uv.add(1)])
+                } else {
+                    (0, [0.0; 2])
+                };
+                Corner {
+                    vertex,
+                    normal,
+                    texcoord,
+                    direction: xyz(m.mesh_normal, nadr + normal as usize),
+                    uv,
+                }
+            })
+            .collect();
+        (corners, positions)
+    }
+}
+
 /// Simplifies one mesh given as face corners (three per face). Mesh files often repeat a
 /// vertex for every face that uses it (the reference Panda links: 44,200 vertices at
-/// 7,414 places), so the corners are first welded by position, for meshoptimizer to see
-/// the surface rather than loose triangles. Each corner of a new face then takes, of the
-/// original corners at its position, the one whose normal is closest to the new face's:
-/// a sharp edge keeps a normal on each side, a texture keeps its coordinates.
+/// 7,414 places), so the corners are first welded by position and texture coordinate,
+/// for meshoptimizer to see the surface rather than loose triangles (and a texture seam
+/// as a seam, which it keeps). Each corner of a new face then takes, of the original
+/// corners at its place, the one whose normal is closest to the new face's: a sharp edge
+/// keeps a normal on each side.
 fn simplify(
     corners: &[Corner],
     position: impl Fn(i32) -> [f32; 3],
     max_error: f32,
 ) -> Vec<[Corner; 3]> {
-    let mut welded: HashMap<[u32; 3], u32> = HashMap::new();
+    let mut welded: HashMap<[u32; 5], u32> = HashMap::new();
     let mut xyz: Vec<[f32; 3]> = Vec::new();
     let mut at_place: Vec<Vec<Corner>> = Vec::new();
     let indices: Vec<u32> = corners
         .iter()
         .map(|c| {
             let p = position(c.vertex);
-            let w = *welded.entry(p.map(f32::to_bits)).or_insert_with(|| {
+            // `+ 0.0` makes -0.0 and 0.0 one place.
+            let bits = |x: f32| (x + 0.0).to_bits();
+            let key = [
+                bits(p[0]),
+                bits(p[1]),
+                bits(p[2]),
+                bits(c.uv[0]),
+                bits(c.uv[1]),
+            ];
+            let w = *welded.entry(key).or_insert_with(|| {
                 xyz.push(p);
                 at_place.push(Vec::new());
                 (xyz.len() - 1) as u32
@@ -248,6 +290,7 @@ mod tests {
                         normal: v,
                         texcoord: v,
                         direction: [0.0, 0.0, 1.0],
+                        uv: [0.0; 2],
                     });
                 }
             }

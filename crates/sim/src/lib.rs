@@ -35,7 +35,7 @@ pub use error::SimError;
 pub use feedback::Feedback;
 pub use geometry::{Geometry, Lightened, lighten};
 pub use render::{CameraView, Frame, RenderQuality, RenderSettings, RenderTimes, Renderer};
-pub use scene::{Scene, mujoco_library_path, mujoco_version};
+pub use scene::{Scene, mujoco_library_path, mujoco_version, route_mujoco_warnings};
 
 /// Re-exported so callers can step and inspect the simulation without naming the crate.
 pub use mujoco_rs;

@@ -20,6 +20,29 @@ pub fn mujoco_version() -> String {
     }
 }
 
+/// Sends MuJoCo's warnings to the log (`tracing`, target `mujoco`, on stderr) instead of
+/// MuJoCo's default, a `printf` to stdout: stdout carries a command's results (`doctor
+/// --json`) and a worker process's messages, which a stray line would corrupt. Call once,
+/// early; later calls do nothing.
+pub fn route_mujoco_warnings() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // SAFETY: MuJoCo reads this hook when it warns; it is set once, before any model is
+        // loaded or any other thread uses MuJoCo, to a function that matches its signature.
+        unsafe { mujoco_rs::mujoco_c::mju_user_warning = Some(log_warning) }
+    });
+}
+
+/// MuJoCo's warning hook: the message to the log.
+unsafe extern "C" fn log_warning(message: *const std::ffi::c_char) {
+    if message.is_null() {
+        return;
+    }
+    // SAFETY: MuJoCo passes a NUL-terminated message that lives for the call.
+    let text = unsafe { CStr::from_ptr(message) }.to_string_lossy();
+    tracing::warn!(target: "mujoco", "{}", text.trim());
+}
+
 /// The path of the loaded `libmujoco.so`, read from the process's memory map.
 pub fn mujoco_library_path() -> Option<PathBuf> {
     // Touch the library so it is mapped before we look.

@@ -125,17 +125,6 @@ pub fn finished_children_cpu_seconds() -> Option<f64> {
     Some((cutime + cstime) / TICKS_PER_SECOND)
 }
 
-/// Lets the pipe to an encoder hold several frames (Linux: 64 KiB by default, less than
-/// one 224x224 frame), so that the renderer goes on while the encoder works on the frames
-/// before instead of waiting for it frame by frame. Up to 1 MiB, what any process may ask
-/// for; where that is refused, the pipe stays as it was (only speed depends on it).
-fn widen_pipe(pipe: &ChildStdin, spec: VideoSpec) {
-    const FRAMES: usize = 4;
-    const MAX: usize = 1 << 20;
-    let frame = spec.width as usize * spec.height as usize * 3;
-    let _ = rustix::pipe::fcntl_setpipe_size(pipe, (FRAMES * frame).min(MAX));
-}
-
 /// Starts an ffmpeg command; a failure to start names the video file.
 fn spawn_ffmpeg(cmd: &mut Command, path: &Path) -> Result<Child, VideoError> {
     cmd.spawn().map_err(|source| VideoError::Spawn {
@@ -232,9 +221,6 @@ impl VideoWriter {
             .stderr(Stdio::piped());
         let mut child = spawn_ffmpeg(&mut cmd, &path)?;
         let stdin = child.stdin.take();
-        if let Some(pipe) = &stdin {
-            widen_pipe(pipe, spec);
-        }
         Ok(Self {
             child: Some(child),
             stdin,

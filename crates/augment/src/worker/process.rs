@@ -1,5 +1,7 @@
-//! One worker process as the parent sees it: started with its share of the machine,
-//! its messages read on a thread of their own, and a deadline for its first frame.
+//! One worker process as the parent sees it: started with its share of the machine, its
+//! messages read on a thread of their own, and deadlines: a renderer must draw its first
+//! frame within the first-frame deadline of its opening, and a rendering worker that then
+//! says nothing for ten times as long is taken for hung.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, ChildStdin, Command, Stdio};
@@ -11,18 +13,26 @@ use super::protocol::{FromWorker, SLOT_ENV, ToWorker, send};
 use crate::config::AugmentConfig;
 use crate::error::AugmentError;
 
+/// How many first-frame deadlines a rendering worker may stay silent.
+const SILENCE_FACTOR: u32 = 10;
+
+/// How long a closing worker may take to exit before it is killed.
+const CLOSE_GRACE: Duration = Duration::from_secs(30);
+
 /// Why a worker gave no answer.
 pub(super) enum Silence {
-    /// It ended (crashed, killed) or said something unreadable.
+    /// It ended (crashed, killed, said something unreadable) or went silent while
+    /// rendering; the worker is gone.
     Ended(String),
-    /// It drew no frame before its first-frame deadline and was killed.
-    Stalled(String),
+    /// It cannot render: its renderer failed to open or to draw a first frame in time (it
+    /// was killed), or it ended before drawing one.
+    CannotRender(String),
 }
 
-/// One running worker process.
+/// One running worker process; killed and reaped when dropped unless closed.
 pub(super) struct Worker {
     child: Child,
-    stdin: ChildStdin,
+    stdin: Option<ChildStdin>,
     /// Its stdout's lines; `None` once stdout ended.
     lines: Receiver<Option<String>>,
     slot: usize,
@@ -30,9 +40,10 @@ pub(super) struct Worker {
     assigned: Option<usize>,
     /// The device its renderer reported opening.
     device: Option<String>,
-    /// Whether it has drawn a frame.
+    /// Whether its current renderer has drawn a frame.
     ready: bool,
-    started: Instant,
+    /// When its current renderer began to open (or the worker started).
+    opening_since: Instant,
     timeout: Duration,
 }
 
@@ -64,7 +75,7 @@ impl Worker {
                 w.program.display()
             ))
         })?;
-        let mut stdin = child.stdin.take().expect("piped");
+        let stdin = child.stdin.take();
         let stdout = BufReader::new(child.stdout.take().expect("piped"));
         let (tx, lines) = std::sync::mpsc::channel();
         // The reader ends with the worker's stdout (it exits or is killed).
@@ -77,13 +88,7 @@ impl Worker {
             }
             let _ = tx.send(None);
         });
-        let hello = ToWorker::Hello {
-            config: Box::new(config.clone()),
-            preload: preload.to_vec(),
-        };
-        send(&mut stdin, &hello)
-            .map_err(|e| AugmentError::Input(format!("worker process {slot}: {e}")))?;
-        Ok(Self {
+        let mut worker = Self {
             child,
             stdin,
             lines,
@@ -91,35 +96,68 @@ impl Worker {
             assigned,
             device: None,
             ready: false,
-            started: Instant::now(),
+            opening_since: Instant::now(),
             timeout: w.first_frame_timeout,
-        })
+        };
+        let hello = ToWorker::Hello {
+            config: Box::new(config.clone()),
+            preload: preload.to_vec(),
+        };
+        // On failure the worker is dropped: killed and reaped.
+        worker
+            .send(&hello)
+            .map_err(|_| AugmentError::Input(format!("worker process {slot} ended at once")))?;
+        Ok(worker)
     }
 
     pub(super) fn send(&mut self, msg: &ToWorker) -> Result<(), Silence> {
-        send(&mut self.stdin, msg).map_err(|e| Silence::Ended(format!("{e}; {}", self.ended())))
+        let stdin = self.stdin.as_mut().expect("open until closed");
+        send(stdin, msg).map_err(|e| self.ended(&e.to_string()))
     }
 
-    /// The next message about the unit, or why there is none. Until its first frame, a
-    /// worker has until its deadline to speak.
+    /// The next message about the unit, or why there is none.
     pub(super) fn receive(&mut self) -> Result<FromWorker, Silence> {
         loop {
-            let line = if self.ready {
-                self.lines.recv().ok().flatten()
+            let (deadline, silence) = if self.ready {
+                (Instant::now() + self.timeout * SILENCE_FACTOR, true)
             } else {
-                let left = (self.started + self.timeout).saturating_duration_since(Instant::now());
-                match self.lines.recv_timeout(left) {
-                    Ok(line) => line,
-                    Err(RecvTimeoutError::Timeout) => return Err(Silence::Stalled(self.stall())),
-                    Err(RecvTimeoutError::Disconnected) => None,
+                (self.opening_since + self.timeout, false)
+            };
+            let line = match self
+                .lines
+                .recv_timeout(deadline.saturating_duration_since(Instant::now()))
+            {
+                Ok(line) => line,
+                Err(RecvTimeoutError::Timeout) if silence => {
+                    self.kill();
+                    let secs = (self.timeout * SILENCE_FACTOR).as_secs_f64();
+                    return Err(Silence::Ended(format!(
+                        "worker process {} sent nothing for {secs} s while rendering ({}); it was killed",
+                        self.slot,
+                        self.device_words()
+                    )));
                 }
+                Err(RecvTimeoutError::Timeout) => return Err(Silence::CannotRender(self.stall())),
+                Err(RecvTimeoutError::Disconnected) => None,
             };
             let Some(line) = line else {
-                return Err(Silence::Ended(self.ended()));
+                return Err(self.ended("its output ended"));
             };
             match serde_json::from_str(&line) {
+                Ok(FromWorker::Opening) => {
+                    self.ready = false;
+                    self.opening_since = Instant::now();
+                }
                 Ok(FromWorker::Device(d)) => self.device = Some(d),
                 Ok(FromWorker::Ready) => self.ready = true,
+                Ok(FromWorker::CannotRender(why)) => {
+                    self.kill();
+                    return Err(Silence::CannotRender(format!(
+                        "worker process {} cannot render ({}): {why}",
+                        self.slot,
+                        self.device_words()
+                    )));
+                }
                 Ok(msg) => {
                     if matches!(msg, FromWorker::Frames(n) if n > 0) {
                         self.ready = true;
@@ -127,49 +165,81 @@ impl Worker {
                     return Ok(msg);
                 }
                 Err(e) => {
-                    let _ = self.child.kill();
-                    return Err(Silence::Ended(format!(
-                        "unreadable message from a worker process ({e}): {line}; {}",
-                        self.ended()
+                    self.kill();
+                    return Err(self.ended(&format!(
+                        "unreadable message from a worker process ({e}): {line}"
                     )));
                 }
             }
         }
     }
 
-    /// Kills a worker past its deadline and says which, on which device.
-    fn stall(&mut self) -> String {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        let device = match (&self.device, self.assigned) {
+    /// Which EGL device, in words.
+    fn device_words(&self) -> String {
+        match (&self.device, self.assigned) {
             (Some(d), _) => format!("on EGL device {d}"),
             (None, Some(i)) => format!("assigned EGL device {i}, which it had not opened yet"),
             (None, None) => "before its EGL renderer opened".to_owned(),
-        };
-        format!(
-            "worker process {} drew no frame within {} s of starting ({device}); it was killed",
-            self.slot,
-            self.timeout.as_secs_f64()
-        )
-    }
-
-    /// Reaps the process and says how it ended.
-    fn ended(&mut self) -> String {
-        match self.child.wait() {
-            Ok(s) => format!("the worker process ended ({s})"),
-            Err(e) => format!("the worker process ended ({e})"),
         }
     }
 
-    /// Ends the worker after its last job (its stdin closes, it exits).
+    /// Kills a worker past its first-frame deadline and says which, on which device.
+    fn stall(&mut self) -> String {
+        self.kill();
+        format!(
+            "worker process {} drew no frame within {} s of opening its renderer ({}); it was killed",
+            self.slot,
+            self.timeout.as_secs_f64(),
+            self.device_words()
+        )
+    }
+
+    /// Reaps the ended process and says how it ended: before its renderer drew, it cannot
+    /// render; after, it crashed or was killed.
+    fn ended(&mut self, what: &str) -> Silence {
+        let how = match self.child.wait() {
+            Ok(s) => format!("{what}; the worker process ended ({s})"),
+            Err(e) => format!("{what}; the worker process ended ({e})"),
+        };
+        if self.ready {
+            Silence::Ended(how)
+        } else {
+            Silence::CannotRender(format!(
+                "worker process {} ended before its renderer drew ({}): {how}",
+                self.slot,
+                self.device_words()
+            ))
+        }
+    }
+
+    /// Ends the worker after its last job: its stdin closes and it exits, or is killed
+    /// after a grace period.
     pub(super) fn close(mut self) {
-        drop(self.stdin);
-        let _ = self.child.wait();
+        drop(self.stdin.take());
+        let until = Instant::now() + CLOSE_GRACE;
+        while Instant::now() < until {
+            match self.child.try_wait() {
+                Ok(Some(_)) | Err(_) => return,
+                Ok(None) => std::thread::sleep(Duration::from_millis(20)),
+            }
+        }
+        tracing::warn!(
+            "worker process {} did not exit after its last job; killed",
+            self.slot
+        );
     }
 
     fn kill(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        if !matches!(self.child.try_wait(), Ok(Some(_))) {
+            self.kill();
+        }
     }
 }
 
@@ -191,14 +261,17 @@ impl WorkerPool {
         tasks: &[String],
         max_units: usize,
     ) -> Result<Self, AugmentError> {
-        let mut workers = Vec::new();
+        let mut pool = Self {
+            workers: Vec::new(),
+        };
         if let super::Executor::Processes(w) = executor {
             let count = w.count.min(max_units).max(1);
             for slot in 0..count {
-                workers.push(Worker::spawn(w, slot, count, config, tasks)?);
+                pool.workers
+                    .push(Worker::spawn(w, slot, count, config, tasks)?);
             }
         }
-        Ok(Self { workers })
+        Ok(pool)
     }
 
     /// One entry per slot: the started workers first, `None` for slots that start theirs
@@ -208,13 +281,5 @@ impl WorkerPool {
         let mut out: Vec<Option<Worker>> = self.workers.drain(..keep).map(Some).collect();
         out.resize_with(slots, || None);
         out
-    }
-}
-
-impl Drop for WorkerPool {
-    fn drop(&mut self) {
-        for wk in &mut self.workers {
-            wk.kill();
-        }
     }
 }

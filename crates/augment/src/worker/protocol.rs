@@ -30,10 +30,15 @@ pub(super) enum ToWorker {
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub(super) enum FromWorker {
-    /// The renderer opened on this EGL device (its label), before its first frame.
+    /// A renderer is about to open (for a scene): its first frame is due within the
+    /// first-frame deadline.
+    Opening,
+    /// The renderer opened on this EGL device (its label).
     Device(String),
-    /// The renderer drew its first frame: this worker renders.
+    /// The renderer drew its first frame.
     Ready,
+    /// No renderer could be opened or draw here; why.
+    CannotRender(String),
     /// Frames rendered since the last message (0: about to commit a replay).
     Frames(u64),
     /// The unit is written.

@@ -1,10 +1,11 @@
 //! Units of work handed to worker slots, biggest first. A slot holds one worker process
 //! at a time: a worker that dies mid-unit is replaced and the unit retried once; a worker
-//! that stalls before its first frame retires its slot and its unit goes back to the
-//! queue for another slot; with no slot left to render, the run fails.
+//! that cannot render (its renderer fails to open, or draws no first frame before the
+//! deadline) retires its slot and its unit goes back to the queue, unattempted, for another
+//! slot; with no slot left to render, or a worker that cannot be started, the run fails.
 
 use std::collections::VecDeque;
-use std::sync::{Condvar, Mutex};
+use std::sync::{Condvar, Mutex, MutexGuard};
 
 use dexjoco_core::Progress;
 
@@ -35,7 +36,7 @@ struct Schedule {
     /// Frames rendered by attempts that failed (rendered again by the retry).
     extra_frames: u64,
     /// Why slots were retired.
-    stalls: Vec<String>,
+    retired: Vec<String>,
     fatal: Option<AugmentError>,
 }
 
@@ -43,6 +44,12 @@ impl Schedule {
     /// Rendering processes that have work now (their share of the cores).
     fn busy(&self) -> usize {
         self.live.min(self.queue.len() + self.in_flight).max(1)
+    }
+
+    /// Stops the run: no slot takes another unit.
+    fn stop(&mut self, why: AugmentError) {
+        self.fatal.get_or_insert(why);
+        self.queue.clear();
     }
 }
 
@@ -54,7 +61,8 @@ enum Attempt {
         reason: String,
         ended: bool,
     },
-    Stalled(String),
+    /// The worker cannot render; the unit was not really tried.
+    CannotRender(String),
 }
 
 pub(super) fn run_on_processes(
@@ -77,7 +85,7 @@ pub(super) fn run_on_processes(
         results: vec![None; jobs.len()],
         times: StageTimes::default(),
         extra_frames: 0,
-        stalls: Vec::new(),
+        retired: Vec::new(),
         fatal: None,
     });
     let changed = Condvar::new();
@@ -96,14 +104,14 @@ pub(super) fn run_on_processes(
             scope.spawn(move || ctx.run_slot(slot, first));
         }
     });
-    let s = schedule.into_inner().expect("schedule");
+    let s = schedule.into_inner().unwrap_or_else(|e| e.into_inner());
     if let Some(e) = s.fatal {
         return Err(e);
     }
     if !s.queue.is_empty() {
         return Err(AugmentError::Input(format!(
             "no worker process could render ({}); hint: {STALL_HINT}",
-            s.stalls.join("; ")
+            s.retired.join("; ")
         )));
     }
     let results = s
@@ -125,40 +133,51 @@ struct SlotContext<'a> {
     changed: &'a Condvar,
 }
 
+/// A unit a slot has taken: it goes back to the queue or gets its result through one of
+/// the [`SlotContext`] methods; dropped otherwise (a panicking slot), it stops the run so
+/// that the other slots do not wait for it forever.
+struct Taken<'a> {
+    k: usize,
+    attempt: u32,
+    settled: bool,
+    schedule: &'a Mutex<Schedule>,
+    changed: &'a Condvar,
+}
+
 impl SlotContext<'_> {
+    fn lock(&self) -> MutexGuard<'_, Schedule> {
+        self.schedule.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
     /// A slot's loop: take a unit, have its worker (started when needed) render it, record
     /// the result; until no unit is left or in flight, or the slot is retired.
     fn run_slot(&self, slot: usize, mut worker: Option<Worker>) {
-        while let Some((k, attempt, busy)) = self.take() {
+        while let Some((mut taken, busy)) = self.take() {
             if worker.is_none() {
                 match Worker::spawn(self.w, slot, busy, self.config, &[]) {
                     Ok(wk) => worker = Some(wk),
-                    Err(e) => {
-                        self.retire(k, attempt, None, Some(e));
-                        return;
-                    }
+                    Err(e) => return self.retire(&mut taken, None, Some(e)),
                 }
             }
             let wk = worker.as_mut().expect("spawned");
-            let mut job = self.jobs[k].1.clone();
-            job.attempt = attempt;
-            let (attempt_result, done) = self.attempt(wk, &job);
-            match attempt_result {
-                Attempt::Done(o, t) => self.finish(k, Ok((o, t))),
+            let mut job = self.jobs[taken.k].1.clone();
+            job.attempt = taken.attempt;
+            let (attempt, done) = self.attempt(wk, &job);
+            match attempt {
+                Attempt::Done(o, t) => self.finish(&mut taken, Ok((o, t))),
                 Attempt::Failed { reason, ended } => {
                     if ended {
                         // Crashed or killed: a fresh worker for the next unit.
                         worker = None;
                     }
                     job.clear_staging(&self.config.out);
-                    self.failed(k, &job, reason, done);
+                    self.failed(&mut taken, &job, reason, done);
                 }
-                Attempt::Stalled(why) => {
+                Attempt::CannotRender(why) => {
                     job.clear_staging(&self.config.out);
                     tracing::warn!("{why}; its unit {} goes to another worker", job.key());
                     self.progress.note(&why);
-                    self.retire(k, attempt, Some(why), None);
-                    return;
+                    return self.retire(&mut taken, Some(why), None);
                 }
             }
         }
@@ -169,18 +188,25 @@ impl SlotContext<'_> {
 
     /// The next unit and the number of busy slots, waiting while others may still hand
     /// units back; `None` when all is done.
-    fn take(&self) -> Option<(usize, u32, usize)> {
-        let mut s = self.schedule.lock().expect("schedule");
+    fn take(&self) -> Option<(Taken<'_>, usize)> {
+        let mut s = self.lock();
         loop {
             if let Some((k, attempt)) = s.queue.pop_front() {
                 s.in_flight += 1;
                 let busy = s.busy();
-                return Some((k, attempt, busy));
+                let taken = Taken {
+                    k,
+                    attempt,
+                    settled: false,
+                    schedule: self.schedule,
+                    changed: self.changed,
+                };
+                return Some((taken, busy));
             }
             if s.in_flight == 0 {
                 return None;
             }
-            s = self.changed.wait(s).expect("schedule");
+            s = self.changed.wait(s).unwrap_or_else(|e| e.into_inner());
         }
     }
 
@@ -200,57 +226,80 @@ impl SlotContext<'_> {
                     return (Attempt::Done(outcomes, times), done);
                 }
                 Ok(FromWorker::Error(reason)) => {
-                    return (
-                        Attempt::Failed {
-                            reason,
-                            ended: false,
-                        },
-                        done,
-                    );
+                    let ended = false;
+                    return (Attempt::Failed { reason, ended }, done);
                 }
-                Ok(FromWorker::Device(_) | FromWorker::Ready) => {}
+                Ok(_) => {}
                 Err(s) => return (silence(s), done),
             }
         }
     }
 
-    fn finish(&self, k: usize, result: Result<(Vec<Outcome>, StageTimes), String>) {
-        let mut s = self.schedule.lock().expect("schedule");
+    /// Settles `taken` under the lock: `f` records its outcome, then the slots waiting
+    /// for units are woken.
+    fn settle(&self, taken: &mut Taken<'_>, f: impl FnOnce(&mut Schedule)) {
+        let mut s = self.lock();
         s.in_flight -= 1;
-        s.results[k] = Some(result.map(|(o, t)| {
-            s.times.add(&t);
-            o
-        }));
+        taken.settled = true;
+        f(&mut s);
         self.changed.notify_all();
+    }
+
+    fn finish(&self, taken: &mut Taken<'_>, result: Result<(Vec<Outcome>, StageTimes), String>) {
+        let k = taken.k;
+        self.settle(taken, |s| {
+            s.results[k] = Some(result.map(|(o, t)| {
+                s.times.add(&t);
+                o
+            }));
+        });
     }
 
     /// A failed attempt: the first is retried (its frames are rendered again), the second
     /// is the unit's result.
-    fn failed(&self, k: usize, job: &UnitJob, reason: String, done: u64) {
+    fn failed(&self, taken: &mut Taken<'_>, job: &UnitJob, reason: String, done: u64) {
         tracing::warn!(unit = %job.key(), "unit failed (attempt {}): {reason}", job.attempt + 1);
         if job.attempt > 0 {
-            return self.finish(k, Err(reason));
+            return self.finish(taken, Err(reason));
         }
-        let mut s = self.schedule.lock().expect("schedule");
-        s.in_flight -= 1;
-        s.extra_frames += done;
-        self.progress.start(self.total + s.extra_frames);
-        self.progress
-            .note(&format!("retrying {}: {reason}", job.key()));
-        s.queue.push_back((k, 1));
-        self.changed.notify_all();
+        let k = taken.k;
+        self.settle(taken, |s| {
+            s.extra_frames += done;
+            self.progress.start(self.total + s.extra_frames);
+            self.progress
+                .note(&format!("retrying {}: {reason}", job.key()));
+            s.queue.push_back((k, 1));
+        });
     }
 
-    /// Retires this slot: its unit goes back to the front of the queue, unattempted.
-    fn retire(&self, k: usize, attempt: u32, stall: Option<String>, fatal: Option<AugmentError>) {
-        let mut s = self.schedule.lock().expect("schedule");
+    /// Retires this slot: its unit goes back to the front of the queue, unattempted; a
+    /// fatal error stops the run.
+    fn retire(&self, taken: &mut Taken<'_>, why: Option<String>, fatal: Option<AugmentError>) {
+        let (k, attempt) = (taken.k, taken.attempt);
+        self.settle(taken, |s| {
+            s.live -= 1;
+            s.queue.push_front((k, attempt));
+            s.retired.extend(why);
+            if let Some(e) = fatal {
+                s.stop(e);
+            }
+        });
+    }
+}
+
+impl Drop for Taken<'_> {
+    fn drop(&mut self) {
+        if self.settled {
+            return;
+        }
+        // A slot that panicked while it held this unit: the run stops, rather than the
+        // other slots waiting for the unit forever.
+        let mut s = self.schedule.lock().unwrap_or_else(|e| e.into_inner());
         s.in_flight -= 1;
         s.live -= 1;
-        s.queue.push_front((k, attempt));
-        s.stalls.extend(stall);
-        if let Some(e) = fatal {
-            s.fatal.get_or_insert(e);
-        }
+        s.stop(AugmentError::Input(
+            "a worker slot of this process failed (a bug: please report it)".into(),
+        ));
         self.changed.notify_all();
     }
 }
@@ -261,6 +310,6 @@ fn silence(s: Silence) -> Attempt {
             reason,
             ended: true,
         },
-        Silence::Stalled(why) => Attempt::Stalled(why),
+        Silence::CannotRender(why) => Attempt::CannotRender(why),
     }
 }

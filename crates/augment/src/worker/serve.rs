@@ -15,7 +15,9 @@ use super::{FAULT_ENV, STALL_ENV};
 use crate::config::AugmentConfig;
 use crate::error::AugmentError;
 use crate::inputs::{Source, check_fields};
-use crate::render::{UnitInputs, UnitJob, close_renderer, preload_renderer, render_unit};
+use crate::render::{
+    UnitInputs, UnitJob, close_renderer, preload_renderer, render_unit, renderer_ready,
+};
 use crate::run::{TaskAssets, load_assets};
 
 /// What a worker process holds between jobs.
@@ -24,10 +26,16 @@ struct WorkerState {
     tasks: TaskSet,
     sources: BTreeMap<PathBuf, Source>,
     assets: BTreeMap<String, Arc<TaskAssets>>,
-    /// Whether the renderer has drawn its first frame (and the parent was told).
-    ready: bool,
     /// This worker stalls before its first frame (the stall test hook).
     stall: bool,
+}
+
+/// Why a job could not start.
+enum NotStarted {
+    /// The renderer did not open or draw: this worker cannot render.
+    CannotRender(String),
+    /// The job's episode or scene failed.
+    Unit(AugmentError),
 }
 
 /// The worker side: reads the `hello` and `job` lines from `input`, renders each unit,
@@ -49,34 +57,21 @@ pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), A
         tasks,
         sources: BTreeMap::new(),
         assets: BTreeMap::new(),
-        ready: false,
         stall: stalls_here(),
     };
-    // The scenes this run will need, and this worker's renderer, before the first job.
-    // A failure here is not fatal: the job that needs the scene reports it.
-    for task in &preload {
-        let Some(spec) = state.tasks.get(task).cloned() else {
-            continue;
-        };
-        match load_assets(&state.config, &spec) {
-            Ok(a) => {
-                let a = Arc::new(a);
-                if let Err(e) = state.warm_up(&a, &mut output) {
-                    tracing::debug!(task, "renderer not preloaded: {e}");
-                }
-                state.assets.insert(task.clone(), a);
-            }
-            Err(e) => tracing::debug!(task, "scene not preloaded: {e}"),
-        }
-    }
+    state.preload(&preload, &mut output);
     for line in lines {
         let job = match serde_json::from_str::<ToWorker>(&line.map_err(io)?) {
             Ok(ToWorker::Job(j)) => *j,
             _ => return Err(AugmentError::Input("worker: expected a job".into())),
         };
-        let msg = match state.run(&job, &mut output) {
-            Ok((outcomes, times)) => FromWorker::Done { outcomes, times },
-            Err(e) => FromWorker::Error(e.to_string()),
+        let msg = match state.prepare(&job, &mut output) {
+            Err(NotStarted::CannotRender(why)) => FromWorker::CannotRender(why),
+            Err(NotStarted::Unit(e)) => FromWorker::Error(e.to_string()),
+            Ok(assets) => match state.render(&job, &assets, &mut output) {
+                Ok((outcomes, times)) => FromWorker::Done { outcomes, times },
+                Err(e) => FromWorker::Error(e.to_string()),
+            },
         };
         send(&mut output, &msg).map_err(io)?;
     }
@@ -103,52 +98,82 @@ fn tell(output: &mut dyn Write, msg: &FromWorker) {
 }
 
 impl WorkerState {
-    /// Opens the renderer on `assets`' scene and draws its warm-up frames; the first time,
-    /// tells the parent the device, then that a frame was drawn.
-    fn warm_up(&mut self, assets: &TaskAssets, output: &mut dyn Write) -> Result<(), AugmentError> {
-        let (first, stall) = (!self.ready, self.stall);
-        preload_renderer(assets, &self.config, &mut |device| {
-            if first {
-                tell(
-                    output,
-                    &FromWorker::Device(format!("{} ({})", device.index, device.label())),
-                );
-                if stall {
-                    tracing::warn!(
-                        "{STALL_ENV}: stalling before the first frame, as a hung driver would"
-                    );
-                    loop {
-                        std::thread::sleep(std::time::Duration::from_secs(3600));
+    /// Loads the scenes this run will need, each with the renderer warmed up, before the
+    /// first job. A scene that fails to load is not fatal here (the job that needs it
+    /// reports it); a renderer that fails is: the parent hears that this worker cannot
+    /// render.
+    fn preload(&mut self, tasks: &[String], output: &mut dyn Write) {
+        for task in tasks {
+            let Some(spec) = self.tasks.get(task).cloned() else {
+                continue;
+            };
+            match load_assets(&self.config, &spec) {
+                Ok(a) => {
+                    let a = Arc::new(a);
+                    self.assets.insert(task.clone(), Arc::clone(&a));
+                    if let Err(e) = self.warm_up(&a, output) {
+                        tell(output, &FromWorker::CannotRender(e.to_string()));
+                        return;
                     }
+                }
+                Err(e) => tracing::debug!(task, "scene not preloaded: {e}"),
+            }
+        }
+    }
+
+    /// Opens the renderer on `assets`' scene and draws its warm-up frames, telling the
+    /// parent as it goes: opening, the device it opened on, the first frame drawn.
+    fn warm_up(&self, assets: &TaskAssets, output: &mut dyn Write) -> Result<(), AugmentError> {
+        tell(output, &FromWorker::Opening);
+        let stall = self.stall;
+        preload_renderer(assets, &self.config, &mut |device| {
+            tell(
+                output,
+                &FromWorker::Device(format!("{} ({})", device.index, device.label())),
+            );
+            if stall {
+                tracing::warn!(
+                    "{STALL_ENV}: stalling before the first frame, as a hung driver would"
+                );
+                loop {
+                    std::thread::sleep(std::time::Duration::from_secs(3600));
                 }
             }
         })?;
-        if first {
-            tell(output, &FromWorker::Ready);
-            self.ready = true;
-        }
+        tell(output, &FromWorker::Ready);
         Ok(())
     }
 
-    /// Renders one job.
-    fn run(
+    /// The job's episode and scene, with the renderer open on it.
+    fn prepare(
         &mut self,
         job: &UnitJob,
         output: &mut dyn Write,
-    ) -> Result<(Vec<crate::staging::Outcome>, crate::profile::StageTimes), AugmentError> {
-        load_source(&mut self.sources, job, &self.tasks)?;
+    ) -> Result<Arc<TaskAssets>, NotStarted> {
+        load_source(&mut self.sources, job, &self.tasks).map_err(NotStarted::Unit)?;
         if !self.assets.contains_key(&job.task) {
             let spec = self.sources[&job.path].spec.clone();
-            let a = Arc::new(load_assets(&self.config, &spec)?);
-            self.assets.insert(job.task.clone(), a);
+            let a = load_assets(&self.config, &spec).map_err(NotStarted::Unit)?;
+            self.assets.insert(job.task.clone(), Arc::new(a));
         }
         let assets = Arc::clone(&self.assets[&job.task]);
-        if !self.ready {
-            self.warm_up(&assets, output)?;
+        if !renderer_ready(&assets, &self.config) {
+            self.warm_up(&assets, output)
+                .map_err(|e| NotStarted::CannotRender(e.to_string()))?;
         }
+        Ok(assets)
+    }
+
+    /// Renders one prepared job.
+    fn render(
+        &self,
+        job: &UnitJob,
+        assets: &TaskAssets,
+        output: &mut dyn Write,
+    ) -> Result<(Vec<crate::staging::Outcome>, crate::profile::StageTimes), AugmentError> {
         let inputs = UnitInputs {
             src: &self.sources[&job.path],
-            assets: &assets,
+            assets,
             config: &self.config,
             out: &self.config.out,
         };
