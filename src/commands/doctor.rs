@@ -239,7 +239,7 @@ fn print_human(r: &Report, mujoco_ok: bool) {
         }
     }
     outln!();
-    outln!("Sample data (the default input of augment, ingest and stats)");
+    outln!("Sample data (the default input of augment and bench augment; the examples of stats)");
     print_located(
         r.sample_data.as_ref(),
         &format!(

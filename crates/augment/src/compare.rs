@@ -3,17 +3,15 @@
 //! images as rendered, before encoding), with the triangle counts of both. `bench augment
 //! --geometry full,light` prints it beside the speed-up, so users choose with numbers.
 
-use dexjoco_core::TaskSet;
-use dexjoco_sim::mujoco_rs::prelude::MjtState;
+use std::sync::Arc;
+
 use dexjoco_sim::{Frame, Geometry, RenderSettings, Renderer};
 use serde::Serialize;
 
 use crate::config::AugmentConfig;
+use crate::dry_run::Trajectory;
 use crate::error::{AugmentError, sim_err};
-use crate::inputs::read_sources;
-use crate::physics::{new_env, replay};
 use crate::randomize::apply_visuals;
-use crate::run::load_assets;
 
 /// The light geometry against the full one on a replay's views.
 #[derive(Debug, Clone, Serialize)]
@@ -41,43 +39,27 @@ pub fn geometry_difference(
     config: &AugmentConfig,
     frames: usize,
 ) -> Result<GeometryDifference, AugmentError> {
-    let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
-        .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
-    let (sources, _) = read_sources(&config.inputs, &config.out, &tasks)?;
-    let src = sources
-        .first()
-        .ok_or_else(|| AugmentError::Input("no episode to render".into()))?;
-    let id = &src.episode.id;
-    let assets = load_assets(config, &src.spec)?;
-    let model = &assets.scene.model;
+    let mut t = Trajectory::of_first_episode(config)?;
+    let id = t.src.episode.id.clone();
+    let model = Arc::clone(&t.assets.scene.model);
     let settings = |geometry| RenderSettings {
         geometry,
         depth: false,
         ..config.settings
     };
-    let mut full = Renderer::new(model, settings(Geometry::Full)).map_err(sim_err(id))?;
-    let mut light = Renderer::new(model, settings(Geometry::Light)).map_err(sim_err(id))?;
-    let lightened = dexjoco_sim::lighten(model, Geometry::max_error(config.settings.height));
-    let mut env = new_env(src, &assets.scene, &src.spec)?;
-    let state = MjtState::mjSTATE_FULLPHYSICS as u32;
-    let mut trajectory = Vec::new();
-    replay(src, &mut env, config, |env, _| {
-        trajectory.push(env.data().state(state));
-        Ok(())
-    })?;
-    let sample = assets.sample(config.seed, &src.key(), 0);
-    let n = frames.clamp(1, trajectory.len());
+    let mut full = Renderer::new(&model, settings(Geometry::Full)).map_err(sim_err(&id))?;
+    let mut light = Renderer::new(&model, settings(Geometry::Light)).map_err(sim_err(&id))?;
+    let lightened = dexjoco_sim::lighten(&model, Geometry::max_error(config.settings.height));
+    let sample = t.assets.sample(config.seed, &t.src.key(), 0);
+    let n = frames.clamp(1, t.states.len());
     let mut psnrs = Vec::with_capacity(n);
     let mut ssims = Vec::with_capacity(n);
     for k in 0..n {
-        let data = env.data_mut();
-        data.set_state(&trajectory[k * trajectory.len() / n], state)
-            .map_err(|e| AugmentError::Input(format!("episode '{id}': {e}")))?;
-        data.forward();
+        t.go_to(k * t.states.len() / n)?;
         let mut draw = |r: &mut Renderer| -> Result<Frame, AugmentError> {
-            r.update_scene(env.data_mut(), sample.camera.view());
-            apply_visuals(r, &sample, &assets.table);
-            r.draw().map_err(sim_err(id))
+            r.update_scene(t.env.data_mut(), sample.camera.view());
+            apply_visuals(r, &sample, &t.assets.table);
+            r.draw().map_err(sim_err(&id))
         };
         let (a, b) = (draw(&mut full)?, draw(&mut light)?);
         psnrs.push(psnr(&a.rgb, &b.rgb));

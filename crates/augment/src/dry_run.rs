@@ -15,7 +15,7 @@ use serde::Serialize;
 use crate::config::{AugmentConfig, replay_name};
 use crate::error::{AugmentError, sim_err, video_err};
 use crate::fingerprint::OutputSettings;
-use crate::inputs::read_sources;
+use crate::inputs::{Source, read_sources};
 use crate::physics::{action_row, new_env, recorded_frames, replay};
 use crate::plan::{existing_replays, owned_replays};
 use crate::profile::{StageTimes, timed};
@@ -247,42 +247,26 @@ pub fn render_only(
     frames: usize,
     ready: &mut dyn FnMut(),
 ) -> Result<f64, AugmentError> {
-    let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
-        .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
-    let (sources, _) = read_sources(&config.inputs, &config.out, &tasks)?;
-    let src = sources
-        .first()
-        .ok_or_else(|| AugmentError::Input("no episode to render".into()))?;
-    let id = &src.episode.id;
-    let assets = load_assets(config, &src.spec)?;
-    let fixed = assets.fixed_cameras(&config.cameras, id)?;
-    let mut renderer = Renderer::new(&assets.scene.model, config.settings).map_err(sim_err(id))?;
-    let mut env = new_env(src, &assets.scene, &src.spec)?;
-    let full = MjtState::mjSTATE_FULLPHYSICS as u32;
-    let mut trajectory = Vec::new();
-    replay(src, &mut env, config, |env, _| {
-        trajectory.push(env.data().state(full));
-        Ok(())
-    })?;
+    let mut t = Trajectory::of_first_episode(config)?;
+    let id = t.src.episode.id.clone();
+    let fixed = t.assets.fixed_cameras(&config.cameras, &id)?;
+    let mut renderer =
+        Renderer::new(&t.assets.scene.model, config.settings).map_err(sim_err(&id))?;
     let samples: Vec<VisualSample> = (0..config.replays.max(1))
-        .map(|r| assets.sample(config.seed, &src.key(), r))
+        .map(|r| t.assets.sample(config.seed, &t.src.key(), r))
         .collect();
     // Draw calls (each draws every view) over which the trajectory is spread.
     let span = frames.div_ceil(1 + fixed.len()).max(1);
     let mut draw = |k: usize| -> Result<usize, AugmentError> {
         let sample = &samples[k % samples.len()];
-        let state = &trajectory[(k % span) * trajectory.len() / span];
-        let data = env.data_mut();
-        data.set_state(state, full)
-            .map_err(|e| AugmentError::Input(format!("episode '{id}': {e}")))?;
-        data.forward();
+        t.go_to((k % span) * t.states.len() / span)?;
         let views = std::iter::once(sample.camera.view())
             .chain(fixed.iter().map(|i| CameraView::Fixed(*i)));
         let mut n = 0;
         for view in views {
-            renderer.update_scene(env.data_mut(), view);
-            apply_visuals(&mut renderer, sample, &assets.table);
-            renderer.draw().map_err(sim_err(id))?;
+            renderer.update_scene(t.env.data_mut(), view);
+            apply_visuals(&mut renderer, sample, &t.assets.table);
+            renderer.draw().map_err(sim_err(&id))?;
             n += 1;
         }
         Ok(n)
@@ -300,3 +284,51 @@ pub fn render_only(
     }
     Ok(rendered as f64 / started.elapsed().as_secs_f64().max(1e-9))
 }
+
+/// `config`'s first episode, its task's scene, and its simulated trajectory (the full
+/// physics state before every step), for drawing the episode's states without stepping
+/// (the render-only limit, the light-geometry comparison).
+pub(crate) struct Trajectory {
+    pub(crate) src: Source,
+    pub(crate) assets: crate::run::TaskAssets,
+    pub(crate) env: dexjoco_sim::TaskEnv,
+    pub(crate) states: Vec<Box<[f64]>>,
+}
+
+impl Trajectory {
+    /// Reads the inputs, loads the first episode's scene and simulates it once.
+    pub(crate) fn of_first_episode(config: &AugmentConfig) -> Result<Self, AugmentError> {
+        let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
+            .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
+        let (sources, _) = read_sources(&config.inputs, &config.out, &tasks)?;
+        let src = sources
+            .into_iter()
+            .next()
+            .ok_or_else(|| AugmentError::Input("no episode to render".into()))?;
+        let assets = load_assets(config, &src.spec)?;
+        let mut env = new_env(&src, &assets.scene, &src.spec)?;
+        let mut states = Vec::new();
+        replay(&src, &mut env, config, |env, _| {
+            states.push(env.data().state(FULL_STATE));
+            Ok(())
+        })?;
+        Ok(Self {
+            src,
+            assets,
+            env,
+            states,
+        })
+    }
+
+    /// Sets the simulation to state `k` (and its derived quantities) for drawing.
+    pub(crate) fn go_to(&mut self, k: usize) -> Result<(), AugmentError> {
+        let data = self.env.data_mut();
+        data.set_state(&self.states[k], FULL_STATE)
+            .map_err(|e| AugmentError::Input(format!("episode '{}': {e}", self.src.episode.id)))?;
+        data.forward();
+        Ok(())
+    }
+}
+
+/// The state a trajectory records: everything physics needs to resume.
+const FULL_STATE: u32 = MjtState::mjSTATE_FULLPHYSICS as u32;
