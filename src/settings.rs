@@ -191,7 +191,7 @@ impl AugmentSettings {
             shard,
             dry_run,
             egl_devices,
-            first_frame_timeout,
+            deadline,
             overwrite,
         } = args;
         if replays == 0 {
@@ -231,19 +231,10 @@ impl AugmentSettings {
             ));
         }
         let (workers, egl_devices) = render_workers(global.jobs, egl_devices);
-        let first_frame_timeout = std::time::Duration::try_from_secs_f64(first_frame_timeout)
-            .ok()
-            .filter(|d| !d.is_zero())
-            .ok_or_else(|| {
-                usage(
-                    format!("--first-frame-timeout {first_frame_timeout} is not a positive number of seconds"),
-                    "the default, 120, suits a GPU node; a slow CPU machine loading large scenes may want more",
-                )
-            })?;
         Ok(Self {
             workers,
             egl_devices,
-            first_frame_timeout,
+            first_frame_timeout: deadline.duration(),
             dry_run,
             config: AugmentConfig {
                 inputs,

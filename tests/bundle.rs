@@ -6,28 +6,13 @@
 //! augment, convert, stats) succeeds, run through a symbolic link as a container image
 //! installs it.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
+
+mod common;
 
 fn root() -> PathBuf {
     dexjoco_testkit::workspace_root()
-}
-
-/// Packs this build's binary; returns the bundle's archive.
-fn package(dist: &Path) -> PathBuf {
-    let out = Command::new(root().join("scripts/package.sh"))
-        .arg("--bin")
-        .arg(env!("CARGO_BIN_EXE_dexjoco-data"))
-        .arg("--out")
-        .arg(dist)
-        .output()
-        .expect("running scripts/package.sh");
-    assert!(
-        out.status.success(),
-        "scripts/package.sh failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    PathBuf::from(String::from_utf8(out.stdout).unwrap().trim())
 }
 
 /// Runs `script` (sh) with the checkout hidden under a tmpfs and an empty environment.
@@ -56,28 +41,14 @@ fn hidden_checkout(script: &str) -> std::process::Output {
 #[test]
 fn the_bundle_runs_the_sample_job_with_the_checkout_hidden_and_no_environment() {
     let tmp = tempfile::tempdir().unwrap();
-    let archive = package(&tmp.path().join("dist"));
-    let name = archive
-        .file_name()
-        .unwrap()
-        .to_string_lossy()
-        .trim_end_matches(".tar.gz")
-        .to_owned();
+    let opt = tmp.path().join("opt");
+    fs_err::create_dir_all(&opt).unwrap();
+    let bundle = common::extracted_bundle(&opt);
+    let name = bundle.file_name().unwrap().to_string_lossy().into_owned();
     assert!(
         name.starts_with("dexjoco-data-") && name.ends_with("-linux-x86_64"),
         "{name}"
     );
-    let opt = tmp.path().join("opt");
-    fs_err::create_dir_all(&opt).unwrap();
-    let st = Command::new("tar")
-        .arg("-xzf")
-        .arg(&archive)
-        .arg("-C")
-        .arg(&opt)
-        .status()
-        .unwrap();
-    assert!(st.success());
-    let bundle = opt.join(&name);
     for part in [
         "bin/dexjoco-data",
         "lib/libmujoco.so.3.17.0",

@@ -10,6 +10,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+
 fn root() -> PathBuf {
     dexjoco_testkit::workspace_root()
 }
@@ -73,39 +75,11 @@ fn augment_args(bundle: &Path, out: &Path) -> Vec<String> {
     ]
 }
 
-/// Packs this build into a release bundle and extracts it under `dir`; returns the
-/// bundle's folder.
-fn extracted_bundle(dir: &Path) -> PathBuf {
-    let out = Command::new(root().join("scripts/package.sh"))
-        .arg("--bin")
-        .arg(env!("CARGO_BIN_EXE_dexjoco-data"))
-        .arg("--out")
-        .arg(dir)
-        .output()
-        .expect("running scripts/package.sh");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let archive = PathBuf::from(String::from_utf8(out.stdout).unwrap().trim());
-    let st = Command::new("tar")
-        .arg("-xzf")
-        .arg(&archive)
-        .arg("-C")
-        .arg(dir)
-        .status()
-        .unwrap();
-    assert!(st.success());
-    let name = archive.file_name().unwrap().to_string_lossy();
-    dir.join(name.trim_end_matches(".tar.gz"))
-}
-
 #[test]
 fn a_sharded_augment_on_a_real_slurm_cluster_equals_one_run() {
     let tmp = tempfile::tempdir().unwrap();
     // The bundle lies on the "shared file system" (here: a folder every job sees).
-    let bundle = extracted_bundle(tmp.path());
+    let bundle = common::extracted_bundle(tmp.path());
     let bin = bundle.join("bin/dexjoco-data");
 
     // The reference: one unsharded run.

@@ -133,6 +133,37 @@ pub enum QualityArg {
     Fast,
 }
 
+/// The worker processes' first-frame deadline (`augment`, `bench augment`).
+#[derive(Debug, Clone, Args)]
+pub struct FirstFrameArgs {
+    /// Seconds a worker process may take to draw the first frame of each renderer it
+    /// opens; one that has drawn nothing by then (a hung EGL driver) is killed and named,
+    /// and its work goes to the other workers.
+    #[arg(
+        long,
+        default_value_t = dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
+        env = "DEXJOCO_FIRST_FRAME_TIMEOUT",
+        value_name = "SECONDS",
+        value_parser = positive_seconds
+    )]
+    pub first_frame_timeout: f64,
+}
+
+impl FirstFrameArgs {
+    /// The deadline.
+    pub fn duration(&self) -> std::time::Duration {
+        std::time::Duration::from_secs_f64(self.first_frame_timeout)
+    }
+}
+
+/// A positive, finite number of seconds.
+fn positive_seconds(s: &str) -> Result<f64, String> {
+    s.parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .ok_or_else(|| format!("'{s}' is not a positive number of seconds"))
+}
+
 /// The renderer's meshes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum GeometryArg {

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
 
-use super::{GeometryArg, QualityArg};
+use super::{FirstFrameArgs, GeometryArg, QualityArg};
 
 /// `ingest` options.
 #[derive(Debug, Args)]
@@ -310,16 +310,9 @@ pub struct AugmentArgs {
         value_name = "LIST"
     )]
     pub egl_devices: Vec<usize>,
-    /// Seconds a worker process may take from its start to its first rendered frame; a
-    /// worker that has drawn nothing by then (a hung EGL driver) is killed and named, and
-    /// its work goes to the other workers.
-    #[arg(
-        long,
-        default_value_t = dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
-        env = "DEXJOCO_FIRST_FRAME_TIMEOUT",
-        value_name = "SECONDS"
-    )]
-    pub first_frame_timeout: f64,
+    /// The workers' first-frame deadline.
+    #[command(flatten)]
+    pub deadline: FirstFrameArgs,
     /// When --out was made with other settings, start clean: remove what augment wrote
     /// there (replays, records, report), nothing else.
     #[arg(long)]

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
-use super::{GeometryArg, QualityArg};
+use super::{FirstFrameArgs, GeometryArg, QualityArg};
 
 /// `doctor` options.
 #[derive(Debug, Args)]
@@ -163,15 +163,9 @@ pub struct BenchAugmentArgs {
     /// of worker processes, to compare the two.
     #[arg(long)]
     pub threads: bool,
-    /// Seconds a worker process may take to its first frame before it is killed (as
-    /// `augment --first-frame-timeout`).
-    #[arg(
-        long,
-        default_value_t = dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
-        env = "DEXJOCO_FIRST_FRAME_TIMEOUT",
-        value_name = "SECONDS"
-    )]
-    pub first_frame_timeout: f64,
+    /// The workers' first-frame deadline (as `augment`'s).
+    #[command(flatten)]
+    pub deadline: FirstFrameArgs,
 }
 
 /// `bench render-limit`: internal, one process of the render-only limit.

@@ -188,7 +188,9 @@ pub fn render_limit(
         limit_frames: args.frames,
         workers: Vec::new(),
         threads: false,
-        first_frame_timeout: dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
+        deadline: crate::cli::FirstFrameArgs {
+            first_frame_timeout: dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
+        },
         geometry: vec![args.geometry],
     };
     let c = config(
@@ -299,12 +301,8 @@ const LIMIT: &str = "render-only limit (trajectory states, no stepping, no encod
 
 /// `count` worker processes of this binary, dealt over the node's GPUs as `augment` does.
 fn processes(args: &BenchAugmentArgs, count: usize) -> anyhow::Result<Executor> {
-    let first_frame_timeout = std::time::Duration::try_from_secs_f64(args.first_frame_timeout)
-        .ok()
-        .filter(|d| !d.is_zero())
-        .context("--first-frame-timeout must be a positive number of seconds")?;
     Ok(Executor::Processes(WorkerProcesses {
-        first_frame_timeout,
+        first_frame_timeout: args.deadline.duration(),
         egl_devices: crate::settings::render_workers(Some(count), Vec::new()).1,
         ..WorkerProcesses::new(
             std::env::current_exe()?,

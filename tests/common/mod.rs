@@ -87,3 +87,31 @@ pub fn dead_pid() -> u32 {
     c.wait().unwrap();
     pid
 }
+
+/// Packs this build's binary into a release bundle (`scripts/package.sh`) and extracts it
+/// under `dir`; returns the bundle's folder (`dir/dexjoco-data-<version>-linux-<arch>`).
+pub fn extracted_bundle(dir: &Path) -> PathBuf {
+    let out = Command::new(dexjoco_testkit::workspace_root().join("scripts/package.sh"))
+        .arg("--bin")
+        .arg(env!("CARGO_BIN_EXE_dexjoco-data"))
+        .arg("--out")
+        .arg(dir)
+        .output()
+        .expect("running scripts/package.sh");
+    assert!(
+        out.status.success(),
+        "scripts/package.sh failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let archive = PathBuf::from(String::from_utf8(out.stdout).unwrap().trim());
+    let st = Command::new("tar")
+        .arg("-xzf")
+        .arg(&archive)
+        .arg("-C")
+        .arg(dir)
+        .status()
+        .unwrap();
+    assert!(st.success(), "tar could not extract {}", archive.display());
+    let name = archive.file_name().unwrap().to_string_lossy();
+    dir.join(name.trim_end_matches(".tar.gz"))
+}

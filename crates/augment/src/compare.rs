@@ -49,7 +49,6 @@ pub fn geometry_difference(
     };
     let mut full = Renderer::new(&model, settings(Geometry::Full)).map_err(sim_err(&id))?;
     let mut light = Renderer::new(&model, settings(Geometry::Light)).map_err(sim_err(&id))?;
-    let lightened = dexjoco_sim::lighten(&model, Geometry::max_error(config.settings.height));
     let sample = t.assets.sample(config.seed, &t.src.key(), 0);
     let n = frames.clamp(1, t.states.len());
     let mut psnrs = Vec::with_capacity(n);
@@ -69,8 +68,8 @@ pub fn geometry_difference(
     let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
     Ok(GeometryDifference {
         frames: n,
-        triangles_full: lightened.triangles_before,
-        triangles_light: lightened.triangles_after,
+        triangles_full: full.triangles(),
+        triangles_light: light.triangles(),
         psnr_mean: mean(&psnrs),
         psnr_min: min(&psnrs),
         ssim_mean: mean(&ssims),

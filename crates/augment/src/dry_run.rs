@@ -18,7 +18,7 @@ use crate::fingerprint::OutputSettings;
 use crate::inputs::{Source, read_sources};
 use crate::physics::{action_row, new_env, recorded_frames, replay};
 use crate::plan::{existing_replays, owned_replays};
-use crate::profile::{StageTimes, timed};
+use crate::profile::{EncoderClock, StageTimes, timed};
 use crate::randomize::{VisualSample, apply_visuals};
 use crate::run::load_assets;
 
@@ -226,13 +226,11 @@ fn calibrate(
     let fps = rendered as f64 / started.elapsed().as_secs_f64().max(1e-9);
     times.add_render(&renderer.take_times());
     // The encoders' CPU time, warm-up frames included (a few per cent of it).
-    let before = dexjoco_video::finished_children_cpu_seconds();
+    let encoders = EncoderClock::start();
     for w in writers {
         w.finish().map_err(video_err(id))?;
     }
-    if let (Some(b), Some(a)) = (before, dexjoco_video::finished_children_cpu_seconds()) {
-        times.encode_cpu = (a - b) * frames as f64 / (frames + warmup) as f64;
-    }
+    times.encode_cpu = encoders.seconds() * frames as f64 / (frames + warmup) as f64;
     Ok((fps, times))
 }
 

@@ -97,6 +97,26 @@ impl StageTimes {
     }
 }
 
+/// The CPU time of the encoders that finish from now on (they run in child processes of
+/// their own; their time is known once they are reaped). Only this process's children
+/// count, so within one process it covers every unit that runs meanwhile.
+pub(crate) struct EncoderClock(Option<f64>);
+
+impl EncoderClock {
+    /// Starts counting.
+    pub(crate) fn start() -> Self {
+        Self(dexjoco_video::finished_children_cpu_seconds())
+    }
+
+    /// CPU seconds of the encoders finished since the start (0 where it cannot be read).
+    pub(crate) fn seconds(&self) -> f64 {
+        match (self.0, dexjoco_video::finished_children_cpu_seconds()) {
+            (Some(before), Some(now)) => now - before,
+            _ => 0.0,
+        }
+    }
+}
+
 /// A stopwatch that adds what it measured to a total.
 pub(crate) fn timed<T>(total: &mut f64, f: impl FnOnce() -> T) -> T {
     let started = Instant::now();

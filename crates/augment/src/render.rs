@@ -21,7 +21,7 @@ use crate::dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, sample_dynam
 use crate::error::{AugmentError, io_err, sim_err, video_err};
 use crate::inputs::Source;
 use crate::physics::{Physics, PhysicsSummary, new_env, replay};
-use crate::profile::{StageTimes, timed};
+use crate::profile::{EncoderClock, StageTimes, timed};
 use crate::randomize::{VisualSample, apply_visuals};
 use crate::report::ReplayRecord;
 use crate::run::TaskAssets;
@@ -189,7 +189,7 @@ pub(crate) fn render_unit(
     let fixed = assets.fixed_cameras(&config.cameras, id)?;
     let cameras = replay_cameras(&config.cameras);
     let mut times = StageTimes::default();
-    let encoders_before = dexjoco_video::finished_children_cpu_seconds();
+    let encoders = EncoderClock::start();
 
     // The simulation to render: the validated one, or with --dynamics the replay's own on
     // a model copy (one replay per unit), simulated first so a failed draw is not rendered.
@@ -353,12 +353,7 @@ pub(crate) fn render_unit(
         )?;
         outcomes.push(Outcome::Kept(record));
     }
-    if let (Some(before), Some(after)) = (
-        encoders_before,
-        dexjoco_video::finished_children_cpu_seconds(),
-    ) {
-        times.encode_cpu = after - before;
-    }
+    times.encode_cpu = encoders.seconds();
     Ok((outcomes, times))
 }
 

@@ -193,9 +193,8 @@ pub fn augment_with(
         .map(|o| config.shard.is_none() || !o.is_empty())
         .collect();
     progress.phase("physics", simulate_it.iter().filter(|x| **x).count() as u64);
-    // Each simulation's seconds, summed over the threads that ran them.
-    let validation_seconds = std::sync::Mutex::new(0.0);
-    let simulated: Vec<Option<Result<PhysicsSummary, AugmentError>>> = sources
+    // Each simulation with its seconds (summed below over the threads that ran them).
+    let simulated: Vec<Option<(Result<PhysicsSummary, AugmentError>, f64)>> = sources
         .par_iter()
         .zip(&simulate_it)
         .map(|(s, &go)| {
@@ -204,15 +203,17 @@ pub fn augment_with(
                 let r = crate::profile::timed(&mut seconds, || {
                     simulate(s, &assets[&s.spec.id].scene, config).map(|p| p.summary)
                 });
-                *validation_seconds.lock().expect("seconds") += seconds;
                 progress.advance(1, &s.key());
-                r
+                (r, seconds)
             })
         })
         .collect();
-    let validation_seconds = validation_seconds.into_inner().expect("seconds");
+    let validation_seconds: f64 = simulated.iter().flatten().map(|(_, s)| s).sum();
     let mut physics: Vec<Option<PhysicsSummary>> = Vec::with_capacity(sources.len());
-    for (s, p) in sources.iter().zip(simulated) {
+    for (s, p) in sources
+        .iter()
+        .zip(simulated.into_iter().map(|p| p.map(|(r, _)| r)))
+    {
         physics.push(match p {
             Some(Ok(p)) => Some(p),
             Some(Err(e)) => {
@@ -309,7 +310,7 @@ pub fn augment_with(
         }
     }
 
-    let mut report = build_report(
+    let report = build_report(
         config,
         &sources,
         &physics,
@@ -319,7 +320,7 @@ pub fn augment_with(
         failed_units,
         rendered_now,
     );
-    report.times = times;
+    let report = AugmentReport { times, ..report };
     // A shard writes no report: the unsharded run after the shards writes it (and renders
     // nothing new), the same bytes as one unsharded run.
     if config.shard.is_none() {

@@ -48,13 +48,11 @@ impl Geometry {
     }
 }
 
-/// A model whose meshes were simplified for drawing, and by how much.
-pub struct Lightened {
+/// A model whose meshes were simplified for drawing.
+pub(crate) struct Lightened {
     /// The copy with simplified meshes.
     pub model: MjModel,
-    /// Mesh triangles before.
-    pub triangles_before: usize,
-    /// Mesh triangles after.
+    /// Its mesh triangles.
     pub triangles_after: usize,
 }
 
@@ -73,10 +71,15 @@ struct Corner {
     uv: [f32; 2],
 }
 
+/// Mesh triangles of `model`.
+pub(crate) fn mesh_triangles(model: &MjModel) -> usize {
+    model.ffi().nmeshface as usize
+}
+
 /// A copy of `model` whose meshes are simplified to `max_error` metres.
-pub fn lighten(model: &MjModel, max_error: f32) -> Lightened {
+pub(crate) fn lighten(model: &MjModel, max_error: f32) -> Lightened {
     let mut copy = model.clone();
-    let (mut before, mut after) = (0, 0);
+    let mut after = 0;
     // SAFETY: `copy` is a complete model owned here; each mesh's arrays are read and
     // written within the ranges its own address and count fields give (its faces are
     // rewritten in place, fewer than before, with vertex, normal and texture-coordinate
@@ -90,7 +93,6 @@ pub fn lighten(model: &MjModel, max_error: f32) -> Lightened {
                 *m.mesh_facenum.add(i) as usize,
             )
         };
-        before += fnum;
         if fnum < MIN_TRIANGLES {
             after += fnum;
             continue;
@@ -126,7 +128,6 @@ pub fn lighten(model: &MjModel, max_error: f32) -> Lightened {
     }
     Lightened {
         model: copy,
-        triangles_before: before,
         triangles_after: after,
     }
 }

@@ -33,7 +33,7 @@ pub use egl::{EGL_DEVICE_ENV, EglDevice, EglProbe, gpu_devices, probe_egl};
 pub use env::{EnvOptions, Rollout, SceneSource, TaskEnv, load_task_scene};
 pub use error::SimError;
 pub use feedback::Feedback;
-pub use geometry::{Geometry, Lightened, lighten};
+pub use geometry::Geometry;
 pub use render::{CameraView, Frame, RenderQuality, RenderSettings, RenderTimes, Renderer};
 pub use scene::{Scene, mujoco_library_path, mujoco_version, route_mujoco_warnings};
 

@@ -225,7 +225,7 @@ impl Frame {
 }
 
 /// Seconds a renderer spent per stage of its frames, summed (see [`Renderer::take_times`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RenderTimes {
     /// Frames drawn.
     pub frames: u64,
@@ -236,16 +236,6 @@ pub struct RenderTimes {
     /// Reading the pixels back into memory (`mjr_readPixels`), flipped top-down (and
     /// depth linearized).
     pub readback: f64,
-}
-
-impl RenderTimes {
-    /// Adds `other`'s frames and seconds to these.
-    pub fn add(&mut self, other: &Self) {
-        self.frames += other.frames;
-        self.scene += other.scene;
-        self.render += other.render;
-        self.readback += other.readback;
-    }
 }
 
 /// An offscreen renderer for one model, owned by one thread (its GL context is bound to
@@ -263,6 +253,8 @@ pub struct Renderer {
     times: RenderTimes,
     /// The context holds simplified meshes (light geometry).
     lightened: bool,
+    /// Mesh triangles the context holds.
+    triangles: usize,
     /// The GL context is bound to the creating thread: keep the renderer there.
     _not_send: std::marker::PhantomData<*const ()>,
 }
@@ -295,7 +287,10 @@ impl Renderer {
         // read here; scenes are built from the simulation's own model).
         let lightened = (geometry == Geometry::Light)
             .then(|| crate::geometry::lighten(model, Geometry::max_error(height)));
-        let drawn = lightened.as_ref().map_or(model, |l| &l.model);
+        let (drawn, triangles) = match &lightened {
+            Some(l) => (&l.model, l.triangles_after),
+            None => (model, crate::geometry::mesh_triangles(model)),
+        };
         // SAFETY: the EGL context created above is current on this thread, stays on it (the
         // Renderer owns it and is not Send) and outlives `context` (field order).
         let mut context = unsafe { MjrContext::new(drawn) };
@@ -329,6 +324,7 @@ impl Renderer {
             far: map.zfar * extent,
             times: RenderTimes::default(),
             lightened: lightened.is_some(),
+            triangles,
             _not_send: std::marker::PhantomData,
         })
     }
@@ -336,6 +332,11 @@ impl Renderer {
     /// The EGL device this renderer draws on.
     pub fn device(&self) -> &EglDevice {
         &self.egl.device
+    }
+
+    /// Mesh triangles it draws at most (fewer with the light geometry).
+    pub fn triangles(&self) -> usize {
+        self.triangles
     }
 
     /// Size and quality.

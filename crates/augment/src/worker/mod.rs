@@ -24,7 +24,7 @@ use std::collections::BTreeMap;
 use std::ffi::OsString;
 use std::path::PathBuf;
 use std::process::Command;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Duration;
 
 use dexjoco_core::Progress;
@@ -33,7 +33,7 @@ use rayon::prelude::*;
 use crate::config::AugmentConfig;
 use crate::error::AugmentError;
 use crate::inputs::Source;
-use crate::profile::StageTimes;
+use crate::profile::{EncoderClock, StageTimes};
 use crate::render::{UnitInputs, UnitJob, close_renderer, render_unit};
 use crate::run::TaskAssets;
 use crate::staging::Outcome;
@@ -135,11 +135,10 @@ fn run_on_threads(
     progress: &dyn Progress,
 ) -> (Vec<UnitResult>, StageTimes) {
     let extra = std::sync::atomic::AtomicU64::new(0);
-    let times = Mutex::new(StageTimes::default());
     // Units run side by side in this process: each unit's share of the finished encoders'
     // CPU time cannot be told apart, so it is taken once, for all of them.
-    let encoders_before = dexjoco_video::finished_children_cpu_seconds();
-    let results = jobs
+    let encoders = EncoderClock::start();
+    let attempts: Vec<Result<(Vec<Outcome>, StageTimes), String>> = jobs
         .par_iter()
         .map(|(i, job)| {
             let src = &local.sources[*i];
@@ -160,10 +159,7 @@ fn run_on_threads(
                     Ok(())
                 });
                 match r {
-                    Ok((o, t)) => {
-                        times.lock().expect("times").add(&t);
-                        return Ok(o);
-                    }
+                    Ok(done) => return Ok(done),
                     Err(e) => {
                         tracing::warn!(unit = %job.key(), "unit failed (attempt {}): {e}", attempt + 1);
                         job.clear_staging(&config.out);
@@ -182,13 +178,17 @@ fn run_on_threads(
     // Close every worker thread's renderer (and its EGL context) now, rather than at
     // process exit while other threads are still alive.
     rayon::broadcast(|_| close_renderer());
-    let mut times = times.into_inner().expect("times");
-    if let (Some(b), Some(a)) = (
-        encoders_before,
-        dexjoco_video::finished_children_cpu_seconds(),
-    ) {
-        times.encode_cpu = a - b;
-    }
+    let mut times = StageTimes::default();
+    let results = attempts
+        .into_iter()
+        .map(|a| {
+            a.map(|(outcomes, t)| {
+                times.add(&t);
+                outcomes
+            })
+        })
+        .collect();
+    times.encode_cpu = encoders.seconds();
     (results, times)
 }
 
