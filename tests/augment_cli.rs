@@ -6,11 +6,11 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+mod common;
+
 fn cli() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
-    c.env_remove("DEXJOCO_WORK_DIR")
-        .env_remove("DEXJOCO_SEED")
-        .env("DEXJOCO_LOG", "warn");
+    let mut c = common::dexjoco();
+    c.env("DEXJOCO_LOG", "warn");
     c
 }
 

@@ -11,18 +11,8 @@ use std::process::{Command, Output};
 mod common;
 
 fn cli() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
+    let mut c = common::dexjoco();
     c.current_dir(dexjoco_testkit::workspace_root())
-        .env_remove("DEXJOCO_WORK_DIR")
-        .env_remove("DEXJOCO_SEED")
-        .env_remove("DEXJOCO_EGL_DEVICES")
-        .env_remove(dexjoco_augment::FAULT_ENV)
-        .env_remove(dexjoco_augment::STALL_ENV)
-        .env_remove("DEXJOCO_FIRST_FRAME_TIMEOUT")
-        .env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("SLURM_ARRAY_TASK_COUNT")
-        .env_remove("SLURM_ARRAY_TASK_MIN")
-        .env_remove("JOB_COMPLETION_INDEX")
         .env("DEXJOCO_LOG", "warn");
     c
 }

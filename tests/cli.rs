@@ -7,10 +7,7 @@ mod common;
 use common::convert_input;
 
 fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
-    c.env_remove("DEXJOCO_WORK_DIR")
-        .env_remove("DEXJOCO_EGL_DEVICE");
-    c
+    common::dexjoco()
 }
 
 fn run(args: &[&str], cwd: &Path) -> Output {

@@ -1,10 +1,12 @@
 //! `dexjoco-data stats` end to end: exit codes, stdout, and the files it writes.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
+
+mod common;
 
 fn stats(work: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dexjoco-data"))
+    common::dexjoco()
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .arg("--work-dir")
         .arg(work)

@@ -8,6 +8,8 @@ use std::time::{Duration, Instant};
 use dexjoco_core::{TaskSet, TaskSpec, synth};
 use dexjoco_formats::{Manifest, Status, raw};
 
+mod common;
+
 /// The 11 tasks in the paper's order.
 fn tasks() -> Vec<&'static TaskSpec> {
     let mut t: Vec<_> = TaskSet::builtin().iter().collect();
@@ -20,10 +22,8 @@ fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<dexjoco_core::Epis
 }
 
 fn cli() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
-    c.env_remove("DEXJOCO_STORE")
-        .env_remove("DEXJOCO_WORK_DIR")
-        .env("DEXJOCO_LOG", "warn");
+    let mut c = common::dexjoco();
+    c.env("DEXJOCO_LOG", "warn");
     c
 }
 

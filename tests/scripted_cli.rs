@@ -5,11 +5,11 @@
 use std::path::Path;
 use std::process::Command;
 
+mod common;
+
 fn cli() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
-    c.env_remove("DEXJOCO_WORK_DIR")
-        .env_remove("DEXJOCO_SEED")
-        .env("DEXJOCO_LOG", "warn");
+    let mut c = common::dexjoco();
+    c.env("DEXJOCO_LOG", "warn");
     c
 }
 

@@ -12,12 +12,8 @@ mod common;
 use common::{convert_input, dead_pid, lock_of, sleeper};
 
 fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
-    c.env_remove("DEXJOCO_WORK_DIR")
-        .env_remove("DEXJOCO_STORE")
-        .env_remove("DEXJOCO_CONVERT_INPUT")
-        .env_remove("DEXJOCO_SEED")
-        .env("DEXJOCO_LOG", "warn");
+    let mut c = common::dexjoco();
+    c.env("DEXJOCO_LOG", "warn");
     c
 }
 

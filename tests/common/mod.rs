@@ -4,6 +4,36 @@
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
 
+/// Variables that change what the binary does: removed from every test's environment, so
+/// that a developer's shell (or a Slurm / Kubernetes job running the tests) cannot leak in.
+const BEHAVIOUR_ENV: &[&str] = &[
+    "DEXJOCO_WORK_DIR",
+    "DEXJOCO_STORE",
+    "DEXJOCO_CONVERT_INPUT",
+    "DEXJOCO_SEED",
+    "DEXJOCO_JOBS",
+    "DEXJOCO_LOG",
+    "DEXJOCO_EGL_DEVICE",
+    "DEXJOCO_EGL_DEVICES",
+    "DEXJOCO_FIRST_FRAME_TIMEOUT",
+    dexjoco_augment::FAULT_ENV,
+    dexjoco_augment::STALL_ENV,
+    "SLURM_ARRAY_TASK_ID",
+    "SLURM_ARRAY_TASK_COUNT",
+    "SLURM_ARRAY_TASK_MIN",
+    "JOB_COMPLETION_INDEX",
+];
+
+/// The `dexjoco-data` binary under test, with [`BEHAVIOUR_ENV`] removed from its
+/// environment.
+pub fn dexjoco() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
+    for var in BEHAVIOUR_ENV {
+        c.env_remove(var);
+    }
+    c
+}
+
 /// A folder of DexJoCo raw episode folders (replay.zarr + videos/) for `convert`.
 pub fn convert_input(dir: &Path) -> PathBuf {
     use dexjoco_core::{ArmSetup, CameraStream, Episode, FrameArray};

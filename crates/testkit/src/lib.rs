@@ -3,7 +3,8 @@
 //! - [`python`]: the interpreter of the cached venv of real readers (numpy, SciPy, zarr,
 //!   mcap, lerobot...), made by `scripts/setup.sh --python`. Tests that need it fail
 //!   with a hint when it is missing: they are never skipped.
-//! - [`upstream_dir`]: the DexJoCo reference scenes at `../shared/dexjoco-upstream`.
+//! - [`upstream_dir`], [`reference_scene_dir`]: the DexJoCo reference scenes at
+//!   `../shared/dexjoco-upstream`.
 //! - [`hostile`]: generated hostile inputs (mutated files) and a bounded, deterministic
 //!   runner that checks a parser neither panics nor hangs on them.
 
@@ -87,6 +88,11 @@ pub fn upstream_dir() -> PathBuf {
              (or set DEXJOCO_UPSTREAM)"
         )
     })
+}
+
+/// The DexJoCo reference scenes' MJCF folder (`--scene-dir`): `xmls/` of [`upstream_dir`].
+pub fn reference_scene_dir() -> PathBuf {
+    upstream_dir().join("xmls")
 }
 
 /// Every file below `dir` (path relative to `dir` -> bytes), for comparing outputs byte
