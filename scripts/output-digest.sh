@@ -8,7 +8,9 @@
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BIN="$(realpath "${1:-$ROOT/target/debug/dexjoco-data}")"
-W="$(mktemp -d)"
+# A fixed folder: paths are recorded in outputs (MCAP `source` metadata, store manifests).
+W="${DIGEST_DIR:-/tmp/dexjoco-output-digest}"
+rm -rf "$W"; mkdir -p "$W"
 trap 'rm -rf "$W"' EXIT; [ -n "${KEEP:-}" ] && trap - EXIT
 cd "$W"
 run() { "$BIN" -q -j 2 --work-dir "$W/work" "$@" >/dev/null 2>"$W/last.log" || { cat "$W/last.log" >&2; exit 1; }; }

@@ -9,13 +9,15 @@ use dexjoco_augment::{AugmentConfig, Shard};
 use dexjoco_convert::{
     ConvertOptions, OutputFormat, Selection, V3Options, VideoCodec, VideoOptions,
 };
-use dexjoco_core::TaskSet;
+use dexjoco_core::{TaskSet, TaskSpec};
+use dexjoco_formats::EpisodeContainer;
+use dexjoco_formats::mcap::McapLog;
 use dexjoco_ingest::{IngestOptions, ValidationOptions};
 use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
 
 use crate::cli::{
     AugmentArgs, CamerasArgs, ConvertArgs, ConvertFormatArg, ExportArgs, ExportFormat, GlobalArgs,
-    IngestArgs, JsBaseArg, QualityArg, StatsArgs, VideoCodecArg,
+    IngestArgs, JsBaseArg, QualityArg, ScriptedArgs, StatsArgs, VideoCodecArg,
 };
 use crate::exit::{CliError, ExitStatus};
 
@@ -30,7 +32,7 @@ pub fn usage(message: String, hint: impl Into<String>) -> anyhow::Error {
 }
 
 /// The spec of a known task, or a usage error naming the known ones.
-pub fn known_task<'a>(tasks: &'a TaskSet, id: &str) -> anyhow::Result<&'a dexjoco_core::TaskSpec> {
+pub fn known_task<'a>(tasks: &'a TaskSet, id: &str) -> anyhow::Result<&'a TaskSpec> {
     tasks.get(id).ok_or_else(|| {
         usage(
             format!("unknown task '{id}'"),
@@ -116,8 +118,8 @@ pub struct ExportSettings {
     pub inputs: Vec<PathBuf>,
     /// Output folder.
     pub out: PathBuf,
-    /// Container.
-    pub to: ExportFormat,
+    /// The container episodes are written in.
+    pub container: &'static dyn EpisodeContainer,
     /// Replace files already in `out`.
     pub overwrite: bool,
 }
@@ -145,8 +147,53 @@ impl ExportSettings {
         Ok(Self {
             inputs,
             out: out.unwrap_or_else(|| global.work_dir.join("export")),
-            to,
+            container: match to {
+                ExportFormat::Mcap => &McapLog,
+            },
             overwrite,
+        })
+    }
+}
+
+/// `scripted`.
+pub struct ScriptedSettings {
+    /// The task (one with a scripted planner).
+    pub task: &'static TaskSpec,
+    /// Random resets to plan from.
+    pub episodes: usize,
+    /// Where the scene comes from.
+    pub scene: SceneSource,
+    /// The folder episodes are written to: `<out>/<task>`.
+    pub task_dir: PathBuf,
+}
+
+impl ScriptedSettings {
+    /// Resolves `scripted`'s arguments.
+    pub fn resolve(args: &ScriptedArgs) -> anyhow::Result<Self> {
+        let ScriptedArgs {
+            task,
+            episodes,
+            scene_dir,
+            out,
+        } = args;
+        // An unknown task is a usage error (exit 2), as in every command.
+        let spec = known_task(TaskSet::builtin(), task)?;
+        if !dexjoco_sim::scripted::PLANNED_TASKS.contains(&spec.id.as_str()) {
+            return Err(CliError {
+                message: format!("no scripted planner for '{}'", spec.id),
+                hint: Some(format!(
+                    "tasks with a planner: {}",
+                    dexjoco_sim::scripted::PLANNED_TASKS.join(", ")
+                )),
+                status: ExitStatus::Failure,
+            }
+            .into());
+        }
+        Ok(Self {
+            task: spec,
+            episodes: *episodes,
+            scene: SceneSource::from_option(scene_dir.clone()),
+            task_dir: out.join(&spec.id),
         })
     }
 }
@@ -271,7 +318,7 @@ pub const WORKERS_PER_GPU: usize = 8;
 /// but at most [`WORKERS_PER_GPU`] per GPU on a GPU node; workers spread over every GPU
 /// of the node unless `--egl-devices` (or `DEXJOCO_EGL_DEVICE`) chooses.
 pub fn render_workers(jobs: Option<usize>, egl_devices: Vec<usize>) -> (usize, Vec<usize>) {
-    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    let cores = dexjoco_core::available_cores();
     let gpus = dexjoco_sim::gpu_devices().unwrap_or_default();
     let requested: Option<usize> = std::env::var(dexjoco_sim::EGL_DEVICE_ENV)
         .ok()

@@ -12,12 +12,11 @@ use dexjoco_core::{TaskSet, synth};
 use dexjoco_formats::raw;
 use dexjoco_testkit::file_tree;
 
+mod common;
+
 fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
-    c.env_remove("DEXJOCO_WORK_DIR")
-        .env_remove("DEXJOCO_STORE")
-        .env_remove("DEXJOCO_CONVERT_INPUT")
-        .env("DEXJOCO_LOG", "error")
+    let mut c = common::dexjoco();
+    c.env("DEXJOCO_LOG", "error")
         .stdout(Stdio::null())
         .stderr(Stdio::null());
     c
@@ -85,10 +84,9 @@ fn landed(store: &Path) -> usize {
         .sum()
 }
 
-#[test]
-fn ingest_killed_anywhere_then_rerun_equals_an_uninterrupted_run() {
-    let tmp = tempfile::tempdir().unwrap();
-    let input = tmp.path().join("in");
+/// 36 raw episodes (the tasks in turn) and a rejected input, under `root/in`.
+fn ingest_input(root: &Path) -> PathBuf {
+    let input = root.join("in");
     let tasks: Vec<_> = TaskSet::builtin().iter().collect();
     for i in 0..36 {
         let task = tasks[i % tasks.len()];
@@ -97,6 +95,63 @@ fn ingest_killed_anywhere_then_rerun_equals_an_uninterrupted_run() {
     }
     // A rejected input too: its quarantine copy is part of the store.
     fs_err::write(input.join("broken.mcap"), b"not an mcap file").unwrap();
+    input
+}
+
+/// Where the ingest runs into `store` are killed, in turn: the last two only by their
+/// deadlines (a third and two thirds of a run).
+fn ingest_kill_points(store: &Path) -> Vec<(&'static str, KillPoint)> {
+    let s = store.to_owned();
+    let staging = store.join(".staging");
+    vec![
+        (
+            "as soon as the store is locked",
+            Box::new(move |_| {
+                let s = s.clone();
+                Box::new(move || s.join(".lock").exists())
+            }),
+        ),
+        (
+            "while an episode is staged",
+            Box::new(move |_| {
+                let st = staging.clone();
+                Box::new(move || count_entries(&st) > 0)
+            }),
+        ),
+        (
+            "just after an episode is renamed into place",
+            Box::new({
+                let s = store.to_owned();
+                move |before| {
+                    let s = s.clone();
+                    Box::new(move || landed(&s) > before)
+                }
+            }),
+        ),
+        ("after a third of a run", Box::new(|_| Box::new(|| false))),
+        (
+            "after two thirds of a run",
+            Box::new(|_| Box::new(|| false)),
+        ),
+    ]
+}
+
+/// Whatever a kill leaves, every landed folder of `store` is a whole episode.
+fn assert_whole_episodes(store: &Path, what: &str) {
+    for t in TaskSet::builtin().iter() {
+        for e in fs_err::read_dir(store.join(&t.id)).into_iter().flatten() {
+            let dir = e.unwrap().path();
+            dexjoco_formats::read_episode(&dir, TaskSet::builtin())
+                .unwrap_or_else(|e| panic!("killed {what}: {}: {e}", dir.display()));
+        }
+    }
+}
+
+#[test]
+fn ingest_killed_anywhere_then_rerun_equals_an_uninterrupted_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = ingest_input(tmp.path());
+    let tasks: Vec<_> = TaskSet::builtin().iter().collect();
     let ingest_with = |store: &Path, overwrite: bool| {
         let mut c = bin();
         c.args(["-j", "1", "ingest"])
@@ -117,41 +172,8 @@ fn ingest_killed_anywhere_then_rerun_equals_an_uninterrupted_run() {
     let expected = file_tree(&clean);
 
     let store = tmp.path().join("store");
-    let s = store.clone();
-    let staging = store.join(".staging");
-    let points: Vec<(&str, KillPoint)> = vec![
-        (
-            "as soon as the store is locked",
-            Box::new(move |_| {
-                let s = s.clone();
-                Box::new(move || s.join(".lock").exists())
-            }),
-        ),
-        (
-            "while an episode is staged",
-            Box::new(move |_| {
-                let st = staging.clone();
-                Box::new(move || count_entries(&st) > 0)
-            }),
-        ),
-        (
-            "just after an episode is renamed into place",
-            Box::new({
-                let s = store.clone();
-                move |before| {
-                    let s = s.clone();
-                    Box::new(move || landed(&s) > before)
-                }
-            }),
-        ),
-        ("after a third of a run", Box::new(|_| Box::new(|| false))),
-        (
-            "after two thirds of a run",
-            Box::new(|_| Box::new(|| false)),
-        ),
-    ];
     let mut killed = 0;
-    for (i, (what, when)) in points.iter().enumerate() {
+    for (i, (what, when)) in ingest_kill_points(&store).iter().enumerate() {
         let deadline = match i {
             3 => whole / 3,
             4 => whole * 2 / 3,
@@ -160,14 +182,7 @@ fn ingest_killed_anywhere_then_rerun_equals_an_uninterrupted_run() {
         let before = landed(&store);
         if kill_when(ingest(&store), &*when(before), deadline) {
             killed += 1;
-            // Whatever a kill leaves, every landed folder is a whole episode.
-            for t in &tasks {
-                for e in fs_err::read_dir(store.join(&t.id)).into_iter().flatten() {
-                    let dir = e.unwrap().path();
-                    dexjoco_formats::read_episode(&dir, TaskSet::builtin())
-                        .unwrap_or_else(|e| panic!("killed {what}: {}: {e}", dir.display()));
-                }
-            }
+            assert_whole_episodes(&store, what);
         }
     }
     assert!(killed >= 4, "only {killed} of the runs were killed");

@@ -5,16 +5,22 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 fn main() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/builtin/objects");
+    // The manifest folder of this run, not of the build script's compilation: cargo
+    // reuses a build script compiled for a copy of the workspace elsewhere.
+    let manifest = std::env::var("CARGO_MANIFEST_DIR").expect("CARGO_MANIFEST_DIR");
+    let dir = Path::new(&manifest).join("assets/builtin/objects");
     println!("cargo:rerun-if-changed={}", dir.display());
     let mut files: Vec<_> = std::fs::read_dir(&dir)
-        .map(|rd| {
-            rd.filter_map(Result::ok)
-                .map(|e| e.path())
-                .filter(|p| p.extension().is_some_and(|e| e == "xml"))
-                .collect()
-        })
-        .unwrap_or_default();
+        .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "xml"))
+        .collect();
+    assert!(
+        !files.is_empty(),
+        "no built-in object fragments in {}",
+        dir.display()
+    );
     files.sort();
     let mut out = String::from("/// (task id, object fragment) of every built-in task scene.\n");
     out.push_str("pub static OBJECTS: &[(&str, &str)] = &[\n");

@@ -1,7 +1,8 @@
 //! Every clap definition of the `dexjoco-data` command line: this file holds the
 //! top level (global options, subcommands, shared value types); `stages` the pipeline
-//! commands (ingest, export, augment, cameras, convert, stats); `tools` doctor, render
-//! and bench. Commands turn these into settings in `crate::settings`.
+//! commands (ingest, export, scripted, augment, cameras, convert, stats); `tools` doctor,
+//! render and bench. Commands (`src/commands/`) turn these into settings
+//! (`src/settings.rs`); neither is imported here, so the modules form no circle.
 
 mod stages;
 mod tools;
@@ -110,7 +111,7 @@ pub enum Command {
     AugmentWorker(AugmentWorkerArgs),
     /// Plan scripted demonstrations of a task from random resets and write the
     /// successful ones in the DexJoCo raw layout.
-    Scripted(crate::commands::scripted::ScriptedArgs),
+    Scripted(ScriptedArgs),
     /// Build a third-person camera pose pool for a task: sample poses on a sphere, keep the
     /// least occluded (the DexJoCo paper's way); `augment --camera-pool` reads it.
     Cameras(CamerasArgs),

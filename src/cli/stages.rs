@@ -1,4 +1,5 @@
-//! Arguments of the pipeline commands: ingest, export, augment, cameras, convert, stats.
+//! Arguments of the pipeline commands: ingest, export, scripted, augment, cameras, convert,
+//! stats.
 
 use std::path::PathBuf;
 
@@ -82,6 +83,27 @@ pub struct ExportArgs {
     /// Replace files already in the output folder.
     #[arg(long)]
     pub overwrite: bool,
+}
+
+/// `scripted` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Writes OUT/<task>/episode_NNNNNN (action, state, timestamps; no videos), numbered in the
+order the successful plans were made. The same --seed, task and scene give identical
+files. Exit code 3: some plans did not succeed (not written); 1: none did.")]
+pub struct ScriptedArgs {
+    /// Task id, e.g. pinch_tongs.
+    #[arg(long)]
+    pub task: String,
+    /// Random resets to plan from.
+    #[arg(long, default_value_t = 1)]
+    pub episodes: usize,
+    /// Scene pack folder (e.g. the DexJoCo reference xmls/); default: built-in scenes.
+    #[arg(long)]
+    pub scene_dir: Option<PathBuf>,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
 }
 
 /// Dataset formats `convert` writes.

@@ -209,7 +209,7 @@ fn print_plan(config: &AugmentConfig, workers: usize) -> anyhow::Result<ExitStat
     }
     outln!();
     if let Some(s) = plan.seconds_one_worker {
-        let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+        let cores = dexjoco_core::available_cores();
         let here = workers.min(cores).max(1);
         outln!(
             "Estimate (calibrated: 30 frames of each scene rendered, encoded and stepped here):"

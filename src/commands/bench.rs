@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use dexjoco_sim::mujoco_rs::prelude::MjData;
+use dexjoco_sim::mujoco_rs::wrappers::mj_model::traits::ModelType;
 use dexjoco_sim::{CameraView, RenderQuality, RenderSettings, Renderer};
 use serde::Serialize;
 
@@ -32,17 +33,9 @@ struct Row {
     fps: f64,
 }
 
+/// Times offscreen rendering of each scene at each size, preset and geometry.
 fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitStatus> {
-    let mut scenes: Vec<Option<PathBuf>> = args.scenes.iter().cloned().map(Some).collect();
-    if scenes.is_empty() {
-        scenes.push(None);
-        match super::reference_scene_dir() {
-            Some(dir) => scenes.push(Some(dir.join("arena_arm_hand_plant.xml"))),
-            None => tracing::warn!(
-                "DexJoCo reference scenes not found (../shared/dexjoco-upstream): measuring the built-in scene only"
-            ),
-        }
-    }
+    let scenes = render_scenes(args);
     let presets: Vec<QualityArg> = if args.presets.is_empty() {
         vec![
             QualityArg::Paper,
@@ -89,14 +82,7 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
                 };
                 let mut r = Renderer::new(&scene.model, settings)?;
                 device = r.device().label();
-                for _ in 0..3 {
-                    r.render(&mut data, CameraView::Fixed(camera))?;
-                }
-                let t = Instant::now();
-                for _ in 0..args.frames {
-                    r.render(&mut data, CameraView::Fixed(camera))?;
-                }
-                let seconds = t.elapsed().as_secs_f64();
+                let seconds = time_frames(&mut r, &mut data, camera, args.frames)?;
                 rows.push(Row {
                     scene: label.clone(),
                     size,
@@ -111,14 +97,60 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
         }
     }
     pb.finish_and_clear();
+    print_render_rows(&rows, &device);
+    let out = global.work_dir.join("bench");
+    fs_err::create_dir_all(&out)?;
+    let json = out.join("render.json");
+    fs_err::write(
+        &json,
+        serde_json::to_string_pretty(&serde_json::json!({ "device": device, "rows": rows }))?,
+    )?;
+    errln!("wrote {}", json.display());
+    Ok(ExitStatus::Success)
+}
 
+/// The scenes to measure: those given, or the built-in one and (when found) a DexJoCo
+/// reference scene.
+fn render_scenes(args: &BenchRenderArgs) -> Vec<Option<PathBuf>> {
+    let mut scenes: Vec<Option<PathBuf>> = args.scenes.iter().cloned().map(Some).collect();
+    if scenes.is_empty() {
+        scenes.push(None);
+        match super::reference_scene_dir() {
+            Some(dir) => scenes.push(Some(dir.join("arena_arm_hand_plant.xml"))),
+            None => tracing::warn!(
+                "DexJoCo reference scenes not found (../shared/dexjoco-upstream): measuring the built-in scene only"
+            ),
+        }
+    }
+    scenes
+}
+
+/// Seconds `renderer` takes to render `frames` frames of `camera`, after 3 warm-up frames.
+fn time_frames<M: ModelType>(
+    renderer: &mut Renderer,
+    data: &mut MjData<M>,
+    camera: usize,
+    frames: usize,
+) -> anyhow::Result<f64> {
+    for _ in 0..3 {
+        renderer.render(data, CameraView::Fixed(camera))?;
+    }
+    let t = Instant::now();
+    for _ in 0..frames {
+        renderer.render(data, CameraView::Fixed(camera))?;
+    }
+    Ok(t.elapsed().as_secs_f64())
+}
+
+/// The rendering measurements as a Markdown table.
+fn print_render_rows(rows: &[Row], device: &str) {
     outln!(
         "Offscreen rendering, one camera, update scene + draw + read back RGB; device: {device}"
     );
     outln!();
     outln!("| scene | size | preset | geometry | frames/s | ms/frame |");
     outln!("|---|---:|---|---|---:|---:|");
-    for r in &rows {
+    for r in rows {
         outln!(
             "| {} | {}x{} | {} | {} | {:.1} | {:.1} |",
             r.scene,
@@ -130,15 +162,6 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
             1000.0 / r.fps
         );
     }
-    let out = global.work_dir.join("bench");
-    fs_err::create_dir_all(&out)?;
-    let json = out.join("render.json");
-    fs_err::write(
-        &json,
-        serde_json::to_string_pretty(&serde_json::json!({ "device": device, "rows": rows }))?,
-    )?;
-    errln!("wrote {}", json.display());
-    Ok(ExitStatus::Success)
 }
 
 #[derive(Debug, Serialize)]
@@ -207,9 +230,7 @@ fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitSta
             mb_per_s: megabytes / summary.seconds,
         });
     }
-    let threads = global.jobs.unwrap_or_else(|| {
-        std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
-    });
+    let threads = global.jobs.unwrap_or_else(dexjoco_core::available_cores);
     outln!(
         "Ingest (read, hash, validate, write Zarr, commit) of {} generated episodes x {} frames, {threads} thread(s)",
         args.episodes,

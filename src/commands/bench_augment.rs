@@ -325,27 +325,9 @@ struct BenchContext<'a> {
 
 /// Runs `bench augment`.
 pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitStatus> {
-    let inputs = if args.inputs.is_empty() {
-        vec![super::augment::sample_data()?]
-    } else {
-        args.inputs.clone()
-    };
-    let first_input = dexjoco_formats::discover(&inputs, None)?
-        .into_iter()
-        .next()
-        .context("no episode in the inputs")?
-        .path;
-    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
-    let mut workers = if args.workers.is_empty() {
-        vec![
-            1,
-            crate::settings::render_workers(global.jobs, Vec::new()).0,
-        ]
-    } else {
-        args.workers.clone()
-    };
-    workers.sort_unstable();
-    workers.dedup();
+    let (inputs, first_input) = bench_inputs(args)?;
+    let cores = dexjoco_core::available_cores();
+    let workers = worker_counts(global, args);
     let tmp = tempfile::tempdir()?;
     let ctx = BenchContext {
         args,
@@ -372,6 +354,53 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
     for &look in &looks {
         runs.extend(bench_config(&ctx, look, &bar)?);
     }
+    let differences = light_differences(&ctx, &looks, &bar)?;
+    bar.finish_and_clear();
+    let device = render_device(args)?;
+    print_runs(&ctx, &runs, &device, cores);
+    print_differences(&runs, &differences);
+    write_results(global, args, &device, cores, &runs, &differences)?;
+    Ok(ExitStatus::Success)
+}
+
+/// The inputs (the sample data when none are given) and the first episode in them.
+fn bench_inputs(args: &BenchAugmentArgs) -> anyhow::Result<(Vec<PathBuf>, PathBuf)> {
+    let inputs = if args.inputs.is_empty() {
+        vec![super::augment::sample_data()?]
+    } else {
+        args.inputs.clone()
+    };
+    let first_input = dexjoco_formats::discover(&inputs, None)?
+        .into_iter()
+        .next()
+        .context("no episode in the inputs")?
+        .path;
+    Ok((inputs, first_input))
+}
+
+/// The worker counts of our runs, ascending: those given, or 1 and `augment`'s default.
+fn worker_counts(global: &GlobalArgs, args: &BenchAugmentArgs) -> Vec<usize> {
+    let mut workers = if args.workers.is_empty() {
+        vec![
+            1,
+            crate::settings::render_workers(global.jobs, Vec::new()).0,
+        ]
+    } else {
+        args.workers.clone()
+    };
+    workers.sort_unstable();
+    workers.dedup();
+    workers
+}
+
+/// With both geometries measured, the image difference of the light geometry to the
+/// full one at each light look.
+fn light_differences(
+    ctx: &BenchContext<'_>,
+    looks: &[Look],
+    bar: &indicatif::ProgressBar,
+) -> anyhow::Result<Vec<(Look, GeometryDifference)>> {
+    let args = ctx.args;
     let mut differences = Vec::new();
     if args.geometry.contains(&GeometryArg::Full) && args.geometry.contains(&GeometryArg::Light) {
         for &look in looks.iter().filter(|l| l.2 == GeometryArg::Light) {
@@ -380,16 +409,29 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
             differences.push((look, geometry_difference(&cfg, DIFFERENCE_FRAMES)?));
         }
     }
-    bar.finish_and_clear();
+    Ok(differences)
+}
+
+/// The rendering device at the first look's settings (empty when none opens).
+fn render_device(args: &BenchAugmentArgs) -> anyhow::Result<String> {
     let settings = render_settings(args.sizes[0], args.qualities[0]);
-    let device = dexjoco_sim::Renderer::new(
+    Ok(dexjoco_sim::Renderer::new(
         &dexjoco_sim::Scene::from_xml_str(super::TABLETOP_XML, "probe")?.model,
         settings,
     )
     .map(|r| r.device().label())
-    .unwrap_or_default();
-    print_runs(&ctx, &runs, &device, cores);
-    print_differences(&runs, &differences);
+    .unwrap_or_default())
+}
+
+/// Writes the runs and image differences to `<work dir>/bench/augment.json`.
+fn write_results(
+    global: &GlobalArgs,
+    args: &BenchAugmentArgs,
+    device: &str,
+    cores: usize,
+    runs: &[Run],
+    differences: &[(Look, GeometryDifference)],
+) -> anyhow::Result<()> {
     let out = global.work_dir.join("bench");
     fs_err::create_dir_all(&out)?;
     let json = out.join("augment.json");
@@ -408,7 +450,7 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
         .as_bytes(),
     )?;
     errln!("wrote {}", json.display());
-    Ok(ExitStatus::Success)
+    Ok(())
 }
 
 /// The speed table and the per-stage table.

@@ -143,43 +143,69 @@ pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitS
     )?];
     tracing::info!("ours: {:?}", runs[0]);
     if !args.no_lerobot {
-        let script = crate::locate::checkout()
-            .context("bench convert runs lerobot's writer from the source checkout's tests/python: run it from a checkout, or pass --no-lerobot")?
-            .join("tests/python/bench_lerobot_writer.py");
-        let out = tmp.path().join("lerobot");
-        let (seconds, peak, _) = timed(
-            &python()?,
-            &[
-                &script.to_string_lossy(),
-                &raw.to_string_lossy(),
-                &out.to_string_lossy(),
-                "30",
-            ],
-        )?;
-        runs.push(Run {
-            tool: "lerobot 0.6.1 LeRobotDataset writer (AV1 encode)".into(),
-            episodes: args.episodes,
-            frames: args.frames,
-            seconds,
-            peak_rss_mb: peak,
-        });
+        runs.push(lerobot(tmp.path(), &raw, args)?);
         tracing::info!("lerobot: {:?}", runs[1]);
     }
+    let memory = memory_runs(tmp.path(), &config, args)?;
+    print_tables(args, &runs, &memory);
+    let out = global.work_dir.join("bench");
+    fs_err::create_dir_all(&out)?;
+    let json = out.join("convert.json");
+    fs_err::write(
+        &json,
+        serde_json::to_string_pretty(&serde_json::json!({ "runs": runs, "memory": memory }))?,
+    )?;
+    errln!("wrote {}", json.display());
+    Ok(ExitStatus::Success)
+}
+
+/// lerobot's own writer on the episodes in `raw` (the checkout's
+/// `tests/python/bench_lerobot_writer.py`).
+fn lerobot(tmp: &Path, raw: &Path, args: &BenchConvertArgs) -> anyhow::Result<Run> {
+    let script = crate::locate::checkout()
+        .context("bench convert runs lerobot's writer from the source checkout's tests/python: run it from a checkout, or pass --no-lerobot")?
+        .join("tests/python/bench_lerobot_writer.py");
+    let out = tmp.join("lerobot");
+    let (seconds, peak, _) = timed(
+        &python()?,
+        &[
+            &script.to_string_lossy(),
+            &raw.to_string_lossy(),
+            &out.to_string_lossy(),
+            "30",
+        ],
+    )?;
+    Ok(Run {
+        tool: "lerobot 0.6.1 LeRobotDataset writer (AV1 encode)".into(),
+        episodes: args.episodes,
+        frames: args.frames,
+        seconds,
+        peak_rss_mb: peak,
+    })
+}
+
+/// Our conversion of each of `--memory-episodes` generated 64 px episode sets.
+fn memory_runs(tmp: &Path, config: &Path, args: &BenchConvertArgs) -> anyhow::Result<Vec<Run>> {
     let mut memory = Vec::new();
     for &n in &args.memory_episodes {
-        let dir = tmp.path().join(format!("raw-{n}"));
+        let dir = tmp.join(format!("raw-{n}"));
         generate(&dir, n, args.memory_frames, 64)?;
         memory.push(ours(
-            tmp.path(),
+            tmp,
             &dir,
             &format!("ours-{n}"),
-            &config,
+            config,
             n,
             args.memory_frames,
         )?);
         tracing::info!("memory: {:?}", memory.last());
         fs_err::remove_dir_all(&dir)?;
     }
+    Ok(memory)
+}
+
+/// The comparison and memory tables, as markdown.
+fn print_tables(args: &BenchConvertArgs, runs: &[Run], memory: &[Run]) {
     outln!(
         "Convert {} generated click_mouse episodes x {} frames ({}x{} H.264 camera) to LeRobot v3.0",
         args.episodes,
@@ -190,7 +216,7 @@ pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitS
     outln!();
     outln!("| tool | episodes | seconds | peak RSS MB |");
     outln!("|---|---:|---:|---:|");
-    for r in &runs {
+    for r in runs {
         outln!(
             "| {} | {} | {:.2} | {:.0} |",
             r.tool,
@@ -210,7 +236,7 @@ pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitS
     outln!();
     outln!("| our peak memory | episodes | frames each | seconds | peak RSS MB |");
     outln!("|---|---:|---:|---:|---:|");
-    for r in &memory {
+    for r in memory {
         outln!(
             "| dexjoco-data convert | {} | {} | {:.2} | {:.0} |",
             r.episodes,
@@ -219,13 +245,4 @@ pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitS
             r.peak_rss_mb
         );
     }
-    let out = global.work_dir.join("bench");
-    fs_err::create_dir_all(&out)?;
-    let json = out.join("convert.json");
-    fs_err::write(
-        &json,
-        serde_json::to_string_pretty(&serde_json::json!({ "runs": runs, "memory": memory }))?,
-    )?;
-    errln!("wrote {}", json.display());
-    Ok(ExitStatus::Success)
 }

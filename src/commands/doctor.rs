@@ -152,23 +152,42 @@ pub fn run(_global: &GlobalArgs, args: &DoctorArgs) -> anyhow::Result<ExitStatus
     })
 }
 
+/// Prints the report for a person, one section per check.
 fn print_human(r: &Report, mujoco_ok: bool) {
     outln!("dexjoco-data {}", r.dexjoco_data);
     outln!();
+    print_mujoco(&r.mujoco, mujoco_ok);
+    outln!();
+    print_egl(&r.egl);
+    outln!();
+    print_ffmpeg(r.ffmpeg.as_ref());
+    outln!();
+    print_python(r.python.as_ref());
+    outln!();
+    print_sample_data(r.sample_data.as_ref());
+    outln!();
+    print_reference_scenes(r.reference_scenes.as_ref());
+}
+
+/// MuJoCo's version and library.
+fn print_mujoco(mujoco: &MujocoReport, mujoco_ok: bool) {
     outln!("MuJoCo");
     outln!(
         "  [{}] version {} (built for {})",
         if mujoco_ok { "ok  " } else { "WRONG" },
-        r.mujoco.version,
-        r.mujoco.expected
+        mujoco.version,
+        mujoco.expected
     );
-    match &r.mujoco.library {
+    match &mujoco.library {
         Some(p) => outln!("         library {}", p.display()),
         None => outln!("         library (not found in the process map)"),
     }
-    outln!();
+}
+
+/// Each EGL device and whether it opens a context; a hint when none does.
+fn print_egl(egl: &Result<dexjoco_sim::EglProbe, String>) {
     outln!("Offscreen rendering (EGL)");
-    match &r.egl {
+    match egl {
         Err(e) => outln!("  [MISSING] {e}"),
         Ok(probe) => {
             for d in &probe.devices {
@@ -208,9 +227,12 @@ fn print_human(r: &Report, mujoco_ok: bool) {
             }
         }
     }
-    outln!();
+}
+
+/// ffmpeg and the encoders it has.
+fn print_ffmpeg(ffmpeg: Option<&FfmpegReport>) {
     outln!("Video (ffmpeg)");
-    match &r.ffmpeg {
+    match ffmpeg {
         None => outln!("  [MISSING] ffmpeg not on PATH (Debian: ffmpeg)"),
         Some(f) => {
             outln!("  [ok  ] {} ({})", f.path.display(), f.version);
@@ -219,9 +241,12 @@ fn print_human(r: &Report, mujoco_ok: bool) {
             }
         }
     }
-    outln!();
+}
+
+/// The Python interpreter and the modules it has.
+fn print_python(python: Option<&PythonReport>) {
     outln!("Python readers (for the tests and interop checks)");
-    match &r.python {
+    match python {
         None => outln!("  [ -  ] no Python found (run scripts/setup.sh --python)"),
         Some(p) => {
             outln!(
@@ -238,19 +263,25 @@ fn print_human(r: &Report, mujoco_ok: bool) {
             }
         }
     }
-    outln!();
+}
+
+/// Where the sample data was found, or where it was looked for.
+fn print_sample_data(found: Option<&Located>) {
     outln!("Sample data (the default input of augment and bench augment; the examples of stats)");
     print_located(
-        r.sample_data.as_ref(),
+        found,
         &format!(
             "looked at ${}, beside the binary (a bundle's share/dexjoco-data/datasets, a checkout's datasets) and ./datasets",
             crate::locate::DATA_ENV
         ),
     );
-    outln!();
+}
+
+/// Where the DexJoCo reference scenes were found, or where they were looked for.
+fn print_reference_scenes(found: Option<&Located>) {
     outln!("DexJoCo reference scenes (for --scene-dir and the tests)");
     print_located(
-        r.reference_scenes.as_ref(),
+        found,
         &format!(
             "looked at ${}/xmls and ../shared/dexjoco-upstream/xmls; pass --scene-dir to the commands",
             crate::locate::UPSTREAM_ENV

@@ -1,14 +1,14 @@
-//! `dexjoco-data export --to mcap`: stored episodes as MCAP teleop logs.
+//! `dexjoco-data export --to mcap`: stored episodes written in another episode container
+//! (MCAP teleop logs), one file per episode.
 
 use std::collections::HashSet;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use dexjoco_core::TaskSet;
-use dexjoco_formats::mcap::{EpisodeMeta, write_episode_mcap};
-use dexjoco_formats::{Source, SourceKind};
+use dexjoco_formats::{EpisodeContainer, EpisodeMeta, Source, SourceKind};
 
-use crate::cli::{ExportArgs, ExportFormat, GlobalArgs};
+use crate::cli::{ExportArgs, GlobalArgs};
 use crate::exit::{CliError, ExitStatus};
 use crate::settings::ExportSettings;
 
@@ -17,11 +17,44 @@ pub fn run(global: &GlobalArgs, args: ExportArgs) -> anyhow::Result<ExitStatus> 
     let ExportSettings {
         inputs,
         out,
-        to,
+        container,
         overwrite,
     } = ExportSettings::resolve(args, global)?;
+    let sources = stored_episodes(&inputs)?;
+    let tasks = TaskSet::builtin();
+    let planned = plan_files(&sources, &out, container, tasks)?;
+    if !overwrite {
+        refuse_existing(&planned)?;
+    }
+    let pb = crate::progress::bar(planned.len() as u64, "export", global.quiet);
+    for (source, file) in &planned {
+        let ep = source
+            .read(tasks)
+            .with_context(|| format!("reading the episode '{}'", source.path.display()))?
+            .episode;
+        let task = tasks.get(&ep.task).context("the episode's task")?;
+        let meta = EpisodeMeta {
+            source: Some(source.path.display().to_string()),
+            ..EpisodeMeta::default()
+        };
+        container.write(file, &ep, task, &meta)?;
+        outln!("{}", file.display());
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    errln!(
+        "wrote {} {} file(s) to {}",
+        planned.len(),
+        container.name(),
+        out.display()
+    );
+    Ok(ExitStatus::Success)
+}
+
+/// The episode folders under every input (a failure when an input holds none).
+fn stored_episodes(inputs: &[PathBuf]) -> anyhow::Result<Vec<Source>> {
     let mut sources = Vec::new();
-    for input in &inputs {
+    for input in inputs {
         let found = dexjoco_formats::discover_input(input, None)
             .with_context(|| format!("finding episodes in '{}'", input.display()))?;
         let raw: Vec<_> = found
@@ -38,55 +71,46 @@ pub fn run(global: &GlobalArgs, args: ExportArgs) -> anyhow::Result<ExitStatus> 
         }
         sources.extend(raw);
     }
-    let tasks = TaskSet::builtin();
-    // Every file name first: two episodes never share one, and nothing already there
-    // is replaced without --overwrite.
+    Ok(sources)
+}
+
+/// Every file name first: two episodes never share one.
+fn plan_files<'s>(
+    sources: &'s [Source],
+    out: &Path,
+    container: &dyn EpisodeContainer,
+    tasks: &TaskSet,
+) -> anyhow::Result<Vec<(&'s Source, PathBuf)>> {
     let mut planned = Vec::with_capacity(sources.len());
     let mut taken = HashSet::new();
-    for source in &sources {
+    for source in sources {
         let task = task_of(source, tasks)?;
-        let file = match to {
-            ExportFormat::Mcap => unique_name(&mut taken, &out, &task, source, "mcap"),
-        };
+        let file = unique_name(&mut taken, out, &task, source, container.extension());
         planned.push((source, file));
     }
-    if !overwrite {
-        let existing: Vec<String> = planned
-            .iter()
-            .filter(|(_, f)| fs_err::symlink_metadata(f).is_ok())
-            .map(|(_, f)| f.display().to_string())
-            .collect();
-        if !existing.is_empty() {
-            return Err(CliError {
-                message: format!(
-                    "{} file(s) already exist: {}",
-                    existing.len(),
-                    existing.join(", ")
-                ),
-                hint: Some("pass --overwrite to replace them, or choose another --out".into()),
-                status: ExitStatus::Failure,
-            }
-            .into());
-        }
+    Ok(planned)
+}
+
+/// Nothing already there is replaced without --overwrite.
+fn refuse_existing(planned: &[(&Source, PathBuf)]) -> anyhow::Result<()> {
+    let existing: Vec<String> = planned
+        .iter()
+        .filter(|(_, f)| fs_err::symlink_metadata(f).is_ok())
+        .map(|(_, f)| f.display().to_string())
+        .collect();
+    if existing.is_empty() {
+        return Ok(());
     }
-    let pb = crate::progress::bar(planned.len() as u64, "export", global.quiet);
-    for (source, file) in &planned {
-        let ep = source
-            .read(tasks)
-            .with_context(|| format!("reading the episode '{}'", source.path.display()))?
-            .episode;
-        let task = tasks.get(&ep.task).context("the episode's task")?;
-        let meta = EpisodeMeta {
-            source: Some(source.path.display().to_string()),
-            ..EpisodeMeta::default()
-        };
-        write_episode_mcap(file, &ep, task, &meta)?;
-        outln!("{}", file.display());
-        pb.inc(1);
+    Err(CliError {
+        message: format!(
+            "{} file(s) already exist: {}",
+            existing.len(),
+            existing.join(", ")
+        ),
+        hint: Some("pass --overwrite to replace them, or choose another --out".into()),
+        status: ExitStatus::Failure,
     }
-    pb.finish_and_clear();
-    errln!("wrote {} MCAP file(s) to {}", planned.len(), out.display());
-    Ok(ExitStatus::Success)
+    .into())
 }
 
 /// The task of a stored episode as the reader takes it (its store entry, else its
@@ -107,22 +131,23 @@ fn task_of(source: &Source, tasks: &TaskSet) -> anyhow::Result<String> {
 }
 
 /// `<out>/<task>_<folder>.<ext>`, or `<task>_<folder>-2.<ext>`, `-3`... when an earlier
-/// episode of this run took the name.
+/// episode of this run took the name (no `.<ext>` for a container of folders).
 fn unique_name(
     taken: &mut HashSet<PathBuf>,
-    out: &std::path::Path,
+    out: &Path,
     task: &str,
     source: &Source,
-    ext: &str,
+    ext: Option<&str>,
 ) -> PathBuf {
     let folder = source
         .path
         .file_name()
         .map_or_else(|| "episode".into(), |n| n.to_string_lossy().into_owned());
-    let mut file = out.join(format!("{task}_{folder}.{ext}"));
+    let ext = ext.map(|e| format!(".{e}")).unwrap_or_default();
+    let mut file = out.join(format!("{task}_{folder}{ext}"));
     let mut k = 2;
     while !taken.insert(file.clone()) {
-        file = out.join(format!("{task}_{folder}-{k}.{ext}"));
+        file = out.join(format!("{task}_{folder}-{k}{ext}"));
         k += 1;
     }
     if k > 2 {

@@ -169,26 +169,17 @@ fn video(
 
 /// Tiles frames of equal size into a grid (at most 4 per row) with a thin border.
 pub fn contact_sheet(frames: &[Frame], path: &PathBuf) -> anyhow::Result<()> {
-    let (w, h) = (frames[0].width, frames[0].height);
-    let cols = frames.len().min(4) as u32;
-    let rows = (frames.len() as u32).div_ceil(cols);
-    let gap = 4;
-    let mut sheet = image::RgbImage::from_pixel(
-        cols * (w + gap) + gap,
-        rows * (h + gap) + gap,
-        image::Rgb([255, 255, 255]),
-    );
-    for (i, f) in frames.iter().enumerate() {
-        let img =
-            image::RgbImage::from_raw(f.width, f.height, f.rgb.clone()).context("frame size")?;
-        let (c, r) = (i as u32 % cols, i as u32 / cols);
-        image::imageops::replace(
-            &mut sheet,
-            &img,
-            i64::from(gap + c * (w + gap)),
-            i64::from(gap + r * (h + gap)),
-        );
-    }
+    let tiles = frames
+        .iter()
+        .map(|f| image::RgbImage::from_raw(f.width, f.height, f.rgb.clone()).context("frame size"))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let layout = dexjoco_sim::SheetLayout {
+        columns: frames.len().min(4) as u32,
+        tile: None,
+        gap: 4,
+        background: [255, 255, 255],
+    };
+    let sheet = dexjoco_sim::contact_sheet(&tiles, layout).context("no frames to tile")?;
     sheet
         .save(path)
         .with_context(|| format!("cannot write '{}'", path.display()))?;

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use dexjoco_formats::fs::StagedDir;
-use dexjoco_stats::{LanguageInput, LanguageReport, SuccessTable};
+use dexjoco_stats::{LanguageInput, LanguageOptions, LanguageReport, SuccessTable};
 
 use crate::cli::{GlobalArgs, StatsArgs};
 use crate::exit::{CliError, ExitStatus};
@@ -45,119 +45,14 @@ pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
     let mut summaries = Vec::new();
 
     if let Some(input) = &language_eval {
-        let path = match input {
-            Some(p) => p.clone(),
-            None => example_input("language-eval")?,
-        };
-        let input = LanguageInput::load(&path)
-            .with_context(|| format!("reading the language evaluation {}", path.display()))?;
-        if input.example {
-            tracing::warn!(
-                "{} is a made-up EXAMPLE input: its numbers are not results",
-                path.display()
-            );
-        }
-        for w in &input.warnings {
-            tracing::warn!("{w}");
-        }
-        let report = LanguageReport::analyze(&input, language);
-        let dir = out.join("language-eval");
-        let files = write_whole(&dir, |d| Ok(report.write(d)?))
-            .with_context(|| format!("writing the language evaluation to {}", dir.display()))?;
-        tracing::info!("wrote {} files to {}", files.len(), dir.display());
-        json.insert("language_eval".into(), serde_json::to_value(&report)?);
-        summaries.push(format!(
-            "## Language evaluation\n\n{}",
-            report.to_markdown()
-        ));
+        write_language_eval(input.as_deref(), &out, language, &mut json, &mut summaries)?;
     }
-
     if let Some(input) = &success_table {
-        let path = match input {
-            Some(p) => p.clone(),
-            None => example_input("success-table")?,
-        };
-        let table = SuccessTable::load(&path)
-            .with_context(|| format!("reading the evaluation runs under {}", path.display()))?;
-        if table.example {
-            tracing::warn!(
-                "{} is a made-up EXAMPLE input: its numbers are not results",
-                path.display()
-            );
-        }
-        for w in &table.warnings {
-            tracing::warn!("{w}");
-        }
-        let dir = out.join("success-table");
-        let files = write_whole(&dir, |d| Ok(table.write(d)?))
-            .with_context(|| format!("writing the success table to {}", dir.display()))?;
-        tracing::info!("wrote {} files to {}", files.len(), dir.display());
-        json.insert("success_table".into(), serde_json::to_value(&table)?);
-        let mut md = format!(
-            "## Success rates (%) of {} polic{}, mean ± sample std over seeds\n\n",
-            table.policies.len(),
-            if table.policies.len() == 1 {
-                "y"
-            } else {
-                "ies"
-            }
-        );
-        if table.example {
-            md.push_str(
-                "> EXAMPLE INPUT (synthetic, made by a script): these numbers are not results.\n\n",
-            );
-        }
-        md.push_str(&table.to_markdown());
-        summaries.push(md);
+        write_success_table(input.as_deref(), &out, &mut json, &mut summaries)?;
     }
-
     let mut status = ExitStatus::Success;
     if let Some(path) = &dataset {
-        let (stats, left_out) = dataset_stats(path, global.quiet)?;
-        if !left_out.is_empty() {
-            status = ExitStatus::Partial;
-            let list: Vec<serde_json::Value> = left_out
-                .iter()
-                .map(|(p, r)| serde_json::json!({"episode": p, "reason": r}))
-                .collect();
-            json.insert("dataset_left_out".into(), list.into());
-        }
-        let replays = dexjoco_stats::ReplayStats::read(path)?;
-        let dir = out.join("dataset");
-        let files = write_whole(&dir, |d| {
-            let mut files = stats.write(d)?;
-            // An augment output folder: its report's replay success rates.
-            if let Some(replays) = &replays {
-                for (name, text) in [
-                    ("replay_success.md", replays.to_markdown()),
-                    (
-                        "replay_success.json",
-                        serde_json::to_string_pretty(replays)?,
-                    ),
-                ] {
-                    dexjoco_formats::write_atomic(&d.join(name), text.as_bytes())?;
-                    files.push(d.join(name));
-                }
-            }
-            Ok(files)
-        })
-        .with_context(|| format!("writing the dataset statistics to {}", dir.display()))?;
-        tracing::info!("wrote {} files to {}", files.len(), dir.display());
-        json.insert("dataset".into(), serde_json::to_value(&stats)?);
-        summaries.push(format!(
-            "## Dataset `{}`\n\n{}",
-            path.display(),
-            stats.to_markdown()
-        ));
-        if let Some(replays) = &replays {
-            json.insert("replays".into(), serde_json::to_value(replays)?);
-            summaries.push(format!(
-                "## Replays (`{}`, {} per episode)\n\n{}",
-                path.join(dexjoco_stats::AUGMENT_REPORT).display(),
-                replays.replays_per_episode,
-                replays.to_markdown()
-            ));
-        }
+        status = write_dataset_stats(path, global.quiet, &out, &mut json, &mut summaries)?;
     }
 
     if as_json {
@@ -167,6 +62,149 @@ pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
         );
     } else {
         outln!("{}", summaries.join("\n"));
+    }
+    Ok(status)
+}
+
+/// The language evaluation of `input` (the shipped example when `None`): written under
+/// `out/language-eval`, added to the JSON object and the Markdown summaries.
+fn write_language_eval(
+    input: Option<&Path>,
+    out: &Path,
+    options: LanguageOptions,
+    json: &mut serde_json::Map<String, serde_json::Value>,
+    summaries: &mut Vec<String>,
+) -> anyhow::Result<()> {
+    let path = match input {
+        Some(p) => p.to_path_buf(),
+        None => example_input("language-eval")?,
+    };
+    let input = LanguageInput::load(&path)
+        .with_context(|| format!("reading the language evaluation {}", path.display()))?;
+    if input.example {
+        tracing::warn!(
+            "{} is a made-up EXAMPLE input: its numbers are not results",
+            path.display()
+        );
+    }
+    for w in &input.warnings {
+        tracing::warn!("{w}");
+    }
+    let report = LanguageReport::analyze(&input, options);
+    let dir = out.join("language-eval");
+    let files = write_whole(&dir, |d| Ok(report.write(d)?))
+        .with_context(|| format!("writing the language evaluation to {}", dir.display()))?;
+    tracing::info!("wrote {} files to {}", files.len(), dir.display());
+    json.insert("language_eval".into(), serde_json::to_value(&report)?);
+    summaries.push(format!(
+        "## Language evaluation\n\n{}",
+        report.to_markdown()
+    ));
+    Ok(())
+}
+
+/// The success-rate table of the runs under `input` (the shipped example when `None`):
+/// written under `out/success-table`, added to the JSON object and the summaries.
+fn write_success_table(
+    input: Option<&Path>,
+    out: &Path,
+    json: &mut serde_json::Map<String, serde_json::Value>,
+    summaries: &mut Vec<String>,
+) -> anyhow::Result<()> {
+    let path = match input {
+        Some(p) => p.to_path_buf(),
+        None => example_input("success-table")?,
+    };
+    let table = SuccessTable::load(&path)
+        .with_context(|| format!("reading the evaluation runs under {}", path.display()))?;
+    if table.example {
+        tracing::warn!(
+            "{} is a made-up EXAMPLE input: its numbers are not results",
+            path.display()
+        );
+    }
+    for w in &table.warnings {
+        tracing::warn!("{w}");
+    }
+    let dir = out.join("success-table");
+    let files = write_whole(&dir, |d| Ok(table.write(d)?))
+        .with_context(|| format!("writing the success table to {}", dir.display()))?;
+    tracing::info!("wrote {} files to {}", files.len(), dir.display());
+    json.insert("success_table".into(), serde_json::to_value(&table)?);
+    let mut md = format!(
+        "## Success rates (%) of {} polic{}, mean ± sample std over seeds\n\n",
+        table.policies.len(),
+        if table.policies.len() == 1 {
+            "y"
+        } else {
+            "ies"
+        }
+    );
+    if table.example {
+        md.push_str(
+            "> EXAMPLE INPUT (synthetic, made by a script): these numbers are not results.\n\n",
+        );
+    }
+    md.push_str(&table.to_markdown());
+    summaries.push(md);
+    Ok(())
+}
+
+/// The statistics of the dataset at `path` (and its replays when it is an augment
+/// output): written under `out/dataset`, added to the JSON object and the summaries.
+/// Partial when episodes were left out.
+fn write_dataset_stats(
+    path: &Path,
+    quiet: bool,
+    out: &Path,
+    json: &mut serde_json::Map<String, serde_json::Value>,
+    summaries: &mut Vec<String>,
+) -> anyhow::Result<ExitStatus> {
+    let mut status = ExitStatus::Success;
+    let (stats, left_out) = dataset_stats(path, quiet)?;
+    if !left_out.is_empty() {
+        status = ExitStatus::Partial;
+        let list: Vec<serde_json::Value> = left_out
+            .iter()
+            .map(|(p, r)| serde_json::json!({"episode": p, "reason": r}))
+            .collect();
+        json.insert("dataset_left_out".into(), list.into());
+    }
+    let replays = dexjoco_stats::ReplayStats::read(path)?;
+    let dir = out.join("dataset");
+    let files = write_whole(&dir, |d| {
+        let mut files = stats.write(d)?;
+        // An augment output folder: its report's replay success rates.
+        if let Some(replays) = &replays {
+            for (name, text) in [
+                ("replay_success.md", replays.to_markdown()),
+                (
+                    "replay_success.json",
+                    serde_json::to_string_pretty(replays)?,
+                ),
+            ] {
+                dexjoco_formats::write_atomic(&d.join(name), text.as_bytes())?;
+                files.push(d.join(name));
+            }
+        }
+        Ok(files)
+    })
+    .with_context(|| format!("writing the dataset statistics to {}", dir.display()))?;
+    tracing::info!("wrote {} files to {}", files.len(), dir.display());
+    json.insert("dataset".into(), serde_json::to_value(&stats)?);
+    summaries.push(format!(
+        "## Dataset `{}`\n\n{}",
+        path.display(),
+        stats.to_markdown()
+    ));
+    if let Some(replays) = &replays {
+        json.insert("replays".into(), serde_json::to_value(replays)?);
+        summaries.push(format!(
+            "## Replays (`{}`, {} per episode)\n\n{}",
+            path.join(dexjoco_stats::AUGMENT_REPORT).display(),
+            replays.replays_per_episode,
+            replays.to_markdown()
+        ));
     }
     Ok(status)
 }

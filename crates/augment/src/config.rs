@@ -20,7 +20,7 @@ pub(crate) const TABLE_GEOM: &str = "table_visual";
 pub(crate) const STAGING: &str = ".staging";
 /// First frames of the replays' third-person views, for the contact sheet.
 pub(crate) const PREVIEWS: &str = ".previews";
-/// The settings that decide an output's bytes (see [`crate::fingerprint`]).
+/// The settings that decide an output's bytes (see the `fingerprint` module).
 pub const SETTINGS_FILE: &str = "augment_settings.json";
 /// The contact sheet of the replays' first frames.
 pub const CONTACT_SHEET: &str = "contact_sheet.png";

@@ -12,6 +12,7 @@ use dexjoco_sim::{CameraView, RenderSettings, Renderer};
 use dexjoco_video::{Codec, VideoSpec, VideoWriter};
 use serde::Serialize;
 
+use crate::assets::load_assets;
 use crate::config::{AugmentConfig, replay_name};
 use crate::error::{AugmentError, sim_err, video_err};
 use crate::fingerprint::OutputSettings;
@@ -20,7 +21,6 @@ use crate::physics::{action_row, new_env, recorded_frames, replay};
 use crate::plan::{existing_replays, owned_replays};
 use crate::profile::{EncoderClock, StageTimes, timed};
 use crate::randomize::{VisualSample, apply_visuals};
-use crate::run::load_assets;
 
 /// One task's share of a planned run.
 #[derive(Debug, Clone, Serialize)]
@@ -288,7 +288,7 @@ pub fn render_only(
 /// (the render-only limit, the light-geometry comparison).
 pub(crate) struct Trajectory {
     pub(crate) src: Source,
-    pub(crate) assets: crate::run::TaskAssets,
+    pub(crate) assets: crate::assets::TaskAssets,
     pub(crate) env: dexjoco_sim::TaskEnv,
     pub(crate) states: Vec<Box<[f64]>>,
 }

@@ -270,6 +270,13 @@ mod tests {
         );
     }
 
+    /// `base` with one change.
+    fn changed(base: &AugmentConfig, change: impl FnOnce(&mut AugmentConfig)) -> AugmentConfig {
+        let mut c = base.clone();
+        change(&mut c);
+        c
+    }
+
     /// Every setting that changes a replay's bytes is part of the fingerprint: a resume
     /// that changes any one of them is refused, naming it.
     #[test]
@@ -282,87 +289,34 @@ mod tests {
             [("t".to_owned(), scene.to_owned(), pool, spec.to_owned())]
         };
         let was = OutputSettings::of(&base, task("s", &pool, "x"));
-        let changed: Vec<(&str, OutputSettings)> = vec![
+        let configs: Vec<(&str, AugmentConfig)> = vec![
+            ("seed", changed(&base, |c| c.seed = 1)),
             (
-                "seed",
-                OutputSettings::of(
-                    &AugmentConfig {
-                        seed: 1,
-                        ..base.clone()
-                    },
-                    task("s", &pool, "x"),
-                ),
+                "quality",
+                changed(&base, |c| c.settings.quality = RenderQuality::PAPER),
             ),
-            ("quality", {
-                let mut c = base.clone();
-                c.settings.quality = RenderQuality::PAPER;
-                OutputSettings::of(&c, task("s", &pool, "x"))
-            }),
-            ("geometry", {
-                let mut c = base.clone();
-                c.settings.geometry = Geometry::Light;
-                OutputSettings::of(&c, task("s", &pool, "x"))
-            }),
+            (
+                "geometry",
+                changed(&base, |c| c.settings.geometry = Geometry::Light),
+            ),
             (
                 "cameras",
-                OutputSettings::of(
-                    &AugmentConfig {
-                        cameras: vec!["front".into()],
-                        ..base.clone()
-                    },
-                    task("s", &pool, "x"),
-                ),
+                changed(&base, |c| c.cameras = vec!["front".into()]),
             ),
-            (
-                "depth",
-                OutputSettings::of(
-                    &AugmentConfig {
-                        depth: true,
-                        ..base.clone()
-                    },
-                    task("s", &pool, "x"),
-                ),
-            ),
-            (
-                "max_frames",
-                OutputSettings::of(
-                    &AugmentConfig {
-                        max_frames: Some(3),
-                        ..base.clone()
-                    },
-                    task("s", &pool, "x"),
-                ),
-            ),
-            (
-                "extend_steps",
-                OutputSettings::of(
-                    &AugmentConfig {
-                        extend_steps: 0,
-                        ..base.clone()
-                    },
-                    task("s", &pool, "x"),
-                ),
-            ),
-            (
-                "dynamics",
-                OutputSettings::of(
-                    &AugmentConfig {
-                        dynamics: true,
-                        ..base.clone()
-                    },
-                    task("s", &pool, "x"),
-                ),
-            ),
+            ("depth", changed(&base, |c| c.depth = true)),
+            ("max_frames", changed(&base, |c| c.max_frames = Some(3))),
+            ("extend_steps", changed(&base, |c| c.extend_steps = 0)),
+            ("dynamics", changed(&base, |c| c.dynamics = true)),
             (
                 "scene",
-                OutputSettings::of(
-                    &AugmentConfig {
-                        scene: SceneSource::Dir(scenes.path().into()),
-                        ..base.clone()
-                    },
-                    task("s", &pool, "x"),
-                ),
+                changed(&base, |c| c.scene = SceneSource::Dir(scenes.path().into())),
             ),
+        ];
+        let mut changed: Vec<(&str, OutputSettings)> = configs
+            .iter()
+            .map(|(key, c)| (*key, OutputSettings::of(c, task("s", &pool, "x"))))
+            .collect();
+        changed.extend([
             (
                 "tasks.t.scene",
                 OutputSettings::of(&base, task("other scene", &pool, "x")),
@@ -375,7 +329,7 @@ mod tests {
                 "tasks.t.spec",
                 OutputSettings::of(&base, task("s", &pool, "other spec")),
             ),
-        ];
+        ]);
         for (key, now) in changed {
             let d = now.differences(&was);
             assert!(

@@ -8,14 +8,16 @@
 //! own seed derived from (global seed, episode id, replay index).
 //!
 //! Modules by job: `inputs` (episodes and their specs, the unreadable ones skipped),
-//! `fingerprint` (the settings that decide an output's bytes), `physics` (the replay
-//! simulated once: success, deviation, `--extend-steps`), `plan` (shards, resume, units),
-//! `render` (a unit of replays drawn from one simulation), `profile` (where a frame's time
-//! goes), `worker` (units on threads or worker processes, first-frame deadlines), `staging`
-//! (replay folders staged and renamed whole; the records of dropped replays), `report`
-//! (report and contact sheet), `run` (the orchestration), `compare` (light against full
-//! geometry); `randomize`, `dynamics` and `camera_pool` the randomization.
+//! `assets` (a task's scene, camera pool and table looks), `fingerprint` (the settings
+//! that decide an output's bytes), `physics` (the replay simulated once: success,
+//! deviation, `--extend-steps`), `plan` (shards, resume, units), `render` (a unit of
+//! replays drawn from one simulation), `profile` (where a frame's time goes), `worker`
+//! (units on threads or worker processes, first-frame deadlines), `staging` (replay
+//! folders staged and renamed whole; the records of dropped replays), `report` (report and
+//! contact sheet), `run` (the orchestration), `compare` (light against full geometry);
+//! `randomize`, `dynamics` and `camera_pool` the randomization.
 
+mod assets;
 mod camera_pool;
 mod compare;
 mod config;

@@ -8,13 +8,13 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
+use crate::assets::TaskAssets;
 use crate::config::{AugmentConfig, replay_name};
 use crate::dynamics::{dynamics_seed, sample_dynamics};
 use crate::error::AugmentError;
 use crate::inputs::Source;
 use crate::physics::recorded_frames;
 use crate::report::ReplayRecord;
-use crate::run::TaskAssets;
 use crate::staging::{Outcome, dropped_path, read_record, read_record_file};
 
 /// The replays of each source that a run owns: all of them, or its shard's share.

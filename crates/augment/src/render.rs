@@ -16,6 +16,7 @@ use dexjoco_sim::{RenderSettings, Renderer, Scene};
 use dexjoco_video::{Codec, VideoSpec, VideoWriter};
 use serde::{Deserialize, Serialize};
 
+use crate::assets::TaskAssets;
 use crate::config::{AugmentConfig, replay_name};
 use crate::dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, sample_dynamics};
 use crate::error::{AugmentError, io_err, sim_err, video_err};
@@ -24,7 +25,6 @@ use crate::physics::{Physics, PhysicsSummary, new_env, replay};
 use crate::profile::{EncoderClock, StageTimes, timed};
 use crate::randomize::{VisualSample, apply_visuals};
 use crate::report::ReplayRecord;
-use crate::run::TaskAssets;
 use crate::staging::{
     Outcome, commit_replay, replay_cameras, replay_episode, staging_dir, write_dropped,
 };
@@ -182,44 +182,122 @@ pub(crate) fn render_unit(
         src,
         assets,
         config,
-        out,
+        ..
     } = *inputs;
     let id = &src.episode.id;
-    let ep_key = job.key();
     let fixed = assets.fixed_cameras(&config.cameras, id)?;
     let cameras = replay_cameras(&config.cameras);
     let mut times = StageTimes::default();
     let encoders = EncoderClock::start();
 
-    // The simulation to render: the validated one, or with --dynamics the replay's own on
-    // a model copy (one replay per unit), simulated first so a failed draw is not rendered.
-    let (scene, expected): (Scene, PhysicsSummary) = if config.dynamics {
-        let r = job.replays[0];
-        let seed = crate::randomize::replay_seed(config.seed, &ep_key, r);
-        let values = sample_dynamics(&src.spec, &assets.scene.model, dynamics_seed(seed))?;
-        let model = apply_dynamics(&src.spec, &assets.scene.model, &values)?;
-        let scene = Scene {
-            model: Arc::new(model),
-            path: assets.scene.path.clone(),
-        };
-        let mut env = new_env(src, &scene, &src.spec)?;
-        let physics = timed(&mut times.physics, || {
-            replay(src, &mut env, config, |_, _| Ok(()))
-        })?;
-        if physics.summary.first_success.is_none() && !config.keep_failed {
-            // The task failed under these dynamics: only the record of the draw is kept.
-            let sample = assets.sample(config.seed, &ep_key, r);
-            let record = record_of(job, r, sample, Some(values), &physics.summary);
-            frames_done(0)?;
-            write_dropped(out, &record)?;
-            tracing::debug!(episode = %id, replay = r, "failed under randomized dynamics; dropped");
-            return Ok((vec![Outcome::Dropped(record)], times));
-        }
-        (scene, physics.summary)
-    } else {
-        (assets.scene.clone(), job.physics.clone())
+    let (scene, expected) = match simulation_to_render(job, inputs, &mut times, frames_done)? {
+        ToRender::Simulation(scene, expected) => (scene, expected),
+        ToRender::Dropped(record) => return Ok((vec![Outcome::Dropped(*record)], times)),
     };
-    let n = expected.frames;
+    let mut pending = open_replays(job, inputs, &cameras, expected.frames)?;
+    let rendered = draw_replays(
+        inputs,
+        &scene,
+        &fixed,
+        cameras.len(),
+        &mut pending,
+        &mut times,
+        frames_done,
+    )?;
+    // The rendering simulation must be the validated one, bit for bit.
+    if rendered.summary != expected {
+        return Err(AugmentError::Input(format!(
+            "episode '{id}': the rendering simulation diverged from the validation one \
+             ({} frames, first success {:?}; validated: {} frames, first success {:?})",
+            rendered.summary.frames,
+            rendered.summary.first_success,
+            expected.frames,
+            expected.first_success
+        )));
+    }
+    let outcomes = commit_replays(
+        job,
+        inputs,
+        pending,
+        &rendered,
+        &expected,
+        &cameras,
+        frames_done,
+    )?;
+    times.encode_cpu = encoders.seconds();
+    Ok((outcomes, times))
+}
+
+/// What a unit renders: a simulation and the physics it must reproduce, or nothing but the
+/// record of a draw under which the task failed (`--dynamics`).
+enum ToRender {
+    Simulation(Scene, PhysicsSummary),
+    Dropped(Box<ReplayRecord>),
+}
+
+/// The simulation to render: the validated one, or with --dynamics the replay's own on
+/// a model copy (one replay per unit), simulated first so a failed draw is not rendered
+/// (its record is written instead).
+fn simulation_to_render(
+    job: &UnitJob,
+    inputs: &UnitInputs<'_>,
+    times: &mut StageTimes,
+    frames_done: &mut dyn FnMut(u64) -> Result<(), AugmentError>,
+) -> Result<ToRender, AugmentError> {
+    let UnitInputs {
+        src,
+        assets,
+        config,
+        out,
+    } = *inputs;
+    if !config.dynamics {
+        return Ok(ToRender::Simulation(
+            assets.scene.clone(),
+            job.physics.clone(),
+        ));
+    }
+    let id = &src.episode.id;
+    let ep_key = job.key();
+    let r = job.replays[0];
+    let seed = crate::randomize::replay_seed(config.seed, &ep_key, r);
+    let values = sample_dynamics(&src.spec, &assets.scene.model, dynamics_seed(seed))?;
+    let model = apply_dynamics(&src.spec, &assets.scene.model, &values)?;
+    let scene = Scene {
+        model: Arc::new(model),
+        path: assets.scene.path.clone(),
+    };
+    let mut env = new_env(src, &scene, &src.spec)?;
+    let physics = timed(&mut times.physics, || {
+        replay(src, &mut env, config, |_, _| Ok(()))
+    })?;
+    if physics.summary.first_success.is_none() && !config.keep_failed {
+        // The task failed under these dynamics: only the record of the draw is kept.
+        let sample = assets.sample(config.seed, &ep_key, r);
+        let record = record_of(job, r, sample, Some(values), &physics.summary);
+        frames_done(0)?;
+        write_dropped(out, &record)?;
+        tracing::debug!(episode = %id, replay = r, "failed under randomized dynamics; dropped");
+        return Ok(ToRender::Dropped(Box::new(record)));
+    }
+    Ok(ToRender::Simulation(scene, physics.summary))
+}
+
+/// Opens each replay of the unit in a fresh staging folder: its randomization (and drawn
+/// dynamics) and a video writer (and depth writer) per camera, for `n` frames.
+fn open_replays(
+    job: &UnitJob,
+    inputs: &UnitInputs<'_>,
+    cameras: &[String],
+    n: usize,
+) -> Result<Vec<Pending>, AugmentError> {
+    let UnitInputs {
+        src,
+        assets,
+        config,
+        out,
+    } = *inputs;
+    let id = &src.episode.id;
+    let ep_key = job.key();
     let spec = VideoSpec {
         width: config.settings.width,
         height: config.settings.height,
@@ -247,7 +325,7 @@ pub(crate) fn render_unit(
         };
         let mut writers = Vec::new();
         let mut depth = Vec::new();
-        for cam in &cameras {
+        for cam in cameras {
             let w = VideoWriter::create(videos.join(format!("{cam}.mp4")), spec)
                 .map_err(video_err(id))?;
             writers.push(w);
@@ -270,10 +348,30 @@ pub(crate) fn render_unit(
             preview: None,
         });
     }
+    Ok(pending)
+}
 
-    let mut env = new_env(src, &scene, &src.spec)?;
-    let per_step = (cameras.len() * pending.len()) as u64;
-    let rendered: Physics = with_renderer(
+/// Replays the episode on `scene` with this thread's renderer, drawing every pending
+/// replay's `cameras` views of each step into its writers; returns the simulation.
+fn draw_replays(
+    inputs: &UnitInputs<'_>,
+    scene: &Scene,
+    fixed: &[usize],
+    cameras: usize,
+    pending: &mut [Pending],
+    times: &mut StageTimes,
+    frames_done: &mut dyn FnMut(u64) -> Result<(), AugmentError>,
+) -> Result<Physics, AugmentError> {
+    let UnitInputs {
+        src,
+        assets,
+        config,
+        ..
+    } = *inputs;
+    let id = &src.episode.id;
+    let mut env = new_env(src, scene, &src.spec)?;
+    let per_step = (cameras * pending.len()) as u64;
+    with_renderer(
         &assets.key,
         &assets.scene.model,
         unit_render_settings(config),
@@ -284,8 +382,8 @@ pub(crate) fn render_unit(
             let mut drawing = 0.0;
             let physics = replay(src, &mut env, config, |env, k| {
                 let step_started = Instant::now();
-                for p in &mut pending {
-                    let views = p.sample.views(&fixed);
+                for p in pending.iter_mut() {
+                    let views = p.sample.views(fixed);
                     for (c, (view, writer)) in views.zip(p.writers.iter_mut()).enumerate() {
                         renderer.update_scene(env.data_mut(), view);
                         timed(&mut times.scene, || {
@@ -310,18 +408,24 @@ pub(crate) fn render_unit(
             times.add_render(&renderer.take_times());
             physics
         },
-    )?;
-    // The rendering simulation must be the validated one, bit for bit.
-    if rendered.summary != expected {
-        return Err(AugmentError::Input(format!(
-            "episode '{id}': the rendering simulation diverged from the validation one \
-             ({} frames, first success {:?}; validated: {} frames, first success {:?})",
-            rendered.summary.frames,
-            rendered.summary.first_success,
-            expected.frames,
-            expected.first_success
-        )));
-    }
+    )
+}
+
+/// Finishes each pending replay's writers and commits the replay (episode, record,
+/// preview) from staging; returns their outcomes.
+fn commit_replays(
+    job: &UnitJob,
+    inputs: &UnitInputs<'_>,
+    pending: Vec<Pending>,
+    rendered: &Physics,
+    expected: &PhysicsSummary,
+    cameras: &[String],
+    frames_done: &mut dyn FnMut(u64) -> Result<(), AugmentError>,
+) -> Result<Vec<Outcome>, AugmentError> {
+    let UnitInputs {
+        src, config, out, ..
+    } = *inputs;
+    let id = &src.episode.id;
     let mut outcomes = Vec::new();
     for p in pending {
         for w in p.writers {
@@ -331,8 +435,8 @@ pub(crate) fn render_unit(
             d.finish()?;
         }
         let name = replay_name(id, p.index);
-        let ep = replay_episode(src, &name, &rendered.states, &cameras, config.depth)?;
-        let mut record = record_of(job, p.index, p.sample, p.dynamics, &expected);
+        let ep = replay_episode(src, &name, &rendered.states, cameras, config.depth)?;
+        let mut record = record_of(job, p.index, p.sample, p.dynamics, expected);
         record.videos = cameras
             .iter()
             .map(|c| format!("{}/{c}.mp4", raw::VIDEOS))
@@ -353,8 +457,7 @@ pub(crate) fn render_unit(
         )?;
         outcomes.push(Outcome::Kept(record));
     }
-    times.encode_cpu = encoders.seconds();
-    Ok((outcomes, times))
+    Ok(outcomes)
 }
 
 /// A replay's record (no videos yet).

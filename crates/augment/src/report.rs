@@ -165,10 +165,22 @@ fn kept_label(r: &ReplayRecord) -> &'static str {
     if r.success { "yes" } else { "FAILED (kept)" }
 }
 
+/// Writes the report as JSON and as Markdown (`augment_report.json`, `.md`).
 pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), AugmentError> {
     let json = serde_json::to_vec_pretty(report).expect("serializable");
     dexjoco_formats::write_atomic(&out.join(REPORT_JSON), &json)?;
     let mut md = String::new();
+    push_settings(&mut md, report);
+    push_episodes(&mut md, report);
+    push_failed_and_skipped(&mut md, report);
+    push_replays(&mut md, report);
+    push_dynamics(&mut md, report);
+    dexjoco_formats::write_atomic(&out.join(REPORT_MD), md.as_bytes())?;
+    Ok(())
+}
+
+/// The Markdown report's title and the run's settings.
+fn push_settings(md: &mut String, report: &AugmentReport) {
     md.push_str("# Augment report\n\n");
     md.push_str(&format!(
         "Seed {}, {} replays per episode, {}x{}, {} render samples{}.\n\n",
@@ -183,6 +195,10 @@ pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), Aug
             ", light geometry (meshes simplified for drawing)"
         },
     ));
+}
+
+/// The table of episodes, and a note on those whose success came after the recording.
+fn push_episodes(md: &mut String, report: &AugmentReport) {
     md.push_str("| task | episode | replay success | recorded steps | first success | shift | steps | max state deviation | replays kept |\n|---|---|---|---|---|---|---|---|---|\n");
     for e in &report.episodes {
         md.push_str(&format!(
@@ -206,6 +222,10 @@ pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), Aug
              like the others.\n"
         ));
     }
+}
+
+/// The units that failed twice and the inputs skipped, when any.
+fn push_failed_and_skipped(md: &mut String, report: &AugmentReport) {
     if !report.failed_units.is_empty() {
         md.push_str(&format!(
             "\n**Failed units ({}, tried twice; a later run redoes them):**\n\n",
@@ -227,6 +247,10 @@ pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), Aug
             md.push_str(&format!("- `{}`: {}\n", k.source, k.reason));
         }
     }
+}
+
+/// The table of kept replays and their randomization.
+fn push_replays(md: &mut String, report: &AugmentReport) {
     md.push_str("\n| replay | seed | camera (az, el, d) | table | headlight ambient | success |\n|---|---|---|---|---|---|\n");
     for r in &report.replays {
         let c = &r.sample.camera;
@@ -247,6 +271,10 @@ pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), Aug
             kept_label(r)
         ));
     }
+}
+
+/// With `--dynamics`, every replay's draw, kept or dropped.
+fn push_dynamics(md: &mut String, report: &AugmentReport) {
     if report
         .replays
         .iter()
@@ -287,8 +315,6 @@ pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), Aug
             ));
         }
     }
-    dexjoco_formats::write_atomic(&out.join(REPORT_MD), md.as_bytes())?;
-    Ok(())
 }
 
 /// A grid of the first frame of every replay's third-person view (`contact_sheet.png`).
@@ -301,18 +327,15 @@ pub(crate) fn contact_sheet(out: &Path, report: &AugmentReport) -> Result<(), Au
             tiles.push(img.to_rgb8());
         }
     }
-    if tiles.is_empty() {
+    let layout = dexjoco_sim::SheetLayout {
+        columns: report.replays_per_episode.clamp(1, 10) as u32,
+        tile: Some(160),
+        gap: 0,
+        background: [0, 0, 0],
+    };
+    let Some(sheet) = dexjoco_sim::contact_sheet(&tiles, layout) else {
         return Ok(());
-    }
-    let tile = 160u32;
-    let cols = report.replays_per_episode.clamp(1, 10) as u32;
-    let rows = (tiles.len() as u32).div_ceil(cols);
-    let mut sheet = image::RgbImage::new(cols * tile, rows * tile);
-    for (i, t) in tiles.iter().enumerate() {
-        let small = image::imageops::resize(t, tile, tile, image::imageops::FilterType::Triangle);
-        let (x, y) = ((i as u32 % cols) * tile, (i as u32 / cols) * tile);
-        image::imageops::replace(&mut sheet, &small, i64::from(x), i64::from(y));
-    }
+    };
     let path = out.join("contact_sheet.png");
     let tmp = out.join(".contact_sheet.tmp.png");
     sheet

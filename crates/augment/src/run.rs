@@ -4,94 +4,23 @@
 //! write the report and contact sheet.
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::path::PathBuf;
 use std::sync::Arc;
 
-use dexjoco_core::{Progress, TaskSet, TaskSpec};
-use dexjoco_sim::{Scene, SceneSource, load_task_scene};
+use dexjoco_core::{Progress, TaskSet};
 use rayon::prelude::*;
 
-use crate::config::{AugmentConfig, STAGING, TABLE_GEOM};
-use crate::error::{AugmentError, io_err, sim_err};
+use crate::assets::{TaskAssets, load_assets};
+use crate::config::{AugmentConfig, STAGING};
+use crate::error::{AugmentError, io_err};
 use crate::fingerprint::{OutputSettings, scene_hash};
 use crate::inputs::{SkippedInput, Source, read_sources};
 use crate::physics::{PhysicsSummary, simulate};
 use crate::plan::{existing_replays, owned_replays, replays_per_unit, source_state};
-use crate::randomize::{CameraPool, TableLibrary, builtin_pool};
 use crate::render::UnitJob;
 use crate::report::{AugmentReport, EpisodeOutcome, FailedUnit, contact_sheet, write_report};
 use crate::staging::Outcome;
-use crate::worker::{Executor, LocalInputs, WorkerPool, run_jobs};
-
-/// A task's scene and what randomization needs of it, shared by every worker thread.
-pub(crate) struct TaskAssets {
-    pub(crate) scene: Scene,
-    pub(crate) pool: CameraPool,
-    pub(crate) table: TableLibrary,
-    pub(crate) nlight: usize,
-    pub(crate) key: String,
-}
-
-impl TaskAssets {
-    /// The scene ids of the fixed cameras a replay renders besides its third-person view.
-    pub(crate) fn fixed_cameras(
-        &self,
-        names: &[String],
-        episode: &str,
-    ) -> Result<Vec<usize>, AugmentError> {
-        names
-            .iter()
-            .map(|c| self.scene.camera_id(c).map_err(sim_err(episode)))
-            .collect()
-    }
-
-    /// The randomization of replay `r` of the episode `key` (`<task>/<episode>`).
-    pub(crate) fn sample(&self, seed: u64, key: &str, r: usize) -> crate::randomize::VisualSample {
-        crate::randomize::VisualSample::sample(
-            crate::randomize::replay_seed(seed, key, r),
-            &self.pool,
-            &self.table,
-            self.nlight,
-        )
-    }
-}
-
-fn pool_for(config: &AugmentConfig, spec: &TaskSpec) -> Result<CameraPool, AugmentError> {
-    if let Some(p) = &config.camera_pool {
-        return CameraPool::load(p);
-    }
-    if let SceneSource::Dir(dir) = &config.scene {
-        let file = match spec.setup {
-            dexjoco_core::ArmSetup::SingleArm => "replay_cameras.json",
-            dexjoco_core::ArmSetup::Bimanual => "replay_cameras_2.json",
-        };
-        // The reference pools sit beside its `xmls/` folder.
-        for cand in [dir.join(file), dir.join("..").join(file)] {
-            if cand.is_file() {
-                return CameraPool::load(&cand);
-            }
-        }
-    }
-    Ok(builtin_pool(spec.setup))
-}
-
-/// Loads a task's scene, camera pool and table looks.
-pub(crate) fn load_assets(
-    config: &AugmentConfig,
-    spec: &TaskSpec,
-) -> Result<TaskAssets, AugmentError> {
-    let scene = load_task_scene(&config.scene, spec).map_err(sim_err(&spec.id))?;
-    let table = TableLibrary::of_model(&scene.model, TABLE_GEOM)?;
-    let pool = pool_for(config, spec)?;
-    let nlight = scene.model.ffi().nlight as usize;
-    let key = format!("{}:{}", spec.id, scene.path.display());
-    Ok(TaskAssets {
-        scene,
-        pool,
-        table,
-        nlight,
-        key,
-    })
-}
+use crate::worker::{Executor, LocalInputs, UnitResult, WorkerPool, run_jobs};
 
 /// Runs the augment stage on this process's threads.
 pub fn augment(
@@ -108,9 +37,77 @@ pub fn augment_with(
     executor: &Executor,
     progress: &dyn Progress,
 ) -> Result<AugmentReport, AugmentError> {
+    let (mut sources, mut skipped) = read_replayable(config)?;
+    let out = &config.out;
+    fs_err::create_dir_all(out).map_err(io_err("create", out))?;
+    let _lock = crate::staging::lock_output(out, config.shard)?;
+
+    // This run's share; worker processes start now and load the scenes of its tasks while
+    // this process loads and simulates.
+    let cameras = 1 + config.cameras.len();
+    let owned = owned_replays(&sources, config, cameras);
+    let pool = start_workers(executor, config, &sources, &owned)?;
+
+    // One scene per task, shared by the workers; the settings that decide the output's
+    // bytes, checked against what the folder was made with.
+    let (assets, settings) = load_assets_and_settings(config, &sources)?;
+    let staging = prepare_output(config, &settings)?;
+
+    // This run's share, and the physics of every episode it touches (the unsharded run,
+    // which writes the report, simulates them all). An episode the simulator rejects
+    // (e.g. a state that does not fit the scene) is skipped, not the batch.
+    let (physics, validation_seconds) = simulate_episodes(
+        config,
+        &mut sources,
+        &owned,
+        &assets,
+        &mut skipped,
+        progress,
+    );
+
+    // What is on disk already (resume), read once, and the units still to render.
+    let (mut outcomes, todo) = plan_replays(config, &sources, &owned, &physics, &assets)?;
+    let jobs = unit_jobs(executor, config, &sources, &physics, &todo);
+    let local = LocalInputs {
+        sources: &sources,
+        assets: &assets,
+    };
+    let (results, mut times) = run_jobs(executor, pool, &jobs, &local, config, cameras, progress)?;
+    times.physics += validation_seconds;
+    if config.shard.is_none() {
+        let _ = fs_err::remove_dir(&staging);
+    }
+    let (rendered_now, failed_units) = collect_results(&jobs, results, &mut outcomes);
+
+    let report = build_report(
+        config,
+        &sources,
+        &physics,
+        &assets,
+        outcomes,
+        skipped,
+        failed_units,
+        rendered_now,
+    );
+    let report = AugmentReport { times, ..report };
+    // A shard writes no report: the unsharded run after the shards writes it (and renders
+    // nothing new), the same bytes as one unsharded run.
+    if config.shard.is_none() {
+        write_report(out, &report)?;
+        if config.contact_sheet {
+            contact_sheet(out, &report)?;
+        }
+    }
+    Ok(report)
+}
+
+/// Reads the inputs (skipping those that cannot be replayed); fails when none can be.
+fn read_replayable(
+    config: &AugmentConfig,
+) -> Result<(Vec<Source>, Vec<SkippedInput>), AugmentError> {
     let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
         .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
-    let (mut sources, mut skipped) = read_sources(&config.inputs, &config.out, &tasks)?;
+    let (sources, skipped) = read_sources(&config.inputs, &config.out, &tasks)?;
     if sources.is_empty()
         && let Some(first) = skipped.first()
     {
@@ -121,29 +118,36 @@ pub fn augment_with(
             first.reason
         )));
     }
-    let out = &config.out;
-    fs_err::create_dir_all(out).map_err(io_err("create", out))?;
-    let _lock = crate::staging::lock_output(out, config.shard)?;
+    Ok((sources, skipped))
+}
 
-    // This run's share; worker processes start now and load the scenes of its tasks while
-    // this process loads and simulates.
-    let cameras = 1 + config.cameras.len();
-    let owned = owned_replays(&sources, config, cameras);
+/// Starts the worker processes (none on threads), preloading the tasks this run owns
+/// replays of.
+fn start_workers(
+    executor: &Executor,
+    config: &AugmentConfig,
+    sources: &[Source],
+    owned: &[Vec<usize>],
+) -> Result<WorkerPool, AugmentError> {
     let preload: BTreeSet<String> = sources
         .iter()
-        .zip(&owned)
+        .zip(owned)
         .filter(|(_, o)| !o.is_empty())
         .map(|(s, _)| s.spec.id.clone())
         .collect();
     let max_units = owned.iter().map(Vec::len).sum();
     let preload: Vec<String> = preload.into_iter().collect();
-    let pool = WorkerPool::start(executor, config, &preload, max_units)?;
+    WorkerPool::start(executor, config, &preload, max_units)
+}
 
-    // One scene per task, shared by the workers; the settings that decide the output's
-    // bytes, checked against what the folder was made with.
+/// Loads each task's assets once, and the settings that decide the output's bytes.
+fn load_assets_and_settings(
+    config: &AugmentConfig,
+    sources: &[Source],
+) -> Result<(BTreeMap<String, Arc<TaskAssets>>, OutputSettings), AugmentError> {
     let mut assets: BTreeMap<String, Arc<TaskAssets>> = BTreeMap::new();
     let mut inputs = Vec::new();
-    for s in &sources {
+    for s in sources {
         if assets.contains_key(&s.spec.id) {
             continue;
         }
@@ -161,6 +165,16 @@ pub fn augment_with(
             .into_iter()
             .map(|(t, scene, spec)| (t.clone(), scene, &assets[&t].pool, spec)),
     );
+    Ok((assets, settings))
+}
+
+/// Cleans the output (`--overwrite`), checks its settings against `settings` (or writes
+/// them) and, unsharded, drops a killed run's leftovers; returns the staging folder.
+fn prepare_output(
+    config: &AugmentConfig,
+    settings: &OutputSettings,
+) -> Result<PathBuf, AugmentError> {
+    let out = &config.out;
     if config.overwrite {
         crate::staging::clean_output(out)?;
     }
@@ -175,14 +189,24 @@ pub fn augment_with(
         // And the temporaries of its atomic writes (report, settings, dropped records).
         crate::staging::remove_partial_files(out)?;
     }
+    Ok(staging)
+}
 
-    // This run's share, and the physics of every episode it touches (the unsharded run,
-    // which writes the report, simulates them all). An episode the simulator rejects
-    // (e.g. a state that does not fit the scene) is skipped, not the batch.
+/// Simulates the episodes this run touches, on threads: their physics (`None` for those
+/// not simulated or rejected, which join `skipped`) and the seconds spent, summed over the
+/// threads.
+fn simulate_episodes(
+    config: &AugmentConfig,
+    sources: &mut [Source],
+    owned: &[Vec<usize>],
+    assets: &BTreeMap<String, Arc<TaskAssets>>,
+    skipped: &mut Vec<SkippedInput>,
+    progress: &dyn Progress,
+) -> (Vec<Option<PhysicsSummary>>, f64) {
     if config.shard.is_some() {
         // A shard needs only its own episodes' arrays (at DexJoCo scale, the others weigh
         // a gigabyte).
-        for (s, o) in sources.iter_mut().zip(&owned) {
+        for (s, o) in sources.iter_mut().zip(owned) {
             if o.is_empty() {
                 s.episode.arrays.clear();
             }
@@ -223,10 +247,24 @@ pub fn augment_with(
             None => None,
         });
     }
+    (physics, validation_seconds)
+}
 
-    // What is on disk already (resume), read once, and the units still to render.
+/// The replays already done or dropped (resume), by (source, replay), and each simulated
+/// source's owned replays still to render (none for a failed replay without
+/// `--keep-failed`).
+type ReplayPlan = (BTreeMap<(usize, usize), Outcome>, Vec<(usize, Vec<usize>)>);
+
+/// Reads what is on disk already, once, and plans the replays still to render.
+fn plan_replays(
+    config: &AugmentConfig,
+    sources: &[Source],
+    owned: &[Vec<usize>],
+    physics: &[Option<PhysicsSummary>],
+    assets: &BTreeMap<String, Arc<TaskAssets>>,
+) -> Result<ReplayPlan, AugmentError> {
     let task_ids: BTreeSet<&str> = sources.iter().map(|s| s.spec.id.as_str()).collect();
-    let on_disk = existing_replays(out, &task_ids);
+    let on_disk = existing_replays(&config.out, &task_ids);
     let mut outcomes: BTreeMap<(usize, usize), Outcome> = BTreeMap::new();
     let mut todo: Vec<(usize, Vec<usize>)> = Vec::new();
     for (i, s) in sources.iter().enumerate() {
@@ -246,13 +284,25 @@ pub fn augment_with(
             todo.push((i, state.todo));
         }
     }
+    Ok((outcomes, todo))
+}
+
+/// The units of work: each source's replays to render, in chunks sized for `executor`'s
+/// workers.
+fn unit_jobs(
+    executor: &Executor,
+    config: &AugmentConfig,
+    sources: &[Source],
+    physics: &[Option<PhysicsSummary>],
+    todo: &[(usize, Vec<usize>)],
+) -> Vec<(usize, UnitJob)> {
     let workers = match executor {
         Executor::Threads => rayon::current_num_threads(),
         Executor::Processes(w) => w.count,
     }
     .max(1);
     let mut jobs: Vec<(usize, UnitJob)> = Vec::new();
-    for (i, replays) in &todo {
+    for (i, replays) in todo {
         let s = &sources[*i];
         let per_unit = replays_per_unit(
             replays.len(),
@@ -276,15 +326,16 @@ pub fn augment_with(
             ));
         }
     }
-    let local = LocalInputs {
-        sources: &sources,
-        assets: &assets,
-    };
-    let (results, mut times) = run_jobs(executor, pool, &jobs, &local, config, cameras, progress)?;
-    times.physics += validation_seconds;
-    if config.shard.is_none() {
-        let _ = fs_err::remove_dir(&staging);
-    }
+    jobs
+}
+
+/// Adds the units' outcomes to `outcomes`; returns how many replays were rendered now and
+/// the units that failed.
+fn collect_results(
+    jobs: &[(usize, UnitJob)],
+    results: Vec<UnitResult>,
+    outcomes: &mut BTreeMap<(usize, usize), Outcome>,
+) -> (usize, Vec<FailedUnit>) {
     let mut rendered_now = 0;
     let mut failed_units = Vec::new();
     for ((i, job), result) in jobs.iter().zip(results) {
@@ -309,27 +360,7 @@ pub fn augment_with(
             }),
         }
     }
-
-    let report = build_report(
-        config,
-        &sources,
-        &physics,
-        &assets,
-        outcomes,
-        skipped,
-        failed_units,
-        rendered_now,
-    );
-    let report = AugmentReport { times, ..report };
-    // A shard writes no report: the unsharded run after the shards writes it (and renders
-    // nothing new), the same bytes as one unsharded run.
-    if config.shard.is_none() {
-        write_report(out, &report)?;
-        if config.contact_sheet {
-            contact_sheet(out, &report)?;
-        }
-    }
-    Ok(report)
+    (rendered_now, failed_units)
 }
 
 /// Removes a killed run's staging. Its worker processes stop within a frame of their

@@ -242,7 +242,7 @@ fn depth_streams_to_npz_that_numpy_loads_and_equals_a_direct_render() {
 /// scenes (and so the reference camera pool and table textures).
 #[test]
 fn a_recording_on_the_reference_scene_replays_to_success_with_scene_dir() {
-    let xmls = dexjoco_testkit::upstream_dir().join("xmls");
+    let xmls = dexjoco_testkit::reference_scene_dir();
     let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
     let source = SceneSource::Dir(xmls.clone());
     let scene = dexjoco_sim::load_task_scene(&source, spec).unwrap();

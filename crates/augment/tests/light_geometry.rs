@@ -18,7 +18,7 @@ fn config(out: &Path, geometry: Geometry) -> AugmentConfig {
         replays: 2,
         seed: 3,
         tasks_dir: None,
-        scene: SceneSource::Dir(dexjoco_testkit::upstream_dir().join("xmls")),
+        scene: SceneSource::Dir(dexjoco_testkit::reference_scene_dir()),
         camera_pool: None,
         cameras: Vec::new(),
         settings: RenderSettings {

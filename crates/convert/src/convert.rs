@@ -4,16 +4,16 @@
 use std::path::{Path, PathBuf};
 
 use dexjoco_core::Progress;
+use dexjoco_formats::dataset::{
+    DatasetWriter, PreparedEpisode, V3Options, V3Writer, V21Writer, VideoLayout, ZarrWriter,
+};
 use dexjoco_formats::fs::StagedDir;
 use dexjoco_formats::openpi::NormStats;
 use rayon::prelude::*;
 
 use crate::config::Selection;
-use crate::diffusion_policy::ZarrWriter;
 use crate::error::ConvertError;
-use crate::lerobot_v3::{V3Options, V3Writer};
-use crate::lerobot_v21::V21Writer;
-use crate::prepare::{InputEpisode, PreparedEpisode, VideoLayout, VideoOptions, prepare};
+use crate::prepare::{InputEpisode, VideoOptions, prepare};
 
 /// Output dataset formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -43,46 +43,6 @@ impl OutputFormat {
             Self::LeRobotV21 => VideoLayout::Encoded,
             Self::DiffusionPolicy if videos => VideoLayout::PerEpisode,
             Self::DiffusionPolicy => VideoLayout::Frames,
-        }
-    }
-}
-
-enum Writer {
-    V3(Box<V3Writer>),
-    V21(Box<V21Writer>),
-    Zarr(Box<ZarrWriter>),
-}
-
-impl Writer {
-    fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), ConvertError> {
-        match self {
-            Self::V3(w) => w.write_episode(ep),
-            Self::V21(w) => w.write_episode(ep),
-            Self::Zarr(w) => w.write_episode(ep),
-        }
-    }
-
-    fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), ConvertError> {
-        match self {
-            Self::V3(w) => w.check_compatible(ep),
-            Self::V21(w) => w.check_compatible(ep),
-            Self::Zarr(w) => w.check_compatible(ep),
-        }
-    }
-
-    fn counts(&self) -> (usize, usize) {
-        match self {
-            Self::V3(w) => (w.episodes(), w.frames()),
-            Self::V21(w) => (w.episodes(), w.frames()),
-            Self::Zarr(w) => (w.episodes(), w.frames()),
-        }
-    }
-
-    fn finish(self) -> Result<(), ConvertError> {
-        match self {
-            Self::V3(w) => w.finish(),
-            Self::V21(w) => w.finish(),
-            Self::Zarr(w) => w.finish(),
         }
     }
 }
@@ -229,24 +189,18 @@ pub fn check_output(out: &Path, options: &ConvertOptions) -> Result<(), ConvertE
 /// Episodes the dataset's layout is chosen from (see [`layout_leader`]).
 const LAYOUT_WINDOW: usize = 8;
 
-/// Opens the dataset writer with the layout of `p`.
+/// Opens the dataset writer of `options.format` with the layout of `p`.
 fn new_writer(
     root: &Path,
     p: &PreparedEpisode,
     options: &ConvertOptions,
-) -> Result<Writer, ConvertError> {
+) -> Result<Box<dyn DatasetWriter>, ConvertError> {
     Ok(match options.format {
-        OutputFormat::LeRobotV3 => {
-            Writer::V3(Box::new(V3Writer::try_new(root, p, options.v3.clone())?))
+        OutputFormat::LeRobotV3 => Box::new(V3Writer::try_new(root, p, options.v3.clone())?),
+        OutputFormat::LeRobotV21 => {
+            Box::new(V21Writer::try_new(root, p, options.v3.robot_type.clone())?)
         }
-        OutputFormat::LeRobotV21 => Writer::V21(Box::new(V21Writer::try_new(
-            root,
-            p,
-            options.v3.robot_type.clone(),
-        )?)),
-        OutputFormat::DiffusionPolicy => {
-            Writer::Zarr(Box::new(ZarrWriter::try_new(root, p, options.videos)?))
-        }
+        OutputFormat::DiffusionPolicy => Box::new(ZarrWriter::try_new(root, p, options.videos)?),
     })
 }
 
@@ -321,63 +275,27 @@ where
     } else {
         options.batch
     };
-    let mut summary = Summary::default();
-    let mut writer: Option<Writer> = None;
     let layout = options.format.layout(options.videos);
-    let mut norm = options.norm_stats.map(NormStats::new);
+    let mut run = Run {
+        root,
+        options,
+        progress,
+        summary: Summary::default(),
+        writer: None,
+        norm: options.norm_stats.map(NormStats::new),
+        ordinal: 0,
+        failures: Failures::new(),
+    };
     let mut inputs = inputs.into_iter();
-    let mut ordinal = 0usize;
-    let mut failures = Failures::new();
     loop {
         // Until the layout is chosen, batches are LAYOUT_WINDOW episodes whatever the
         // thread count, so the choice (and the output) does not depend on it.
-        let size = if writer.is_none() {
+        let size = if run.writer.is_none() {
             LAYOUT_WINDOW
         } else {
             batch
         };
-        let mut pending = Vec::with_capacity(size);
-        for item in inputs.by_ref() {
-            let item = match item {
-                Ok(item) => item,
-                Err(e) => {
-                    let source = match &e {
-                        ConvertError::Input { path, .. } => path.display().to_string(),
-                        _ => String::from("?"),
-                    };
-                    fail(&mut failures, (ordinal, 0), progress, source, &e);
-                    continue;
-                }
-            };
-            if options.selection.bad_episodes.contains(&item.episode.id) {
-                progress.note(&format!("left out {} (bad-episodes list)", item.episode.id));
-                progress.advance(1, &item.episode.id);
-                summary.excluded.push(item.episode.id);
-                continue;
-            }
-            if !options.include_failed {
-                match dexjoco_formats::raw::replay_success(&item.dir) {
-                    Ok(Some(false)) => {
-                        let e = ConvertError::FailedReplay {
-                            dir: item.dir.clone(),
-                        };
-                        fail(&mut failures, (ordinal, 0), progress, item.episode.id, &e);
-                        continue;
-                    }
-                    Ok(_) => {}
-                    Err(e) => {
-                        let e = ConvertError::Format(e);
-                        fail(&mut failures, (ordinal, 0), progress, item.episode.id, &e);
-                        continue;
-                    }
-                }
-            }
-            pending.push((ordinal, item));
-            ordinal += 1;
-            if pending.len() == size {
-                break;
-            }
-        }
+        let pending = run.take_batch(&mut inputs, size);
         if pending.is_empty() {
             break;
         }
@@ -385,65 +303,167 @@ where
             .par_iter()
             .map(|(i, input)| prepare(input, &options.selection, options.video, layout, &work, *i))
             .collect();
-        if writer.is_none()
+        if run.writer.is_none()
             && let Some(leader) = layout_leader(&prepared)
         {
-            writer = Some(new_writer(root, leader, options)?);
+            run.writer = Some(new_writer(root, leader, options)?);
         }
-        for (p, (i, input)) in prepared.into_iter().zip(&pending) {
-            let p = match p {
-                Ok(p) => p,
+        run.write_batch(prepared, &pending)?;
+    }
+    run.finish(&work)
+}
+
+/// One conversion between its batches: what was written and left out so far.
+struct Run<'a> {
+    root: &'a Path,
+    options: &'a ConvertOptions,
+    progress: &'a dyn Progress,
+    summary: Summary,
+    /// Made from the first batch's layout leader.
+    writer: Option<Box<dyn DatasetWriter>>,
+    norm: Option<NormStats>,
+    /// Readable inputs taken so far.
+    ordinal: usize,
+    failures: Failures,
+}
+
+impl Run<'_> {
+    /// The next `size` inputs to prepare, each with its ordinal; inputs that cannot be
+    /// read or are left out on the way are recorded.
+    fn take_batch(
+        &mut self,
+        inputs: &mut impl Iterator<Item = Result<InputEpisode, ConvertError>>,
+        size: usize,
+    ) -> Vec<(usize, InputEpisode)> {
+        let mut pending = Vec::with_capacity(size);
+        for item in inputs {
+            let item = match item {
+                Ok(item) => item,
                 Err(e) => {
+                    let source = match &e {
+                        ConvertError::Input { path, .. } => path.display().to_string(),
+                        _ => String::from("?"),
+                    };
                     fail(
-                        &mut failures,
-                        (*i, 1),
-                        progress,
-                        input.episode.id.clone(),
+                        &mut self.failures,
+                        (self.ordinal, 0),
+                        self.progress,
+                        source,
                         &e,
                     );
                     continue;
                 }
             };
-            if let Some(w) = writer.as_ref()
+            let Some(item) = self.admit(item) else {
+                continue;
+            };
+            pending.push((self.ordinal, item));
+            self.ordinal += 1;
+            if pending.len() == size {
+                break;
+            }
+        }
+        pending
+    }
+
+    /// Leaves out an episode of the bad-episodes list, or a replay whose record says it
+    /// failed its task (unless `include_failed`); returns the others.
+    fn admit(&mut self, item: InputEpisode) -> Option<InputEpisode> {
+        if self
+            .options
+            .selection
+            .bad_episodes
+            .contains(&item.episode.id)
+        {
+            self.progress
+                .note(&format!("left out {} (bad-episodes list)", item.episode.id));
+            self.progress.advance(1, &item.episode.id);
+            self.summary.excluded.push(item.episode.id);
+            return None;
+        }
+        if self.options.include_failed {
+            return Some(item);
+        }
+        let e = match dexjoco_formats::raw::replay_success(&item.dir) {
+            Ok(Some(false)) => ConvertError::FailedReplay {
+                dir: item.dir.clone(),
+            },
+            Ok(_) => return Some(item),
+            Err(e) => ConvertError::Format(e),
+        };
+        let key = (self.ordinal, 0);
+        fail(&mut self.failures, key, self.progress, item.episode.id, &e);
+        None
+    }
+
+    /// Writes a prepared batch in input order; episodes that failed to prepare or do not
+    /// fit the dataset are left out.
+    fn write_batch(
+        &mut self,
+        prepared: Vec<Result<PreparedEpisode, ConvertError>>,
+        pending: &[(usize, InputEpisode)],
+    ) -> Result<(), ConvertError> {
+        for (p, (i, input)) in prepared.into_iter().zip(pending) {
+            let p = match p {
+                Ok(p) => p,
+                Err(e) => {
+                    let id = input.episode.id.clone();
+                    fail(&mut self.failures, (*i, 1), self.progress, id, &e);
+                    continue;
+                }
+            };
+            if let Some(w) = self.writer.as_ref()
                 && let Err(e) = w.check_compatible(&p)
             {
-                fail(&mut failures, (*i, 1), progress, p.id.clone(), &e);
+                let e = ConvertError::from(e);
+                fail(&mut self.failures, (*i, 1), self.progress, p.id.clone(), &e);
                 continue;
             }
-            let id = p.id.clone();
-            summary.skipped_frames += p.skipped;
-            summary.videos_copied += p.videos.iter().filter(|v| v.copied).count();
-            summary.videos_encoded += p.videos.iter().filter(|v| !v.copied).count();
-            if let Some(norm) = norm.as_mut() {
-                norm.add_episode(
-                    &crate::prepare::as_f32(&p.state),
-                    p.state.width(),
-                    &crate::prepare::as_f32(&p.action),
-                    p.action.width(),
-                );
-            }
-            let w = writer.as_mut().expect("made from the first batch");
-            w.write_episode(p)?;
-            progress.advance(1, &id);
+            self.write(p)?;
         }
+        Ok(())
     }
-    failures.sort_by_key(|(k, _)| *k);
-    summary.failed = failures.into_iter().map(|(_, f)| f).collect();
-    let Some(w) = writer else {
-        // Nothing to write: say why when every episode failed.
-        return Err(match summary.failed.first() {
-            Some(f) => ConvertError::AllFailed {
-                count: summary.failed.len(),
-                first: format!("{}: {}", f.episode, f.reason),
-            },
-            None => ConvertError::NoEpisodes,
-        });
-    };
-    (summary.episodes, summary.frames) = w.counts();
-    w.finish()?;
-    if let Some(norm) = norm {
-        norm.write(root)?;
+
+    /// Writes one episode and counts it (videos, skipped frames, norm statistics).
+    fn write(&mut self, p: PreparedEpisode) -> Result<(), ConvertError> {
+        let id = p.id.clone();
+        self.summary.skipped_frames += p.skipped;
+        self.summary.videos_copied += p.videos.iter().filter(|v| v.copied).count();
+        self.summary.videos_encoded += p.videos.iter().filter(|v| !v.copied).count();
+        if let Some(norm) = self.norm.as_mut() {
+            norm.add_episode(
+                &crate::prepare::as_f32(&p.state),
+                p.state.width(),
+                &crate::prepare::as_f32(&p.action),
+                p.action.width(),
+            );
+        }
+        let w = self.writer.as_mut().expect("made from the first batch");
+        w.write_episode(p)?;
+        self.progress.advance(1, &id);
+        Ok(())
     }
-    fs_err::remove_dir_all(&work)?;
-    Ok(summary)
+
+    /// Finishes the dataset (and openpi's norm stats) and removes the work folder.
+    fn finish(mut self, work: &Path) -> Result<Summary, ConvertError> {
+        self.failures.sort_by_key(|(k, _)| *k);
+        self.summary.failed = self.failures.into_iter().map(|(_, f)| f).collect();
+        let Some(w) = self.writer else {
+            // Nothing to write: say why when every episode failed.
+            return Err(match self.summary.failed.first() {
+                Some(f) => ConvertError::AllFailed {
+                    count: self.summary.failed.len(),
+                    first: format!("{}: {}", f.episode, f.reason),
+                },
+                None => ConvertError::NoEpisodes,
+            });
+        };
+        (self.summary.episodes, self.summary.frames) = (w.episodes(), w.frames());
+        w.finish()?;
+        if let Some(norm) = self.norm {
+            norm.write(self.root)?;
+        }
+        fs_err::remove_dir_all(work)?;
+        Ok(self.summary)
+    }
 }

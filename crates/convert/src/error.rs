@@ -67,14 +67,9 @@ pub enum ConvertError {
     /// Nothing to convert.
     #[error("no episodes to convert (all were excluded or the input is empty)")]
     NoEpisodes,
-    /// Writing a Parquet file failed.
-    #[error("file '{path}': {message}")]
-    Parquet {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        message: String,
-    },
+    /// The dataset writer failed, or an episode does not fit the dataset.
+    #[error(transparent)]
+    Dataset(#[from] dexjoco_formats::DatasetError),
     /// An input episode could not be read.
     #[error("input '{path}': {message}")]
     Input {

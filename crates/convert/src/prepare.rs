@@ -6,11 +6,12 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use dexjoco_core::{ArmSetup, Episode, FrameArray, Location};
-use dexjoco_video::{Codec, VideoInfo, VideoReader, VideoSpec, VideoWriter};
+use dexjoco_formats::dataset::stats::{FeatureStats, ImageSampler, column_stats, sample_indices};
+use dexjoco_formats::dataset::{PreparedEpisode, VideoLayout, VideoPart};
+use dexjoco_video::{Codec, VideoReader, VideoSpec, VideoWriter};
 
 use crate::config::{Selection, first_moving_frame};
 use crate::error::ConvertError;
-use crate::stats::{FeatureStats, ImageSampler, column_stats, sample_indices};
 
 /// An episode and the folder its camera video paths are relative to.
 #[derive(Debug, Clone)]
@@ -61,118 +62,8 @@ pub struct VideoOptions {
     pub reencode: bool,
 }
 
-/// How a format lays its videos out; decides when a source video is encoded.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum VideoLayout {
-    /// Episodes joined into shared files by stream copy (LeRobot v3.0): the source is
-    /// used as it is (trimmed by timestamps) when its codec fits.
-    #[default]
-    Joined,
-    /// One file per episode starting at its first kept frame (Diffusion Policy
-    /// `--videos`): the source is copied when nothing is trimmed and its codec is the
-    /// chosen one.
-    PerEpisode,
-    /// One file per episode, every one encoded with the same settings (LeRobot v2.1:
-    /// lerobot's v2.1 -> v3.0 script joins them by stream copy, which needs files from
-    /// one encoder configuration).
-    Encoded,
-    /// No video output, only decoded frames (Diffusion Policy images): never encoded.
-    Frames,
-}
-
 /// Codecs lerobot's decoders accept in an mp4 and that concatenate by stream copy.
 const COPYABLE: [&str; 3] = ["h264", "hevc", "av1"];
-
-/// A camera's frames for one episode, as a part of the dataset's video file.
-#[derive(Debug, Clone)]
-pub struct VideoPart {
-    /// Output camera name (the feature key is `observation.images.<name>`).
-    pub name: String,
-    /// The mp4 to join (the source, or an encoded file in the work folder).
-    pub path: PathBuf,
-    /// Whether `path` is a temporary file of ours.
-    pub temporary: bool,
-    /// Frames of `path` before the episode's first kept frame.
-    pub skip: usize,
-    /// All frames of `path`.
-    pub frames: usize,
-    /// Size of `path` in bytes.
-    pub bytes: u64,
-    /// Codec, size and pixel format of `path`.
-    pub info: VideoInfo,
-    /// Whether the part is the source, stream-copied.
-    pub copied: bool,
-    /// The source video (all frames, before trimming).
-    pub source: PathBuf,
-}
-
-/// An episode ready to be written.
-#[derive(Debug, Clone)]
-pub struct PreparedEpisode {
-    /// Episode id.
-    pub id: String,
-    /// Task id.
-    pub task: String,
-    /// Language instruction.
-    pub instruction: String,
-    /// Frames per second (integer).
-    pub fps: u32,
-    /// Selected action, from the first kept frame.
-    pub action: FrameArray,
-    /// Selected state columns, from the first kept frame.
-    pub state: FrameArray,
-    /// Column names of action and state.
-    pub action_names: Vec<String>,
-    /// Column names of the state.
-    pub state_names: Vec<String>,
-    /// Leading frames skipped.
-    pub skipped: usize,
-    /// Per output camera, in name order.
-    pub videos: Vec<VideoPart>,
-    /// Statistics of action, state and each camera (`observation.images.<name>`).
-    pub stats: BTreeMap<String, FeatureStats>,
-}
-
-impl PreparedEpisode {
-    /// Checks that this episode fits a dataset of `fps`, action/state widths and camera
-    /// names (in order): every writer appends episodes of one layout.
-    pub(crate) fn check_layout(
-        &self,
-        fps: u32,
-        action_width: usize,
-        state_width: usize,
-        cameras: &[&str],
-    ) -> Result<(), ConvertError> {
-        let bad = |m: String| Err(ConvertError::episode(&self.id, m));
-        if self.fps != fps {
-            return bad(format!("fps {} differs from the dataset's {fps}", self.fps));
-        }
-        if self.action.width() != action_width || self.state.width() != state_width {
-            return bad(format!(
-                "action/state widths {}/{} differ from the dataset's {action_width}/{state_width} (select the same arrays for every task)",
-                self.action.width(),
-                self.state.width(),
-            ));
-        }
-        let names: Vec<&str> = self.videos.iter().map(|v| v.name.as_str()).collect();
-        if names != cameras {
-            return bad(format!(
-                "cameras {names:?} differ from the dataset's {cameras:?} (map cameras to shared names)"
-            ));
-        }
-        Ok(())
-    }
-
-    /// Frames kept.
-    pub fn len(&self) -> usize {
-        self.action.len()
-    }
-
-    /// True when no frame is kept.
-    pub fn is_empty(&self) -> bool {
-        self.action.is_empty()
-    }
-}
 
 fn setup_of(width: usize) -> Option<ArmSetup> {
     match width {
@@ -204,96 +95,7 @@ pub fn prepare(
     let ep = &input.episode;
     ep.check_consistent()?;
     let sel = selection.for_task(&ep.task);
-    let at = |field: &str| Location::episode(&ep.id).field(field).path(&input.dir);
-    let missing = |name: &str| ConvertError::Episode {
-        at: at(name).into(),
-        message: "array missing".into(),
-    };
-    let action_full: FrameArray = match ep.array(sel.action.array_name()) {
-        Some(a) => a.clone(),
-        None if sel.action.array_name() == Episode::ACTION_ROTVEC => {
-            // Computed from `action` as the recorder does.
-            let a = ep
-                .array(Episode::ACTION)
-                .ok_or_else(|| missing(Episode::ACTION_ROTVEC))?;
-            let setup = setup_of(a.width()).ok_or_else(|| ConvertError::Episode {
-                at: at(Episode::ACTION).into(),
-                message: format!(
-                    "{} values per frame is neither one arm (23) nor two (46)",
-                    a.width()
-                ),
-            })?;
-            let mut e = ep.clone();
-            e.compute_action_rotvec(setup)?;
-            e.arrays
-                .remove(Episode::ACTION_ROTVEC)
-                .expect("just computed")
-        }
-        None => return Err(missing(sel.action.array_name())),
-    };
-    let state_full = ep
-        .array(Episode::STATE)
-        .ok_or_else(|| missing(Episode::STATE))?;
-    let setup = setup_of(action_full.width());
-    let state_range = match (sel.state, setup) {
-        (Some(s), _) => s.range(state_full.width()),
-        (None, Some(setup)) => 0..setup.proprio_dim().min(state_full.width()),
-        (None, None) => 0..state_full.width(),
-    };
-    if state_range.is_empty() {
-        return Err(ConvertError::Episode {
-            at: at(Episode::STATE).into(),
-            message: format!(
-                "the state slice selects no column of {}",
-                state_full.width()
-            ),
-        });
-    }
-    let n = ep.len();
-    if n == 0 {
-        return Err(ConvertError::episode(&ep.id, "the episode has no frames"));
-    }
-    let skipped = if selection.skip_static_frames {
-        first_moving_frame(ep.array(Episode::ACTION).unwrap_or(&action_full))
-    } else {
-        0
-    };
-    let action = slice_columns(&action_full, 0..action_full.width(), skipped);
-    let state = slice_columns(state_full, state_range.clone(), skipped);
-    let (action, state, setup, state_range) = if selection.merge_bimanual
-        && setup == Some(ArmSetup::SingleArm)
-    {
-        let proprio = 0..ArmSetup::SingleArm.proprio_dim();
-        let (Some(a), Some(s)) = (
-            crate::merge::action_to_bimanual(&action),
-            crate::merge::state_to_bimanual(&state),
-        ) else {
-            return Err(ConvertError::Episode {
-                at: at(Episode::STATE).into(),
-                message: format!(
-                    "merging into the two-arm layout needs the proprioceptive state {proprio:?} \
-                         (the state slice selects {state_range:?})"
-                ),
-            });
-        };
-        if state_range != proprio {
-            return Err(ConvertError::Episode {
-                at: at(Episode::STATE).into(),
-                message: format!(
-                    "merging into the two-arm layout needs the proprioceptive state {proprio:?} \
-                         (the state slice selects {state_range:?})"
-                ),
-            });
-        }
-        (
-            a,
-            s,
-            Some(ArmSetup::Bimanual),
-            0..ArmSetup::Bimanual.proprio_dim(),
-        )
-    } else {
-        (action, state, setup, state_range)
-    };
+    let arrays = select_arrays(input, selection)?;
     let fps = ep.fps.round();
     if !(fps >= 1.0 && (ep.fps - fps).abs() < 1e-9) {
         return Err(ConvertError::episode(
@@ -302,6 +104,13 @@ pub fn prepare(
         ));
     }
     let fps = fps as u32;
+    let Selected {
+        action,
+        state,
+        setup,
+        state_range,
+        skipped,
+    } = arrays;
 
     let action_names = column_names(&action, setup, sel.action.array_name(), 0..action.width());
     let state_names = match setup {
@@ -323,133 +132,20 @@ pub fn prepare(
         column_stats(&as_f32(&state), state.width()),
     );
 
-    // Cameras: output name -> raw camera.
-    let mapping: Vec<(String, String)> = if sel.cameras.is_empty() {
-        ep.cameras
-            .iter()
-            .filter(|c| c.video.is_some())
-            .map(|c| (c.name.clone(), c.name.clone()))
-            .collect()
-    } else {
-        sel.cameras
-            .iter()
-            .map(|(k, v)| (k.clone(), v.clone()))
-            .collect()
+    let cameras = Cameras {
+        input,
+        skipped,
+        fps,
+        video,
+        layout,
+        work_dir,
+        ordinal,
     };
     let mut videos = Vec::new();
-    for (name, raw) in mapping {
-        if name.contains('/') {
-            return Err(ConvertError::episode(
-                &ep.id,
-                format!("camera name '{name}' contains '/'"),
-            ));
-        }
-        let cam_at = || Location::episode(&ep.id).field(format!("camera {raw}"));
-        let rel = ep
-            .cameras
-            .iter()
-            .find(|c| c.name == raw)
-            .and_then(|c| c.video.as_ref())
-            .ok_or_else(|| ConvertError::Episode {
-                at: cam_at().path(&input.dir).into(),
-                message: format!("no video of camera '{raw}' (cameras: {})", camera_list(ep)),
-            })?;
-        let src = input.dir.join(rel);
-        let vid_err = |source: dexjoco_video::VideoError| ConvertError::Video {
-            at: cam_at().into(),
-            source: source.into(),
-        };
-        let info = dexjoco_video::probe(&src).map_err(vid_err)?;
-        if info.frames as usize != n {
-            return Err(ConvertError::Episode {
-                at: cam_at().path(&src).into(),
-                message: format!("the video has {} frames, the episode {n}", info.frames),
-            });
-        }
-        let fits = COPYABLE.contains(&info.codec.as_str())
-            && info.pix_fmt == "yuv420p"
-            && (info.fps - f64::from(fps)).abs() < 1e-6;
-        let key = format!("observation.images.{name}");
-        let samples = sample_indices(n - skipped);
-        let mut sampler = ImageSampler::default();
-        let mut want = samples.iter().peekable();
-        let mut reader = VideoReader::open(&src, None).map_err(vid_err)?;
-        let (w, h) = reader.size();
-        let mut frame = Vec::new();
-        let use_source = match layout {
-            VideoLayout::Joined => fits && !video.reencode,
-            // Every episode's file must end up in the same codec.
-            VideoLayout::PerEpisode => {
-                fits && !video.reencode && skipped == 0 && info.codec == video.codec.name()
-            }
-            VideoLayout::Encoded => false,
-            VideoLayout::Frames => true,
-        };
-        let part = if use_source {
-            let mut k = 0;
-            while reader.next_frame(&mut frame).map_err(vid_err)? {
-                if k >= skipped && want.peek().is_some_and(|&&s| s == k - skipped) {
-                    while want.peek().is_some_and(|&&s| s == k - skipped) {
-                        want.next();
-                    }
-                    sampler.add_frame(&frame, w, h);
-                }
-                k += 1;
-            }
-            let bytes = fs_err::metadata(&src)?.len();
-            VideoPart {
-                name: name.clone(),
-                path: src.clone(),
-                temporary: false,
-                skip: skipped,
-                frames: n,
-                bytes,
-                info,
-                copied: layout != VideoLayout::Frames,
-                source: src.clone(),
-            }
-        } else {
-            let out = work_dir.join(format!("{ordinal:06}-{name}.mp4"));
-            let spec = VideoSpec {
-                width: w,
-                height: h,
-                fps,
-                codec: video.codec.codec(),
-            };
-            let enc_err = |source: dexjoco_video::VideoError| ConvertError::Video {
-                at: cam_at().into(),
-                source: source.into(),
-            };
-            let mut writer = VideoWriter::create_with(&out, spec, Some(2)).map_err(enc_err)?;
-            let mut k = 0;
-            while reader.next_frame(&mut frame).map_err(vid_err)? {
-                if k >= skipped {
-                    writer.write_frame(&frame).map_err(enc_err)?;
-                    if want.peek().is_some_and(|&&s| s == k - skipped) {
-                        while want.peek().is_some_and(|&&s| s == k - skipped) {
-                            want.next();
-                        }
-                        sampler.add_frame(&frame, w, h);
-                    }
-                }
-                k += 1;
-            }
-            writer.finish().map_err(enc_err)?;
-            let info = dexjoco_video::probe(&out).map_err(enc_err)?;
-            VideoPart {
-                name: name.clone(),
-                path: out.clone(),
-                temporary: true,
-                skip: 0,
-                frames: n - skipped,
-                bytes: fs_err::metadata(&out)?.len(),
-                info,
-                copied: false,
-                source: src.clone(),
-            }
-        };
-        if let Some(s) = sampler.finish() {
-            stats.insert(key, s);
+    for (name, raw) in camera_mapping(ep, &sel.cameras) {
+        let (part, sample_stats) = cameras.part(&name, &raw)?;
+        if let Some(s) = sample_stats {
+            stats.insert(format!("observation.images.{name}"), s);
         }
         videos.push(part);
     }
@@ -467,6 +163,297 @@ pub fn prepare(
         videos,
         stats,
     })
+}
+
+/// The selected, trimmed (and merged) arrays of an episode.
+struct Selected {
+    action: FrameArray,
+    state: FrameArray,
+    /// The arm setup the columns are named after.
+    setup: Option<ArmSetup>,
+    /// The state columns taken.
+    state_range: std::ops::Range<usize>,
+    /// Leading frames skipped.
+    skipped: usize,
+}
+
+/// Selects the action and state columns, skips static leading frames and, with
+/// `merge_bimanual`, lays one-arm episodes into the two-arm layout.
+fn select_arrays(input: &InputEpisode, selection: &Selection) -> Result<Selected, ConvertError> {
+    let ep = &input.episode;
+    let sel = selection.for_task(&ep.task);
+    let at = |field: &str| Location::episode(&ep.id).field(field).path(&input.dir);
+    let missing = |name: &str| ConvertError::Episode {
+        at: at(name).into(),
+        message: "array missing".into(),
+    };
+    let action_full = select_action(input, sel.action.array_name())?;
+    let state_full = ep
+        .array(Episode::STATE)
+        .ok_or_else(|| missing(Episode::STATE))?;
+    let setup = setup_of(action_full.width());
+    let state_range = match (sel.state, setup) {
+        (Some(s), _) => s.range(state_full.width()),
+        (None, Some(setup)) => 0..setup.proprio_dim().min(state_full.width()),
+        (None, None) => 0..state_full.width(),
+    };
+    if state_range.is_empty() {
+        return Err(ConvertError::Episode {
+            at: at(Episode::STATE).into(),
+            message: format!(
+                "the state slice selects no column of {}",
+                state_full.width()
+            ),
+        });
+    }
+    if ep.is_empty() {
+        return Err(ConvertError::episode(&ep.id, "the episode has no frames"));
+    }
+    let skipped = if selection.skip_static_frames {
+        first_moving_frame(ep.array(Episode::ACTION).unwrap_or(&action_full))
+    } else {
+        0
+    };
+    let action = slice_columns(&action_full, 0..action_full.width(), skipped);
+    let state = slice_columns(state_full, state_range.clone(), skipped);
+    if !(selection.merge_bimanual && setup == Some(ArmSetup::SingleArm)) {
+        return Ok(Selected {
+            action,
+            state,
+            setup,
+            state_range,
+            skipped,
+        });
+    }
+    // One arm into the two-arm layout: needs exactly the proprioceptive state.
+    let proprio = 0..ArmSetup::SingleArm.proprio_dim();
+    let merge_error = || ConvertError::Episode {
+        at: at(Episode::STATE).into(),
+        message: format!(
+            "merging into the two-arm layout needs the proprioceptive state {proprio:?} \
+                 (the state slice selects {state_range:?})"
+        ),
+    };
+    let (Some(a), Some(s)) = (
+        crate::merge::action_to_bimanual(&action),
+        crate::merge::state_to_bimanual(&state),
+    ) else {
+        return Err(merge_error());
+    };
+    if state_range != proprio {
+        return Err(merge_error());
+    }
+    Ok(Selected {
+        action: a,
+        state: s,
+        setup: Some(ArmSetup::Bimanual),
+        state_range: 0..ArmSetup::Bimanual.proprio_dim(),
+        skipped,
+    })
+}
+
+/// The whole action array `name` of an episode; `action_rotvec` is computed from
+/// `action` as the recorder does when the episode lacks it.
+fn select_action(input: &InputEpisode, name: &str) -> Result<FrameArray, ConvertError> {
+    let ep = &input.episode;
+    let at = |field: &str| Location::episode(&ep.id).field(field).path(&input.dir);
+    let missing = |name: &str| ConvertError::Episode {
+        at: at(name).into(),
+        message: "array missing".into(),
+    };
+    match ep.array(name) {
+        Some(a) => Ok(a.clone()),
+        None if name == Episode::ACTION_ROTVEC => {
+            let a = ep
+                .array(Episode::ACTION)
+                .ok_or_else(|| missing(Episode::ACTION_ROTVEC))?;
+            let setup = setup_of(a.width()).ok_or_else(|| ConvertError::Episode {
+                at: at(Episode::ACTION).into(),
+                message: format!(
+                    "{} values per frame is neither one arm (23) nor two (46)",
+                    a.width()
+                ),
+            })?;
+            let mut e = ep.clone();
+            e.compute_action_rotvec(setup)?;
+            Ok(e.arrays
+                .remove(Episode::ACTION_ROTVEC)
+                .expect("just computed"))
+        }
+        None => Err(missing(name)),
+    }
+}
+
+/// Output camera name -> raw camera: the selection's mapping, or every camera with a
+/// video under its own name.
+fn camera_mapping(ep: &Episode, mapping: &BTreeMap<String, String>) -> Vec<(String, String)> {
+    if mapping.is_empty() {
+        ep.cameras
+            .iter()
+            .filter(|c| c.video.is_some())
+            .map(|c| (c.name.clone(), c.name.clone()))
+            .collect()
+    } else {
+        mapping
+            .iter()
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect()
+    }
+}
+
+/// What every camera's video part of one episode is made with.
+struct Cameras<'a> {
+    input: &'a InputEpisode,
+    skipped: usize,
+    fps: u32,
+    video: VideoOptions,
+    layout: VideoLayout,
+    work_dir: &'a Path,
+    ordinal: usize,
+}
+
+impl Cameras<'_> {
+    /// The video part of output camera `name` (raw camera `raw`) and the statistics of
+    /// its sampled frames.
+    fn part(
+        &self,
+        name: &str,
+        raw: &str,
+    ) -> Result<(VideoPart, Option<FeatureStats>), ConvertError> {
+        let ep = &self.input.episode;
+        let n = ep.len();
+        if name.contains('/') {
+            return Err(ConvertError::episode(
+                &ep.id,
+                format!("camera name '{name}' contains '/'"),
+            ));
+        }
+        let cam_at = || Location::episode(&ep.id).field(format!("camera {raw}"));
+        let rel = ep
+            .cameras
+            .iter()
+            .find(|c| c.name == raw)
+            .and_then(|c| c.video.as_ref())
+            .ok_or_else(|| ConvertError::Episode {
+                at: cam_at().path(&self.input.dir).into(),
+                message: format!("no video of camera '{raw}' (cameras: {})", camera_list(ep)),
+            })?;
+        let src = self.input.dir.join(rel);
+        let vid_err = |source: dexjoco_video::VideoError| ConvertError::Video {
+            at: cam_at().into(),
+            source: source.into(),
+        };
+        let info = dexjoco_video::probe(&src).map_err(vid_err)?;
+        if info.frames as usize != n {
+            return Err(ConvertError::Episode {
+                at: cam_at().path(&src).into(),
+                message: format!("the video has {} frames, the episode {n}", info.frames),
+            });
+        }
+        let fits = COPYABLE.contains(&info.codec.as_str())
+            && info.pix_fmt == "yuv420p"
+            && (info.fps - f64::from(self.fps)).abs() < 1e-6;
+        let mut frames = Frames {
+            reader: VideoReader::open(&src, None).map_err(vid_err)?,
+            skipped: self.skipped,
+            samples: sample_indices(n - self.skipped),
+            sampler: ImageSampler::default(),
+        };
+        let use_source = match self.layout {
+            VideoLayout::Joined => fits && !self.video.reencode,
+            // Every episode's file must end up in the same codec.
+            VideoLayout::PerEpisode => {
+                fits && !self.video.reencode
+                    && self.skipped == 0
+                    && info.codec == self.video.codec.name()
+            }
+            VideoLayout::Encoded => false,
+            VideoLayout::Frames => true,
+        };
+        let part = if use_source {
+            frames.sample(|_| Ok(())).map_err(vid_err)?;
+            VideoPart {
+                name: name.to_owned(),
+                path: src.clone(),
+                temporary: false,
+                skip: self.skipped,
+                frames: n,
+                bytes: fs_err::metadata(&src)?.len(),
+                info,
+                copied: self.layout != VideoLayout::Frames,
+                source: src.clone(),
+            }
+        } else {
+            let out = self
+                .work_dir
+                .join(format!("{:06}-{name}.mp4", self.ordinal));
+            self.encode(&mut frames, &out).map_err(vid_err)?;
+            let info = dexjoco_video::probe(&out).map_err(vid_err)?;
+            VideoPart {
+                name: name.to_owned(),
+                path: out.clone(),
+                temporary: true,
+                skip: 0,
+                frames: n - self.skipped,
+                bytes: fs_err::metadata(&out)?.len(),
+                info,
+                copied: false,
+                source: src.clone(),
+            }
+        };
+        Ok((part, frames.sampler.finish()))
+    }
+
+    /// Encodes the kept frames into `out` (GOP 2) while sampling them.
+    fn encode(&self, frames: &mut Frames, out: &Path) -> Result<(), dexjoco_video::VideoError> {
+        let (width, height) = frames.reader.size();
+        let spec = VideoSpec {
+            width,
+            height,
+            fps: self.fps,
+            codec: self.video.codec.codec(),
+        };
+        let mut writer = VideoWriter::create_with(out, spec, Some(2))?;
+        frames.sample(|frame| writer.write_frame(frame))?;
+        writer.finish()?;
+        Ok(())
+    }
+}
+
+/// A camera's source video read once: the kept frames are sampled for statistics.
+struct Frames {
+    reader: VideoReader,
+    /// Leading frames skipped.
+    skipped: usize,
+    /// Indices (among the kept frames) sampled for statistics.
+    samples: Vec<usize>,
+    sampler: ImageSampler,
+}
+
+impl Frames {
+    /// Reads every frame, handing each kept one to `keep` and sampling it.
+    fn sample(
+        &mut self,
+        mut keep: impl FnMut(&[u8]) -> Result<(), dexjoco_video::VideoError>,
+    ) -> Result<(), dexjoco_video::VideoError> {
+        let (w, h) = self.reader.size();
+        let mut want = self.samples.iter().peekable();
+        let mut frame = Vec::new();
+        let mut k = 0;
+        while self.reader.next_frame(&mut frame)? {
+            if k >= self.skipped {
+                keep(&frame)?;
+                if want.peek().is_some_and(|&&s| s == k - self.skipped) {
+                    while want.peek().is_some_and(|&&s| s == k - self.skipped) {
+                        want.next();
+                    }
+                    self.sampler.add_frame(&frame, w, h);
+                }
+            }
+            k += 1;
+        }
+        Ok(())
+    }
 }
 
 fn camera_list(ep: &Episode) -> String {

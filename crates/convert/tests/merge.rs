@@ -75,12 +75,9 @@ fn bimanual_episode(dir: &std::path::Path) -> InputEpisode {
     }
 }
 
-#[test]
-fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
-    let fx = fixture();
-    let extra = tempfile::tempdir().unwrap();
-    let mut inputs = fx.inputs.clone();
-    inputs.push(bimanual_episode(extra.path()));
+/// One-arm cameras `front`, `handcam_rgb` and two-arm `ego`, `wrist_right` mapped to the
+/// shared `base`, `wrist`; one-arm episodes merged into the two-arm layout.
+fn merge_selection() -> Selection {
     let one_arm = TaskSelection {
         cameras: BTreeMap::from([
             ("base".into(), "front".into()),
@@ -95,12 +92,21 @@ fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
         ]),
         ..TaskSelection::default()
     };
-    let selection = Selection {
+    Selection {
         default: one_arm,
         tasks: BTreeMap::from([("bimanual_unlock_ipad".into(), two_arm)]),
         merge_bimanual: true,
         ..Selection::default()
-    };
+    }
+}
+
+#[test]
+fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
+    let fx = fixture();
+    let extra = tempfile::tempdir().unwrap();
+    let mut inputs = fx.inputs.clone();
+    inputs.push(bimanual_episode(extra.path()));
+    let selection = merge_selection();
     let out_dir = tempfile::tempdir().unwrap();
     let out = out_dir.path().join("merged");
     let opts = ConvertOptions {
@@ -121,6 +127,39 @@ fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
     );
 
     let loaded = load(&out, "pyav");
+    check_loaded(&loaded, &fx.inputs, &inputs);
+
+    // Without the merge the widths differ: the two-arm episode is left out, and the
+    // reason says how to fix it.
+    let opts = ConvertOptions {
+        selection: Selection {
+            merge_bimanual: false,
+            ..selection
+        },
+        ..ConvertOptions::default()
+    };
+    let s = convert(
+        inputs.into_iter().map(Ok),
+        &out_dir.path().join("x"),
+        &opts,
+        &NoProgress,
+    )
+    .unwrap();
+    assert_eq!(s.episodes, 3);
+    assert_eq!(s.failed.len(), 1, "{:?}", s.failed);
+    let f = &s.failed[0];
+    assert_eq!(f.episode, "bimanual_000000");
+    assert!(
+        f.reason.contains("widths") && f.reason.contains("select the same arrays"),
+        "{}",
+        f.reason
+    );
+}
+
+/// What lerobot loads of the merged dataset: one-arm values in the right-arm slots, the
+/// two-arm episode's own values, shared camera names. `one_arm` are the fixture's
+/// inputs, `inputs` all four.
+fn check_loaded(loaded: &serde_json::Value, one_arm: &[InputEpisode], inputs: &[InputEpisode]) {
     let items = loaded["items"].as_array().unwrap();
     assert_eq!(items.len(), 40);
     let f32s = |v: &serde_json::Value| -> Vec<f32> {
@@ -137,7 +176,7 @@ fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
         it["task"],
         "Grasp the watering can and apply water to the plant."
     );
-    let src = &fx.inputs[1].episode;
+    let src = &one_arm[1].episode;
     let rotvec = src.array(Episode::ACTION_ROTVEC).unwrap().row(2);
     let state = src.array(Episode::STATE).unwrap().row(2);
     let action = f32s(&it["action"]);
@@ -173,30 +212,4 @@ fn one_arm_and_two_arm_tasks_merge_into_the_two_arm_layout() {
     // Shared camera names: the two-arm ego camera is `base`.
     let base = &it["images"]["observation.images.base"];
     assert!((base[0].as_f64().unwrap() - 200.0).abs() <= 3.0, "{base}");
-
-    // Without the merge the widths differ: the two-arm episode is left out, and the
-    // reason says how to fix it.
-    let opts = ConvertOptions {
-        selection: Selection {
-            merge_bimanual: false,
-            ..selection
-        },
-        ..ConvertOptions::default()
-    };
-    let s = convert(
-        inputs.into_iter().map(Ok),
-        &out_dir.path().join("x"),
-        &opts,
-        &NoProgress,
-    )
-    .unwrap();
-    assert_eq!(s.episodes, 3);
-    assert_eq!(s.failed.len(), 1, "{:?}", s.failed);
-    let f = &s.failed[0];
-    assert_eq!(f.episode, "bimanual_000000");
-    assert!(
-        f.reason.contains("widths") && f.reason.contains("select the same arrays"),
-        "{}",
-        f.reason
-    );
 }

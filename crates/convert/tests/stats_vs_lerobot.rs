@@ -7,7 +7,7 @@
 //! `np.std` to 1e-9 relative; images, summed over millions of pixels: 0.01 of E[x^2]); quantiles within one histogram bin ((max - min) / 5000)
 //! plus 1e-6.
 
-use dexjoco_convert::stats::{self, FeatureStats, ImageSampler, QUANTILES};
+use dexjoco_formats::dataset::stats::{self, FeatureStats, ImageSampler, QUANTILES};
 use rand::{Rng, SeedableRng};
 use serde_json::{Value, json};
 

@@ -5,7 +5,8 @@
 //! - [`TaskSpec`] (`schemas/tasks/<id>.toml`, the only source of task facts) and
 //!   [`TaskSet`], the known tasks, parsed once;
 //! - rotations in the DexJoCo convention; [`synth`]: valid synthetic episodes;
-//! - [`Progress`]: how every stage reports long work;
+//! - [`Progress`]: how every stage reports long work; [`available_cores`]: the default
+//!   worker count;
 //! - [`CoreError`] and [`Location`]: errors that name file, episode, field and frame.
 //!
 //! This crate stays light: no MuJoCo, Arrow or Zarr. Formats convert into these types
@@ -14,6 +15,7 @@
 mod episode;
 mod error;
 mod layout;
+mod parallelism;
 mod progress;
 mod rotation;
 pub mod synth;
@@ -26,12 +28,13 @@ pub use layout::{
     ArmSetup, ArrayLayout, DEXJOCO_FPS, FieldSlice, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM,
     ROTVEC_POSE_DIM, TABLE_OFFSET_RANGE,
 };
+pub use parallelism::available_cores;
 pub use progress::{NoProgress, Progress};
 pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};
-pub use task_set::{BUILTIN_SPEC_FILES, PrivilegedField, PrivilegedKind, TaskSet};
+pub use task_set::TaskSet;
 pub use task_spec::{
-    ArmTargetInit, Axis, BoxAxes, CameraSpec, Cmp, ConstraintKind, DerivedPose,
+    ArmTargetInit, Axis, BUILTIN_SPEC_FILES, BoxAxes, CameraSpec, Cmp, ConstraintKind, DerivedPose,
     DynamicsRandomization, FrameRef, GeomSet, HandSource, HanoiDisk, JointRef, KeypadButton,
-    LegStyle, NameKind, Node, Placement, PointRef, PoseSource, ResetSpec, StateObject, StateSpec,
-    TableSpec, TaskSpec, TaskSpecError, Threshold, ZRule,
+    LegStyle, NameKind, Node, Placement, PointRef, PoseSource, PrivilegedField, PrivilegedKind,
+    ResetSpec, StateObject, StateSpec, TableSpec, TaskSpec, TaskSpecError, Threshold, ZRule,
 };

@@ -5,8 +5,7 @@ use std::collections::BTreeMap;
 
 use crate::episode::{Episode, FrameArray};
 use crate::layout::{DEXJOCO_FPS, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM};
-use crate::task_set::PrivilegedKind;
-use crate::task_spec::TaskSpec;
+use crate::task_spec::{PrivilegedKind, TaskSpec};
 
 fn unit_quat(a: f64, b: f64) -> [f64; 4] {
     let q = [a.cos(), 0.3 * b.sin(), 0.2 * a.sin(), 0.1 * b.cos()];

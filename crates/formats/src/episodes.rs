@@ -1,32 +1,56 @@
 //! Finding and reading episodes: the one rule every command uses (`ingest`, `augment`,
-//! `convert`, `stats --dataset`, `export`).
+//! `convert`, `stats --dataset`, `export`). Discovery asks each container of
+//! [`CONTAINERS`] whether a path is its own ([`EpisodeContainer::probe`]: a raw episode
+//! folder holds `replay.zarr`; an MCAP log is a file named `*.mcap`, any case) and reads
+//! an episode with the container of its [`SourceKind`].
 //!
 //! An input path is, checked in this order:
 //!
 //! 1. a file: an MCAP teleop log (one episode), whatever its extension;
 //! 2. a folder named `replay.zarr`: its parent, a DexJoCo raw episode folder;
-//! 3. a folder holding `replay.zarr`: one DexJoCo raw episode folder;
+//! 3. a folder a container probes as its own: one episode;
 //! 4. a folder holding `manifest.json` (an episode store made by `ingest`): its landed
 //!    episodes, in manifest order (its quarantine is not read);
 //! 5. any other folder: searched recursively, entries in name order, by rules 3-4 for
-//!    folders and `*.mcap` (any case) for files. Folders whose name starts with `.` (work
-//!    in progress such as `.staging/` or `.dropped/`) are not entered, linked folders are
-//!    followed once, and the `exclude` folder (an output being written) is never entered.
+//!    folders and the containers' probes for files. Folders whose name starts with `.`
+//!    (work in progress such as `.staging/` or `.dropped/`) are not entered, linked
+//!    folders are followed once, and the `exclude` folder (an output being written) is
+//!    never entered.
 //!
 //! The same path found twice is read once. Reading an episode takes its task from, in
 //! order: the caller's override, the episode folder's store entry
-//! (`.dexjoco-ingest.json`), its path ([`raw::task_from_path`]); an MCAP log names its
-//! task in its metadata. Its id is the store entry's id, else the folder name; for MCAP,
-//! the recorded id, else the file stem.
+//! (`.dexjoco-ingest.json`), its path ([`crate::raw::task_from_path`]); an MCAP log
+//! names its task in its metadata. Its id is the store entry's id, else the folder name;
+//! for MCAP, the recorded id, else the file stem.
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
-use dexjoco_core::{Episode, Location, TaskSet};
+use dexjoco_core::{Episode, TaskSet};
 
-use crate::error::{FormatError, ProblemCode, Result, io_err};
-use crate::manifest::{MANIFEST, Manifest, ManifestEntry, SourceKind};
-use crate::raw::{self, REPLAY_ZARR};
+pub use crate::container::{EpisodeContainer, ReadEpisode, ReadOptions};
+use crate::error::{Result, io_err};
+use crate::manifest::{MANIFEST, Manifest, SourceKind};
+use crate::mcap::McapLog;
+use crate::raw::{REPLAY_ZARR, RawFolder};
+
+/// Every episode container, in the order discovery asks them.
+pub const CONTAINERS: [&dyn EpisodeContainer; 2] = [&RawFolder, &McapLog];
+
+/// The container a path belongs to, when one probes it as its own.
+fn probe(path: &Path) -> Option<&'static dyn EpisodeContainer> {
+    CONTAINERS.into_iter().find(|c| c.probe(path))
+}
+
+impl SourceKind {
+    /// The container of sources of this kind.
+    pub fn container(self) -> &'static dyn EpisodeContainer {
+        match self {
+            Self::Raw => &RawFolder,
+            Self::Mcap => &McapLog,
+        }
+    }
+}
 
 /// One episode to read: a raw episode folder or an MCAP file.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -35,26 +59,6 @@ pub struct Source {
     pub path: PathBuf,
     /// Its kind.
     pub kind: SourceKind,
-}
-
-/// An episode read from a [`Source`], with what reading it noted.
-#[derive(Debug, Clone)]
-pub struct ReadEpisode {
-    /// The episode.
-    pub episode: Episode,
-    /// Files under the raw folder's `videos/`, relative to it (none for MCAP).
-    pub videos: Vec<PathBuf>,
-    /// Normalisations applied and things not carried over.
-    pub notes: Vec<String>,
-}
-
-/// How to read a source beyond the default rule.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct ReadOptions<'a> {
-    /// The task of raw folders, whatever their path or entry says (`ingest --task`).
-    pub task: Option<&'a str>,
-    /// The MCAP file's bytes, when the caller has already read them.
-    pub bytes: Option<&'a [u8]>,
 }
 
 /// The sources under every input (see the module documentation for the rule), in input
@@ -108,8 +112,11 @@ fn walk(
     if exclude == Some(real.as_path()) || !visited.insert(real) {
         return Ok(());
     }
-    if dir.join(REPLAY_ZARR).is_dir() {
-        out.push(raw_source(dir.to_owned()));
+    if let Some(container) = probe(dir) {
+        out.push(Source {
+            path: dir.to_owned(),
+            kind: container.kind(),
+        });
         return Ok(());
     }
     if dir.join(MANIFEST).is_file() {
@@ -129,13 +136,10 @@ fn walk(
             if !hidden {
                 walk(&p, exclude, visited, out)?;
             }
-        } else if p
-            .extension()
-            .is_some_and(|x| x.eq_ignore_ascii_case("mcap"))
-        {
+        } else if let Some(container) = probe(&p) {
             out.push(Source {
                 path: p,
-                kind: SourceKind::Mcap,
+                kind: container.kind(),
             });
         }
     }
@@ -159,79 +163,11 @@ impl Source {
         self.read_with(tasks, ReadOptions::default())
     }
 
-    /// Reads the episode; `options` can fix the task of raw folders and hand over an MCAP
-    /// file's bytes.
+    /// Reads the episode with its container; `options` can fix the task of raw folders
+    /// and hand over an MCAP file's bytes.
     pub fn read_with(&self, tasks: &TaskSet, options: ReadOptions<'_>) -> Result<ReadEpisode> {
-        match self.kind {
-            SourceKind::Mcap => {
-                let owned;
-                let bytes = match options.bytes {
-                    Some(b) => b,
-                    None => {
-                        owned = fs_err::read(&self.path).map_err(io_err("read", &self.path))?;
-                        &owned
-                    }
-                };
-                let t = crate::mcap::read_episode_mcap(&self.path, bytes, tasks)?;
-                let mut episode = t.episode;
-                if episode.id.is_empty() {
-                    episode.id = file_name(&self.path, true);
-                }
-                Ok(ReadEpisode {
-                    episode,
-                    videos: Vec::new(),
-                    notes: t.notes,
-                })
-            }
-            SourceKind::Raw => {
-                let dir = &self.path;
-                let entry = ManifestEntry::of_episode_dir(dir);
-                let name = options
-                    .task
-                    .map(str::to_owned)
-                    .or_else(|| entry.as_ref().and_then(|e| e.task.clone()))
-                    .or_else(|| raw::task_from_path(dir, tasks));
-                let at = Location::default().path(dir);
-                let task = match name.as_deref() {
-                    Some(n) => tasks.get(n).ok_or_else(|| {
-                        FormatError::input(
-                            ProblemCode::UnknownTask,
-                            &at,
-                            format!("unknown task '{n}' (known: {})", tasks.ids().join(", ")),
-                        )
-                    })?,
-                    None => {
-                        return Err(FormatError::input(
-                            ProblemCode::UnknownTask,
-                            &at,
-                            format!(
-                                "cannot tell the task of '{}': the path names none \
-                                 (<task>/episode_N or <task>_demo_...); pass --task",
-                                dir.display()
-                            ),
-                        ));
-                    }
-                };
-                let r = raw::read_raw_episode(dir, task)?;
-                let mut episode = r.episode;
-                episode.id = entry.map_or_else(|| file_name(dir, false), |e| e.id);
-                Ok(ReadEpisode {
-                    episode,
-                    videos: r.videos,
-                    notes: r.notes,
-                })
-            }
-        }
+        self.kind.container().read(&self.path, tasks, options)
     }
-}
-
-fn file_name(path: &Path, stem: bool) -> String {
-    let name = if stem {
-        path.file_stem()
-    } else {
-        path.file_name()
-    };
-    name.map_or_else(String::new, |n| n.to_string_lossy().into_owned())
 }
 
 /// Reads the one episode at `path` (a raw episode folder or an MCAP file) by the default
@@ -255,6 +191,7 @@ pub fn read_all(inputs: &[PathBuf], tasks: &TaskSet) -> Result<Vec<(Source, Resu
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::manifest::ManifestEntry;
 
     fn touch_raw(dir: &Path) {
         fs_err::create_dir_all(dir.join(REPLAY_ZARR)).unwrap();

@@ -1,5 +1,6 @@
-//! The error type of every reader and writer of this crate, and the problem records
-//! (stable code + file, episode, field, frame) that manifests and reports keep.
+//! The error types of this crate's readers and writers ([`FormatError`], and
+//! [`DatasetError`] of the dataset writers), and the problem records (stable code + file,
+//! episode, field, frame) that manifests and reports keep.
 
 use std::path::PathBuf;
 
@@ -253,4 +254,88 @@ pub fn io_err(
 ) -> impl FnOnce(std::io::Error) -> FormatError {
     let path = path.into();
     move |source| FormatError::Io { op, path, source }
+}
+
+/// Errors of the dataset writers ([`crate::dataset`]); each names the file, episode and
+/// field it concerns when known.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DatasetError {
+    /// An episode does not fit the dataset (layout, cameras, decoded frames).
+    #[error("{at}: {message}")]
+    Episode {
+        /// Where.
+        at: Box<Location>,
+        /// What is wrong.
+        message: String,
+    },
+    /// A video could not be decoded or joined.
+    #[error("{at}: {source}")]
+    Video {
+        /// Episode and camera, or the joined file.
+        at: Box<Location>,
+        /// Why.
+        source: Box<dexjoco_video::VideoError>,
+    },
+    /// Writing a Parquet file failed.
+    #[error("file '{}': {source}", path.display())]
+    Parquet {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: parquet::errors::ParquetError,
+    },
+    /// Writing a JSON metadata file failed.
+    #[error("file '{}': {source}", path.display())]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// Writing the Zarr store failed.
+    #[error("input '{}': writing Zarr: {source}", path.display())]
+    Zarr {
+        /// The store.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: Box<ZarrWriteError>,
+    },
+    /// A file system operation failed (the message names the path).
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+}
+
+impl DatasetError {
+    /// A problem of episode `id`.
+    pub fn episode(id: &str, message: impl Into<String>) -> Self {
+        Self::Episode {
+            at: Location::episode(id).into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// What zarrs said when a dataset's Zarr store could not be written.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ZarrWriteError {
+    /// The store folder could not be opened.
+    #[error(transparent)]
+    Store(#[from] zarrs::filesystem::FilesystemStoreCreateError),
+    /// Metadata could not be stored.
+    #[error(transparent)]
+    Storage(#[from] zarrs::storage::StorageError),
+    /// An array could not be created or resized.
+    #[error(transparent)]
+    Create(#[from] zarrs::array::ArrayCreateError),
+    /// Chunks could not be encoded or stored.
+    #[error(transparent)]
+    Array(#[from] zarrs::array::ArrayError),
+    /// Groups or array metadata could not be made ([`crate::zarr_v2`]).
+    #[error("{0}")]
+    Layout(String),
 }

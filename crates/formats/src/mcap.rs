@@ -1,6 +1,6 @@
 //! Our MCAP schema for teleop episodes (documented in `schemas/mcap-teleop.md`), read and
 //! written with the `mcap` crate. One episode per file; JSON message encoding with
-//! JSON Schemas, so a file opens in Foxglove.
+//! JSON Schemas, so a file opens in Foxglove. [`McapLog`] is its [`EpisodeContainer`].
 //!
 //! Per-frame channels hold one message per control step, in order; the i-th message
 //! of each is frame i. Values are JSON numbers, written in shortest round-trip form and
@@ -14,7 +14,11 @@ use dexjoco_core::{ArmSetup, Episode, FrameArray, HAND_DOF, Location, TaskSet, T
 use mcap::records::{MessageHeader, Metadata, Record};
 use serde_json::{Value, json};
 
+use crate::container::{EpisodeContainer, ReadEpisode, ReadOptions};
 use crate::error::{FormatError, ProblemCode, Result, io_err};
+use crate::manifest::SourceKind;
+
+pub use crate::container::EpisodeMeta;
 
 /// Version of the schema this crate writes and reads.
 pub const SCHEMA_VERSION: &str = "1";
@@ -52,19 +56,6 @@ pub fn joint_order(arm: &str) -> String {
         .flat_map(|f| (0..4).map(move |j| format!("{f}{j}")))
         .collect::<Vec<_>>()
         .join(",")
-}
-
-/// Episode metadata beyond the arrays, as stored in the `dexjoco.episode` record.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct EpisodeMeta {
-    /// Operator, when known.
-    pub operator: Option<String>,
-    /// Recording date, when known.
-    pub date: Option<String>,
-    /// Where the episode came from.
-    pub source: Option<String>,
-    /// Other keys of the record, carried unchanged.
-    pub extra: BTreeMap<String, String>,
 }
 
 /// An episode read from an MCAP file, with what was not carried into the arrays.
@@ -129,7 +120,17 @@ fn write_into<W: std::io::Write + std::io::Seek>(
     task: &TaskSpec,
     meta: &EpisodeMeta,
 ) -> mcap::McapResult<()> {
-    let setup = task.setup;
+    w.write_metadata(&Metadata {
+        name: EPISODE_METADATA.to_owned(),
+        metadata: episode_record(ep, task.setup, meta),
+    })?;
+    let channels = add_channels(w, task, ep.array(Episode::ACTION_ROTVEC).is_some())?;
+    write_frames(w, ep, task.setup, &channels)
+}
+
+/// The `dexjoco.episode` record: the episode's task, prompt, fps and setup, its id when
+/// it has one, then `meta` (its other keys never replace these).
+fn episode_record(ep: &Episode, setup: ArmSetup, meta: &EpisodeMeta) -> BTreeMap<String, String> {
     let mut md = BTreeMap::new();
     md.insert("schema_version".to_owned(), SCHEMA_VERSION.to_owned());
     md.insert("task".to_owned(), ep.task.clone());
@@ -158,11 +159,23 @@ fn write_into<W: std::io::Write + std::io::Seek>(
     for (k, v) in &meta.extra {
         md.entry(k.clone()).or_insert_with(|| v.clone());
     }
-    w.write_metadata(&Metadata {
-        name: EPISODE_METADATA.to_owned(),
-        metadata: md,
-    })?;
+    md
+}
 
+/// The channel ids of one file.
+struct Channels {
+    /// Per arm: its pose command and hand target channels.
+    arms: Vec<(u16, u16)>,
+    state: u16,
+    rotvec: Option<u16>,
+}
+
+/// Adds the schemas and channels (the rotation-vector one when `rotvec`).
+fn add_channels<W: std::io::Write + std::io::Seek>(
+    w: &mut mcap::Writer<W>,
+    task: &TaskSpec,
+    rotvec: bool,
+) -> mcap::McapResult<Channels> {
     let pose_schema = w.add_schema("foxglove.PoseInFrame", "jsonschema", POSE_SCHEMA.as_bytes())?;
     let hand_schema = w.add_schema(
         "dexjoco.HandJointTargets",
@@ -170,13 +183,13 @@ fn write_into<W: std::io::Write + std::io::Seek>(
         HAND_SCHEMA.as_bytes(),
     )?;
     let state_schema = w.add_schema("dexjoco.State", "jsonschema", STATE_SCHEMA.as_bytes())?;
-    let mut arm_channels = Vec::new();
-    for arm in setup.arm_names() {
+    let mut arms = Vec::new();
+    for arm in task.setup.arm_names() {
         let pose = w.add_channel(pose_schema, &pose_topic(arm), "json", &BTreeMap::new())?;
         let mut hm = BTreeMap::new();
         hm.insert("joint_order".to_owned(), joint_order(arm));
         let hand = w.add_channel(hand_schema, &hand_topic(arm), "json", &hm)?;
-        arm_channels.push((pose, hand));
+        arms.push((pose, hand));
     }
     let mut sm = BTreeMap::new();
     let layout = task.state_layout();
@@ -187,22 +200,34 @@ fn write_into<W: std::io::Write + std::io::Seek>(
             .collect::<Vec<_>>()
             .join(","),
     );
-    let state_ch = w.add_channel(state_schema, STATE_TOPIC, "json", &sm)?;
-    let rotvec = ep.array(Episode::ACTION_ROTVEC);
-    let rotvec_ch = match rotvec {
-        Some(_) => {
-            let s = w.add_schema(
-                "dexjoco.ActionRotvec",
-                "jsonschema",
-                ROTVEC_SCHEMA.as_bytes(),
-            )?;
-            Some(w.add_channel(s, ACTION_ROTVEC_TOPIC, "json", &BTreeMap::new())?)
-        }
-        None => None,
+    let state = w.add_channel(state_schema, STATE_TOPIC, "json", &sm)?;
+    let rotvec = if rotvec {
+        let s = w.add_schema(
+            "dexjoco.ActionRotvec",
+            "jsonschema",
+            ROTVEC_SCHEMA.as_bytes(),
+        )?;
+        Some(w.add_channel(s, ACTION_ROTVEC_TOPIC, "json", &BTreeMap::new())?)
+    } else {
+        None
     };
+    Ok(Channels {
+        arms,
+        state,
+        rotvec,
+    })
+}
 
+/// One message per channel and frame, frame by frame.
+fn write_frames<W: std::io::Write + std::io::Seek>(
+    w: &mut mcap::Writer<W>,
+    ep: &Episode,
+    setup: ArmSetup,
+    channels: &Channels,
+) -> mcap::McapResult<()> {
     let action = ep.array(Episode::ACTION);
     let state = ep.array(Episode::STATE);
+    let rotvec = ep.array(Episode::ACTION_ROTVEC);
     let ts = ep.array(Episode::TIMESTAMP);
     let per_arm = setup.action_dim() / setup.arms();
     let put = |w: &mut mcap::Writer<W>, ch: u16, k: usize, t: f64, v: &Value| {
@@ -221,7 +246,7 @@ fn write_into<W: std::io::Write + std::io::Seek>(
         let t = ts.map_or(k as f64 / ep.fps, |a| a.row(k)[0]);
         if let Some(action) = action {
             let row = action.row(k);
-            for (arm, (pose_ch, hand_ch)) in arm_channels.iter().enumerate() {
+            for (arm, (pose_ch, hand_ch)) in channels.arms.iter().enumerate() {
                 let a = &row[arm * per_arm..(arm + 1) * per_arm];
                 let pose = json!({
                     "timestamp": stamp(t),
@@ -238,9 +263,9 @@ fn write_into<W: std::io::Write + std::io::Seek>(
         }
         if let Some(state) = state {
             let msg = json!({"timestamp": stamp(t), "frame": k, "time": t, "values": state.row(k)});
-            put(w, state_ch, k, t, &msg)?;
+            put(w, channels.state, k, t, &msg)?;
         }
-        if let (Some(rv), Some(ch)) = (rotvec, rotvec_ch) {
+        if let (Some(rv), Some(ch)) = (rotvec, channels.rotvec) {
             let msg = json!({"timestamp": stamp(t), "frame": k, "values": rv.row(k)});
             put(w, ch, k, t, &msg)?;
         }
@@ -311,50 +336,15 @@ fn flat_records(bytes: &[u8]) -> impl Iterator<Item = mcap::McapResult<Record<'s
 pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<TeleopEpisode> {
     let base = Location::default().path(path);
     // Whole-file problems name the part of the file: its magic, or its records.
-    let magic = base.clone().field("magic");
-    let records = base.clone().field("records");
-    if bytes.is_empty() {
-        return Err(FormatError::input(
-            ProblemCode::EmptyFile,
-            &magic,
-            "the file is empty",
-        ));
-    }
-    if !bytes.starts_with(mcap::MAGIC) {
-        return Err(FormatError::input(
-            ProblemCode::Corrupt,
-            &magic,
-            "not an MCAP file (no MCAP magic at the start)",
-        ));
-    }
-    let reader = flat_records(bytes);
-    let mut metadata: Option<BTreeMap<String, String>> = None;
-    let mut schemas: HashMap<u16, String> = HashMap::new();
-    let mut channels: HashMap<u16, (String, u16)> = HashMap::new();
-    let mut by_channel: HashMap<u16, Vec<Msg>> = HashMap::new();
-    let mut order = 0usize;
-    for rec in reader {
-        match rec.map_err(|e| mcap_problem(&e, &records))? {
-            Record::Metadata(m) if m.name == EPISODE_METADATA => metadata = Some(m.metadata),
-            Record::Schema { header, .. } => {
-                schemas.insert(header.id, header.name);
-            }
-            Record::Channel(c) => {
-                channels.insert(c.id, (c.topic, c.schema_id));
-            }
-            Record::Message { header, data } => {
-                by_channel.entry(header.channel_id).or_default().push(Msg {
-                    log_time: header.log_time,
-                    sequence: header.sequence,
-                    order,
-                    data: data.into_owned(),
-                });
-                order += 1;
-            }
-            _ => {}
-        }
-    }
+    check_magic(bytes, &base.clone().field("magic"))?;
+    let file = collect_records(bytes, &base.clone().field("records"))?;
     let md_at = base.clone().field(format!("metadata '{EPISODE_METADATA}'"));
+    let FileRecords {
+        metadata,
+        schemas,
+        channels,
+        by_channel,
+    } = file;
     let md = metadata.ok_or_else(|| {
         FormatError::input(
             ProblemCode::MissingArray,
@@ -362,11 +352,124 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<T
             "no episode metadata record (task, fps, setup)",
         )
     })?;
+    let (task, fps) = episode_header(&md, &md_at, tasks)?;
+    let topics = Topics {
+        base: &base,
+        topics: messages_by_topic(by_channel, &channels, &schemas, &base)?,
+    };
+
+    let (state_rows, times) = topics.read_state(task)?;
+    let frames = state_rows.len();
+    let action = topics.read_actions(task, frames)?;
+    let mut arrays = BTreeMap::new();
+    arrays.insert(
+        Episode::ACTION.to_owned(),
+        FrameArray::new(task.setup.action_dim(), action)?,
+    );
+    arrays.insert(
+        Episode::STATE.to_owned(),
+        FrameArray::from_rows(&state_rows)?,
+    );
+    arrays.insert(Episode::TIMESTAMP.to_owned(), FrameArray::new(1, times)?);
+    if let Some(rotvec) = topics.read_rotvec(task, frames)? {
+        arrays.insert(Episode::ACTION_ROTVEC.to_owned(), rotvec);
+    }
+    let mut notes = topics.unused_topic_notes(task);
+
+    let get = |k: &str| md.get(k).map(String::as_str);
+    let mut episode = Episode {
+        id: get("episode_id").unwrap_or_default().to_owned(),
+        task: task.id.clone(),
+        prompt: get("prompt").unwrap_or(&task.prompt).to_owned(),
+        fps,
+        arrays,
+        cameras: Vec::new(),
+    };
+    if episode.array(Episode::ACTION_ROTVEC).is_none() && frames > 0 {
+        episode.compute_action_rotvec(task.setup)?;
+        notes.push("action_rotvec was absent: computed from the pose commands".into());
+    }
+    Ok(TeleopEpisode {
+        episode,
+        meta: episode_meta(&md),
+        notes,
+    })
+}
+
+/// A problem unless `bytes` start with the MCAP magic.
+fn check_magic(bytes: &[u8], magic: &Location) -> Result<()> {
+    if bytes.is_empty() {
+        return Err(FormatError::input(
+            ProblemCode::EmptyFile,
+            magic,
+            "the file is empty",
+        ));
+    }
+    if !bytes.starts_with(mcap::MAGIC) {
+        return Err(FormatError::input(
+            ProblemCode::Corrupt,
+            magic,
+            "not an MCAP file (no MCAP magic at the start)",
+        ));
+    }
+    Ok(())
+}
+
+/// The records of a file an episode is made of.
+#[derive(Default)]
+struct FileRecords {
+    /// The `dexjoco.episode` record's keys.
+    metadata: Option<BTreeMap<String, String>>,
+    /// Schema names by id.
+    schemas: HashMap<u16, String>,
+    /// Topic and schema id by channel id.
+    channels: HashMap<u16, (String, u16)>,
+    /// Messages by channel id, in file order.
+    by_channel: HashMap<u16, Vec<Msg>>,
+}
+
+/// Reads every record of the file (problems name `records`).
+fn collect_records(bytes: &[u8], records: &Location) -> Result<FileRecords> {
+    let mut file = FileRecords::default();
+    let mut order = 0usize;
+    for rec in flat_records(bytes) {
+        match rec.map_err(|e| mcap_problem(&e, records))? {
+            Record::Metadata(m) if m.name == EPISODE_METADATA => file.metadata = Some(m.metadata),
+            Record::Schema { header, .. } => {
+                file.schemas.insert(header.id, header.name);
+            }
+            Record::Channel(c) => {
+                file.channels.insert(c.id, (c.topic, c.schema_id));
+            }
+            Record::Message { header, data } => {
+                file.by_channel
+                    .entry(header.channel_id)
+                    .or_default()
+                    .push(Msg {
+                        log_time: header.log_time,
+                        sequence: header.sequence,
+                        order,
+                        data: data.into_owned(),
+                    });
+                order += 1;
+            }
+            _ => {}
+        }
+    }
+    Ok(file)
+}
+
+/// The task (one of `tasks`, of the recorded setup) and fps the metadata record names.
+fn episode_header<'t>(
+    md: &BTreeMap<String, String>,
+    md_at: &Location,
+    tasks: &'t TaskSet,
+) -> Result<(&'t TaskSpec, f64)> {
     let get = |k: &str| md.get(k).map(String::as_str);
     if let Some(v) = get("schema_version").filter(|v| *v != SCHEMA_VERSION) {
         return Err(FormatError::input(
             ProblemCode::Corrupt,
-            &md_at,
+            md_at,
             format!("schema_version {v} is not {SCHEMA_VERSION}"),
         ));
     }
@@ -401,8 +504,16 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<T
             )
         })?,
     };
+    Ok((task, fps))
+}
 
-    // Messages per topic, in time order (file order breaks ties).
+/// Messages per topic, in time order (file order breaks ties).
+fn messages_by_topic(
+    by_channel: HashMap<u16, Vec<Msg>>,
+    channels: &HashMap<u16, (String, u16)>,
+    schemas: &HashMap<u16, String>,
+    base: &Location,
+) -> Result<HashMap<String, TopicMessages>> {
     let mut topics: HashMap<String, TopicMessages> = HashMap::new();
     for (ch, mut msgs) in by_channel {
         let (topic, schema_id) = channels.get(&ch).cloned().ok_or_else(|| {
@@ -420,161 +531,180 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<T
             .1
             .extend(msgs);
     }
-    let mut notes = Vec::new();
+    Ok(topics)
+}
 
-    let parse = |topic: &str, k: usize, m: &Msg| -> Result<Value> {
-        serde_json::from_slice(&m.data).map_err(|e| {
-            FormatError::input(
-                ProblemCode::Corrupt,
-                &base.clone().field(topic).frame(k),
-                format!("message is not valid JSON: {e}"),
-            )
-        })
-    };
-    let num = |v: &Value, topic: &str, k: usize, what: &str| -> Result<f64> {
-        v.as_f64().ok_or_else(|| {
-            FormatError::input(
-                ProblemCode::Corrupt,
-                &base.clone().field(topic).frame(k),
-                format!("{what} is not a number"),
-            )
-        })
-    };
-    let numbers = |v: Option<&Value>, topic: &str, k: usize, what: &str| -> Result<Vec<f64>> {
+/// A file's messages by topic; problems name the file (`base`), topic and frame.
+struct Topics<'a> {
+    base: &'a Location,
+    topics: HashMap<String, TopicMessages>,
+}
+
+impl Topics<'_> {
+    fn corrupt(&self, topic: &str, k: usize, message: String) -> FormatError {
+        FormatError::input(
+            ProblemCode::Corrupt,
+            &self.base.clone().field(topic).frame(k),
+            message,
+        )
+    }
+
+    fn parse(&self, topic: &str, k: usize, m: &Msg) -> Result<Value> {
+        serde_json::from_slice(&m.data)
+            .map_err(|e| self.corrupt(topic, k, format!("message is not valid JSON: {e}")))
+    }
+
+    fn num(&self, v: &Value, topic: &str, k: usize, what: &str) -> Result<f64> {
+        v.as_f64()
+            .ok_or_else(|| self.corrupt(topic, k, format!("{what} is not a number")))
+    }
+
+    fn numbers(&self, v: Option<&Value>, topic: &str, k: usize, what: &str) -> Result<Vec<f64>> {
         let arr = v.and_then(Value::as_array).ok_or_else(|| {
-            FormatError::input(
-                ProblemCode::Corrupt,
-                &base.clone().field(topic).frame(k),
-                format!("`{what}` is not an array of numbers"),
-            )
+            self.corrupt(topic, k, format!("`{what}` is not an array of numbers"))
         })?;
-        arr.iter().map(|x| num(x, topic, k, what)).collect()
-    };
-    let frame_check = |v: &Value, topic: &str, k: usize| -> Result<()> {
+        arr.iter().map(|x| self.num(x, topic, k, what)).collect()
+    }
+
+    /// A problem when message `k` says it is another frame.
+    fn frame_check(&self, v: &Value, topic: &str, k: usize) -> Result<()> {
         match v.get("frame").and_then(Value::as_u64) {
             Some(f) if f as usize == k => Ok(()),
             Some(f) => Err(FormatError::input(
                 ProblemCode::WrongLength,
-                &base.clone().field(topic).frame(k),
+                &self.base.clone().field(topic).frame(k),
                 format!("message {k} says frame {f}: a frame is missing or repeated"),
             )),
             None => Ok(()),
         }
-    };
-    let required = |topic: &str| -> Result<&Vec<Msg>> {
-        topics.get(topic).map(|(_, m)| m).ok_or_else(|| {
+    }
+
+    fn required(&self, topic: &str) -> Result<&Vec<Msg>> {
+        self.topics.get(topic).map(|(_, m)| m).ok_or_else(|| {
             FormatError::input(
                 ProblemCode::MissingArray,
-                &base.clone().field(topic),
+                &self.base.clone().field(topic),
                 "required channel is missing",
             )
         })
-    };
-
-    // State and the exact timestamps.
-    let state_msgs = required(STATE_TOPIC)?;
-    let frames = state_msgs.len();
-    let mut state_rows = Vec::with_capacity(frames);
-    let mut times = Vec::with_capacity(frames);
-    for (k, m) in state_msgs.iter().enumerate() {
-        let v = parse(STATE_TOPIC, k, m)?;
-        frame_check(&v, STATE_TOPIC, k)?;
-        let row = numbers(v.get("values"), STATE_TOPIC, k, "values")?;
-        if row.len() != task.state.width {
-            return Err(FormatError::input(
-                ProblemCode::WrongDimensions,
-                &base.clone().field(STATE_TOPIC).frame(k),
-                format!(
-                    "{} state values where {} has {}",
-                    row.len(),
-                    task.id,
-                    task.state.width
-                ),
-            ));
-        }
-        state_rows.push(row);
-        times.push(match v.get("time") {
-            Some(t) => num(t, STATE_TOPIC, k, "time")?,
-            None => m.log_time as f64 * 1e-9,
-        });
     }
 
-    // Actions from the per-arm pose commands and hand targets.
-    let per_arm = task.setup.action_dim() / task.setup.arms();
-    let mut action = vec![0.0; frames * task.setup.action_dim()];
-    for (arm_i, arm) in task.setup.arm_names().iter().enumerate() {
-        for (topic, is_pose) in [(pose_topic(arm), true), (hand_topic(arm), false)] {
-            let msgs = required(&topic)?;
-            if msgs.len() != frames {
+    /// The state rows and the exact timestamps (`time`, else the log time).
+    fn read_state(&self, task: &TaskSpec) -> Result<(Vec<Vec<f64>>, Vec<f64>)> {
+        let state_msgs = self.required(STATE_TOPIC)?;
+        let frames = state_msgs.len();
+        let mut state_rows = Vec::with_capacity(frames);
+        let mut times = Vec::with_capacity(frames);
+        for (k, m) in state_msgs.iter().enumerate() {
+            let v = self.parse(STATE_TOPIC, k, m)?;
+            self.frame_check(&v, STATE_TOPIC, k)?;
+            let row = self.numbers(v.get("values"), STATE_TOPIC, k, "values")?;
+            if row.len() != task.state.width {
                 return Err(FormatError::input(
-                    ProblemCode::WrongLength,
-                    &base.clone().field(topic.as_str()),
-                    format!("{} messages where {STATE_TOPIC} has {frames}", msgs.len()),
+                    ProblemCode::WrongDimensions,
+                    &self.base.clone().field(STATE_TOPIC).frame(k),
+                    format!(
+                        "{} state values where {} has {}",
+                        row.len(),
+                        task.id,
+                        task.state.width
+                    ),
                 ));
             }
-            for (k, m) in msgs.iter().enumerate() {
-                let v = parse(&topic, k, m)?;
-                let out =
-                    &mut action[k * per_arm * task.setup.arms() + arm_i * per_arm..][..per_arm];
-                if is_pose {
-                    let pose = v.get("pose").unwrap_or(&Value::Null);
-                    let p = pose.get("position").unwrap_or(&Value::Null);
-                    let q = pose.get("orientation").unwrap_or(&Value::Null);
-                    let field = |o: &Value, key: &str| -> Result<f64> {
-                        num(
-                            o.get(key).unwrap_or(&Value::Null),
-                            &topic,
-                            k,
-                            &format!("pose.{key}"),
-                        )
-                    };
-                    out[0] = field(p, "x")?;
-                    out[1] = field(p, "y")?;
-                    out[2] = field(p, "z")?;
-                    out[3] = field(q, "w")?;
-                    out[4] = field(q, "x")?;
-                    out[5] = field(q, "y")?;
-                    out[6] = field(q, "z")?;
-                } else {
-                    frame_check(&v, &topic, k)?;
-                    let hand = numbers(v.get("position"), &topic, k, "position")?;
-                    if hand.len() != HAND_DOF {
-                        return Err(FormatError::input(
-                            ProblemCode::WrongDimensions,
-                            &base.clone().field(topic.as_str()).frame(k),
-                            format!(
-                                "{} hand targets where the Allegro hand has {HAND_DOF}",
-                                hand.len()
-                            ),
-                        ));
+            state_rows.push(row);
+            times.push(match v.get("time") {
+                Some(t) => self.num(t, STATE_TOPIC, k, "time")?,
+                None => m.log_time as f64 * 1e-9,
+            });
+        }
+        Ok((state_rows, times))
+    }
+
+    /// The actions of `frames` frames from the per-arm pose commands and hand targets.
+    fn read_actions(&self, task: &TaskSpec, frames: usize) -> Result<Vec<f64>> {
+        let per_arm = task.setup.action_dim() / task.setup.arms();
+        let mut action = vec![0.0; frames * task.setup.action_dim()];
+        for (arm_i, arm) in task.setup.arm_names().iter().enumerate() {
+            for (topic, is_pose) in [(pose_topic(arm), true), (hand_topic(arm), false)] {
+                let msgs = self.required(&topic)?;
+                if msgs.len() != frames {
+                    return Err(FormatError::input(
+                        ProblemCode::WrongLength,
+                        &self.base.clone().field(topic.as_str()),
+                        format!("{} messages where {STATE_TOPIC} has {frames}", msgs.len()),
+                    ));
+                }
+                for (k, m) in msgs.iter().enumerate() {
+                    let v = self.parse(&topic, k, m)?;
+                    let out =
+                        &mut action[k * per_arm * task.setup.arms() + arm_i * per_arm..][..per_arm];
+                    if is_pose {
+                        self.pose_into(&v, &topic, k, out)?;
+                    } else {
+                        self.hand_into(&v, &topic, k, out)?;
                     }
-                    out[7..].copy_from_slice(&hand);
                 }
             }
         }
+        Ok(action)
     }
 
-    let mut arrays = BTreeMap::new();
-    arrays.insert(
-        Episode::ACTION.to_owned(),
-        FrameArray::new(task.setup.action_dim(), action)?,
-    );
-    arrays.insert(
-        Episode::STATE.to_owned(),
-        FrameArray::from_rows(&state_rows)?,
-    );
-    arrays.insert(Episode::TIMESTAMP.to_owned(), FrameArray::new(1, times)?);
-    if let Some((_, msgs)) = topics.get(ACTION_ROTVEC_TOPIC) {
+    /// A pose command into an arm's action: position, then quaternion w, x, y, z.
+    fn pose_into(&self, v: &Value, topic: &str, k: usize, out: &mut [f64]) -> Result<()> {
+        let pose = v.get("pose").unwrap_or(&Value::Null);
+        let p = pose.get("position").unwrap_or(&Value::Null);
+        let q = pose.get("orientation").unwrap_or(&Value::Null);
+        let field = |o: &Value, key: &str| -> Result<f64> {
+            self.num(
+                o.get(key).unwrap_or(&Value::Null),
+                topic,
+                k,
+                &format!("pose.{key}"),
+            )
+        };
+        out[0] = field(p, "x")?;
+        out[1] = field(p, "y")?;
+        out[2] = field(p, "z")?;
+        out[3] = field(q, "w")?;
+        out[4] = field(q, "x")?;
+        out[5] = field(q, "y")?;
+        out[6] = field(q, "z")?;
+        Ok(())
+    }
+
+    /// Hand joint targets into the rest of an arm's action.
+    fn hand_into(&self, v: &Value, topic: &str, k: usize, out: &mut [f64]) -> Result<()> {
+        self.frame_check(v, topic, k)?;
+        let hand = self.numbers(v.get("position"), topic, k, "position")?;
+        if hand.len() != HAND_DOF {
+            return Err(FormatError::input(
+                ProblemCode::WrongDimensions,
+                &self.base.clone().field(topic).frame(k),
+                format!(
+                    "{} hand targets where the Allegro hand has {HAND_DOF}",
+                    hand.len()
+                ),
+            ));
+        }
+        out[7..].copy_from_slice(&hand);
+        Ok(())
+    }
+
+    /// The recorded rotation-vector actions, when the file has them (and frames).
+    fn read_rotvec(&self, task: &TaskSpec, frames: usize) -> Result<Option<FrameArray>> {
+        let Some((_, msgs)) = self.topics.get(ACTION_ROTVEC_TOPIC) else {
+            return Ok(None);
+        };
         let mut rows = Vec::with_capacity(msgs.len());
         for (k, m) in msgs.iter().enumerate() {
-            let v = parse(ACTION_ROTVEC_TOPIC, k, m)?;
-            frame_check(&v, ACTION_ROTVEC_TOPIC, k)?;
-            rows.push(numbers(v.get("values"), ACTION_ROTVEC_TOPIC, k, "values")?);
+            let v = self.parse(ACTION_ROTVEC_TOPIC, k, m)?;
+            self.frame_check(&v, ACTION_ROTVEC_TOPIC, k)?;
+            rows.push(self.numbers(v.get("values"), ACTION_ROTVEC_TOPIC, k, "values")?);
         }
         if rows.len() != frames {
             return Err(FormatError::input(
                 ProblemCode::WrongLength,
-                &base.clone().field(ACTION_ROTVEC_TOPIC),
+                &self.base.clone().field(ACTION_ROTVEC_TOPIC),
                 format!("{} messages where {STATE_TOPIC} has {frames}", rows.len()),
             ));
         }
@@ -584,55 +714,51 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<T
         {
             return Err(FormatError::input(
                 ProblemCode::WrongDimensions,
-                &base.clone().field(ACTION_ROTVEC_TOPIC),
+                &self.base.clone().field(ACTION_ROTVEC_TOPIC),
                 format!(
                     "rows are not {} values wide",
                     task.setup.action_rotvec_dim()
                 ),
             ));
         }
-        if frames > 0 {
-            arrays.insert(
-                Episode::ACTION_ROTVEC.to_owned(),
-                FrameArray::from_rows(&rows)?,
-            );
-        }
-    }
-
-    // Streams the raw layout has no place for are named, never dropped silently.
-    let mut other: Vec<(&String, &TopicMessages)> = topics
-        .iter()
-        .filter(|(t, _)| {
-            *t != STATE_TOPIC
-                && *t != ACTION_ROTVEC_TOPIC
-                && !task
-                    .setup
-                    .arm_names()
-                    .iter()
-                    .any(|a| **t == pose_topic(a) || **t == hand_topic(a))
+        Ok(if frames > 0 {
+            Some(FrameArray::from_rows(&rows)?)
+        } else {
+            None
         })
-        .collect();
-    other.sort_by_key(|(t, _)| t.as_str());
-    for (topic, (schema, msgs)) in other {
-        notes.push(format!(
-            "{} messages on '{topic}' ({}) are not part of the raw layout: kept only in the source file",
-            msgs.len(),
-            schema.as_deref().unwrap_or("no schema")
-        ));
     }
 
-    let mut episode = Episode {
-        id: get("episode_id").unwrap_or_default().to_owned(),
-        task: task.id.clone(),
-        prompt: get("prompt").unwrap_or(&task.prompt).to_owned(),
-        fps,
-        arrays,
-        cameras: Vec::new(),
-    };
-    if episode.array(Episode::ACTION_ROTVEC).is_none() && frames > 0 {
-        episode.compute_action_rotvec(task.setup)?;
-        notes.push("action_rotvec was absent: computed from the pose commands".into());
+    /// Streams the raw layout has no place for are named, never dropped silently.
+    fn unused_topic_notes(&self, task: &TaskSpec) -> Vec<String> {
+        let mut other: Vec<(&String, &TopicMessages)> = self
+            .topics
+            .iter()
+            .filter(|(t, _)| {
+                *t != STATE_TOPIC
+                    && *t != ACTION_ROTVEC_TOPIC
+                    && !task
+                        .setup
+                        .arm_names()
+                        .iter()
+                        .any(|a| **t == pose_topic(a) || **t == hand_topic(a))
+            })
+            .collect();
+        other.sort_by_key(|(t, _)| t.as_str());
+        other
+            .into_iter()
+            .map(|(topic, (schema, msgs))| {
+                format!(
+                    "{} messages on '{topic}' ({}) are not part of the raw layout: kept only in the source file",
+                    msgs.len(),
+                    schema.as_deref().unwrap_or("no schema")
+                )
+            })
+            .collect()
     }
+}
+
+/// The metadata record's keys beyond those the episode is made of.
+fn episode_meta(md: &BTreeMap<String, String>) -> EpisodeMeta {
     let known = [
         "schema_version",
         "task",
@@ -644,19 +770,76 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<T
         "date",
         "source",
     ];
-    let meta = EpisodeMeta {
-        operator: get("operator").map(str::to_owned),
-        date: get("date").map(str::to_owned),
-        source: get("source").map(str::to_owned),
+    let get = |k: &str| md.get(k).cloned();
+    EpisodeMeta {
+        operator: get("operator"),
+        date: get("date"),
+        source: get("source"),
         extra: md
             .iter()
             .filter(|(k, _)| !known.contains(&k.as_str()))
             .map(|(k, v)| (k.clone(), v.clone()))
             .collect(),
-    };
-    Ok(TeleopEpisode {
-        episode,
-        meta,
-        notes,
-    })
+    }
+}
+
+/// MCAP teleop logs as an [`EpisodeContainer`]: one file per episode, found by its
+/// `.mcap` extension (any case).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct McapLog;
+
+impl EpisodeContainer for McapLog {
+    fn name(&self) -> &'static str {
+        "MCAP"
+    }
+
+    fn kind(&self) -> SourceKind {
+        SourceKind::Mcap
+    }
+
+    fn extension(&self) -> Option<&'static str> {
+        Some("mcap")
+    }
+
+    fn probe(&self, path: &Path) -> bool {
+        !path.is_dir()
+            && path
+                .extension()
+                .is_some_and(|x| x.eq_ignore_ascii_case("mcap"))
+    }
+
+    /// Reads the file (or `options.bytes`); the episode's id is the recorded one, else
+    /// the file stem.
+    fn read(&self, path: &Path, tasks: &TaskSet, options: ReadOptions<'_>) -> Result<ReadEpisode> {
+        let owned;
+        let bytes = match options.bytes {
+            Some(b) => b,
+            None => {
+                owned = fs_err::read(path).map_err(io_err("read", path))?;
+                &owned
+            }
+        };
+        let t = read_episode_mcap(path, bytes, tasks)?;
+        let mut episode = t.episode;
+        if episode.id.is_empty() {
+            episode.id = path
+                .file_stem()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        }
+        Ok(ReadEpisode {
+            episode,
+            videos: Vec::new(),
+            notes: t.notes,
+        })
+    }
+
+    fn write(
+        &self,
+        path: &Path,
+        episode: &Episode,
+        task: &TaskSpec,
+        meta: &EpisodeMeta,
+    ) -> Result<()> {
+        write_episode_mcap(path, episode, task, meta)
+    }
 }

@@ -1,5 +1,6 @@
 //! The DexJoCo raw layout: `replay.zarr` (Zarr v2, one episode) + `videos/`, read and
 //! written with `zarrs` exactly as the reference recorder (zarr-python 2) lays it out.
+//! [`RawFolder`] is its [`EpisodeContainer`].
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -10,7 +11,9 @@ use serde_json::Value;
 use zarrs::array::{Array, ArrayMetadataOptions, CodecOptions};
 use zarrs::filesystem::FilesystemStore;
 
+use crate::container::{EpisodeContainer, EpisodeMeta, ReadEpisode, ReadOptions};
 use crate::error::{FormatError, ProblemCode, Result, io_err};
+use crate::manifest::{ManifestEntry, SourceKind};
 use crate::zarr_v2::{self, Blosc};
 
 /// Name of the Zarr store inside an episode folder.
@@ -288,8 +291,39 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
     let store = open_store(&zarr, &base.clone().field(REPLAY_ZARR))?;
     let mut notes = Vec::new();
     let mut arrays = BTreeMap::new();
+    for name in &data_array_names(&zarr) {
+        let at = base.clone().field(name.as_str());
+        let key = format!("data/{name}");
+        if name == Episode::ACTION_ROTVEC && !zarr.join(&key).join(".zarray").exists() {
+            continue;
+        }
+        let fa = read_data_array(&store, &zarr, name, &at, &mut notes)?;
+        arrays.insert(name.clone(), fa);
+    }
+    check_episode_ends(&store, &zarr, &arrays, &base)?;
 
-    // The standard arrays, then any other float array of data/ (carried unchanged).
+    let mut episode = Episode {
+        id: String::new(),
+        task: task.id.clone(),
+        prompt: task.prompt.clone(),
+        fps: dexjoco_core::DEXJOCO_FPS,
+        arrays,
+        cameras: Vec::new(),
+    };
+    normalise(&mut episode, task, &mut notes)?;
+
+    let videos = list_files(&dir.join(VIDEOS), Path::new(VIDEOS))?;
+    episode.cameras = cameras_of(&videos);
+    Ok(RawEpisode {
+        episode,
+        videos,
+        notes,
+    })
+}
+
+/// The arrays of `data/` to read: the standard ones, then any other array (carried
+/// unchanged) in name order.
+fn data_array_names(zarr: &Path) -> Vec<String> {
     let mut names: Vec<String> = [
         Episode::ACTION,
         Episode::STATE,
@@ -308,50 +342,64 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
         extra.sort();
         names.extend(extra);
     }
-    for name in &names {
-        let at = base.clone().field(name.as_str());
-        let key = format!("data/{name}");
-        if name == Episode::ACTION_ROTVEC && !zarr.join(&key).join(".zarray").exists() {
-            continue;
-        }
-        let info = array_info(&zarr, &key, &at)?;
-        let width = match info.shape.as_slice() {
-            [_] => 1,
-            [_, w] if name != Episode::TIMESTAMP || *w == 1 => *w as usize,
-            other => {
-                return Err(FormatError::input(
-                    ProblemCode::WrongDimensions,
-                    &at,
-                    format!("shape {other:?} is not (T,) or (T, width)"),
-                ));
-            }
-        };
-        if width == 0 {
+    names
+}
+
+/// Reads `data/<name>`: (T,) or (T, width) float64 (float32 only for the older `state`,
+/// widened and noted).
+fn read_data_array(
+    store: &Arc<FilesystemStore>,
+    zarr: &Path,
+    name: &str,
+    at: &Location,
+    notes: &mut Vec<String>,
+) -> Result<FrameArray> {
+    let key = format!("data/{name}");
+    let info = array_info(zarr, &key, at)?;
+    let width = match info.shape.as_slice() {
+        [_] => 1,
+        [_, w] if name != Episode::TIMESTAMP || *w == 1 => *w as usize,
+        other => {
             return Err(FormatError::input(
                 ProblemCode::WrongDimensions,
-                &at,
-                "zero values per frame",
+                at,
+                format!("shape {other:?} is not (T,) or (T, width)"),
             ));
         }
-        if info.dtype == Dtype::F32 {
-            if name == Episode::STATE {
-                notes.push("state was float32 (older release): widened to float64".into());
-            } else {
-                return Err(FormatError::input(
-                    ProblemCode::WrongDtype,
-                    &at,
-                    "dtype float32 where float64 is expected (only the older `state` is float32)",
-                ));
-            }
-        }
-        let values = read_array(&store, &zarr, &key, &info, &at)?;
-        let fa = FrameArray::new(width, values).map_err(FormatError::Core)?;
-        arrays.insert(name.clone(), fa);
+    };
+    if width == 0 {
+        return Err(FormatError::input(
+            ProblemCode::WrongDimensions,
+            at,
+            "zero values per frame",
+        ));
     }
+    if info.dtype == Dtype::F32 {
+        if name == Episode::STATE {
+            notes.push("state was float32 (older release): widened to float64".into());
+        } else {
+            return Err(FormatError::input(
+                ProblemCode::WrongDtype,
+                at,
+                "dtype float32 where float64 is expected (only the older `state` is float32)",
+            ));
+        }
+    }
+    let values = read_array(store, zarr, &key, &info, at)?;
+    FrameArray::new(width, values).map_err(FormatError::Core)
+}
 
-    let frames = check_lengths(&arrays, &base)?;
+/// A problem unless every array holds the same frames and `meta/episode_ends` says
+/// they are one episode of them.
+fn check_episode_ends(
+    store: &Arc<FilesystemStore>,
+    zarr: &Path,
+    arrays: &BTreeMap<String, FrameArray>,
+    base: &Location,
+) -> Result<()> {
+    let frames = check_lengths(arrays, base)?;
     let at = base.clone().field("meta/episode_ends");
-    let ends = read_episode_ends(&store, &zarr, &at)?;
+    let ends = read_episode_ends(store, zarr, &at)?;
     if ends != [frames as i64] {
         let at = match ends.first() {
             Some(&end) if ends.len() == 1 && end >= 0 && (end as usize) < frames => {
@@ -368,17 +416,13 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
             ),
         ));
     }
+    Ok(())
+}
 
-    let mut episode = Episode {
-        id: String::new(),
-        task: task.id.clone(),
-        prompt: task.prompt.clone(),
-        fps: dexjoco_core::DEXJOCO_FPS,
-        arrays,
-        cameras: Vec::new(),
-    };
-
-    if task.id == "pick_bucket" && fix_pick_bucket_order(&mut episode) {
+/// The normalisations of older releases, each noted: pick_bucket's object order, and
+/// `action_rotvec` computed when absent.
+fn normalise(episode: &mut Episode, task: &TaskSpec, notes: &mut Vec<String>) -> Result<()> {
+    if task.id == "pick_bucket" && fix_pick_bucket_order(episode) {
         notes.push(
             "pick_bucket state had the older object order (food, bucket): reordered to bucket, food"
                 .into(),
@@ -392,14 +436,7 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
         episode.compute_action_rotvec(task.setup)?;
         notes.push("action_rotvec was absent: computed from action".into());
     }
-
-    let videos = list_files(&dir.join(VIDEOS), Path::new(VIDEOS))?;
-    episode.cameras = cameras_of(&videos);
-    Ok(RawEpisode {
-        episode,
-        videos,
-        notes,
-    })
+    Ok(())
 }
 
 /// Augment's record of one replay, in the replay folder (its `success` field says
@@ -573,4 +610,86 @@ pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
         .store_array_subset_opt(&array.subset_all(), &[frames as i64][..], &codec_opts)
         .map_err(|e| err(e.to_string()))?;
     Ok(())
+}
+
+/// DexJoCo raw episode folders as an [`EpisodeContainer`]: a folder holding
+/// `replay.zarr` (and optionally `videos/`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RawFolder;
+
+impl EpisodeContainer for RawFolder {
+    fn name(&self) -> &'static str {
+        "raw"
+    }
+
+    fn kind(&self) -> SourceKind {
+        SourceKind::Raw
+    }
+
+    fn extension(&self) -> Option<&'static str> {
+        None
+    }
+
+    fn probe(&self, path: &Path) -> bool {
+        path.join(REPLAY_ZARR).is_dir()
+    }
+
+    /// Reads the folder. Its task is, in order: `options.task`, the folder's store entry
+    /// (`.dexjoco-ingest.json`), its path ([`task_from_path`]); its id is the store
+    /// entry's, else the folder name.
+    fn read(&self, dir: &Path, tasks: &TaskSet, options: ReadOptions<'_>) -> Result<ReadEpisode> {
+        let entry = ManifestEntry::of_episode_dir(dir);
+        let name = options
+            .task
+            .map(str::to_owned)
+            .or_else(|| entry.as_ref().and_then(|e| e.task.clone()))
+            .or_else(|| task_from_path(dir, tasks));
+        let at = Location::default().path(dir);
+        let task = match name.as_deref() {
+            Some(n) => tasks.get(n).ok_or_else(|| {
+                FormatError::input(
+                    ProblemCode::UnknownTask,
+                    &at,
+                    format!("unknown task '{n}' (known: {})", tasks.ids().join(", ")),
+                )
+            })?,
+            None => {
+                return Err(FormatError::input(
+                    ProblemCode::UnknownTask,
+                    &at,
+                    format!(
+                        "cannot tell the task of '{}': the path names none \
+                         (<task>/episode_N or <task>_demo_...); pass --task",
+                        dir.display()
+                    ),
+                ));
+            }
+        };
+        let r = read_raw_episode(dir, task)?;
+        let mut episode = r.episode;
+        episode.id = entry.map_or_else(
+            || {
+                dir.file_name()
+                    .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+            },
+            |e| e.id,
+        );
+        Ok(ReadEpisode {
+            episode,
+            videos: r.videos,
+            notes: r.notes,
+        })
+    }
+
+    /// Writes `replay.zarr` under `dir` ([`write_replay_zarr`]); the raw layout has no
+    /// place for `meta`.
+    fn write(
+        &self,
+        dir: &Path,
+        episode: &Episode,
+        _task: &TaskSpec,
+        _meta: &EpisodeMeta,
+    ) -> Result<()> {
+        write_replay_zarr(dir, episode)
+    }
 }

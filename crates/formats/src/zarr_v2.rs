@@ -1,14 +1,19 @@
 //! Zarr v2 pieces shared by every store this project writes (the raw layout's
-//! `replay.zarr` here, convert's Diffusion Policy `replay_buffer.zarr`): array metadata as
-//! zarr-python 2 writes it, and empty groups.
+//! `replay.zarr` here, the Diffusion Policy `replay_buffer.zarr` in [`crate::dataset`]):
+//! array metadata as zarr-python 2 writes it (through zarrs' typed v2 metadata), and
+//! empty groups.
 
 use std::sync::Arc;
 
-use serde_json::{Value, json};
+use std::num::NonZeroU64;
+
 use zarrs::array::{ArrayMetadata, ArrayMetadataV2};
 use zarrs::filesystem::FilesystemStore;
 use zarrs::group::{Group, GroupMetadata, GroupMetadataOptions};
-use zarrs::metadata::v2::GroupMetadataV2;
+use zarrs::metadata::ChunkKeySeparator;
+use zarrs::metadata::v2::{
+    ArrayMetadataV2Order, DataTypeMetadataV2, FillValueMetadataV2, GroupMetadataV2, MetadataV2,
+};
 
 /// A Blosc compressor as numcodecs describes it in `.zarray`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -44,35 +49,53 @@ pub fn array_metadata(
     dtype: &str,
     compressor: Option<Blosc>,
 ) -> Result<ArrayMetadata, String> {
-    let compressor = match compressor {
-        Some(b) => json!({
-            "id": "blosc",
-            "cname": b.cname,
-            "clevel": b.clevel,
-            "shuffle": b.shuffle,
-            "blocksize": 0,
-        }),
-        None => Value::Null,
-    };
+    let chunks = chunks
+        .iter()
+        .map(|&c| NonZeroU64::new(c).ok_or("building .zarray: a chunk of size 0"))
+        .collect::<Result<Vec<_>, _>>()?;
+    let compressor = compressor
+        .map(Blosc::metadata)
+        .transpose()
+        .map_err(|e| format!("building .zarray: {e}"))?;
     let fill = if dtype.get(1..2) == Some("f") {
-        json!(0.0)
+        FillValueMetadataV2::from(0.0)
     } else {
-        json!(0)
+        FillValueMetadataV2::from(0u64)
     };
-    let meta = json!({
-        "zarr_format": 2,
-        "shape": shape,
-        "chunks": chunks,
-        "dtype": dtype,
-        "compressor": compressor,
-        "fill_value": fill,
-        "order": "C",
-        "filters": null,
-        "dimension_separator": ".",
-    });
-    serde_json::from_value::<ArrayMetadataV2>(meta)
-        .map(ArrayMetadata::V2)
-        .map_err(|e| format!("building .zarray: {e}"))
+    let meta = ArrayMetadataV2::new(
+        shape.to_vec(),
+        chunks,
+        DataTypeMetadataV2::Simple(dtype.to_owned()),
+        fill,
+        compressor,
+        None,
+    )
+    .with_order(ArrayMetadataV2Order::C)
+    .with_dimension_separator(ChunkKeySeparator::Dot);
+    Ok(ArrayMetadata::V2(meta))
+}
+
+impl Blosc {
+    /// The `compressor` entry of `.zarray`. zarrs makes a v2 codec entry only by reading
+    /// one, so it is read from this typed form.
+    fn metadata(self) -> Result<MetadataV2, serde_json::Error> {
+        #[derive(serde::Serialize)]
+        struct Numcodecs {
+            id: &'static str,
+            cname: &'static str,
+            clevel: u8,
+            shuffle: u8,
+            blocksize: u32,
+        }
+        let entry = Numcodecs {
+            id: "blosc",
+            cname: self.cname,
+            clevel: self.clevel,
+            shuffle: self.shuffle,
+            blocksize: 0,
+        };
+        serde_json::from_value(serde_json::to_value(entry)?)
+    }
 }
 
 /// Writes an empty v2 group (`.zgroup`) at each of `paths` (e.g. `["/", "/data"]`).
@@ -92,6 +115,8 @@ pub fn create_groups(store: &Arc<FilesystemStore>, paths: &[&str]) -> Result<(),
 
 #[cfg(test)]
 mod tests {
+    use serde_json::{Value, json};
+
     use super::*;
 
     /// The `.zarray` JSON (the inner v2 document, as written to disk).
@@ -135,5 +160,18 @@ mod tests {
         );
         assert_eq!(img["fill_value"], json!(0));
         assert_eq!(img["compressor"]["cname"], "lz4");
+    }
+
+    #[test]
+    fn metadata_keys_are_in_zarr_python_2_order() {
+        let ArrayMetadata::V2(m) =
+            array_metadata(&[0, 2], &[3, 2], "<f8", Some(Blosc::DIFFUSION_POLICY)).unwrap()
+        else {
+            panic!("a v3 document")
+        };
+        assert_eq!(
+            serde_json::to_string(&m).unwrap(),
+            r#"{"node_type":"array","zarr_format":2,"shape":[0,2],"chunks":[3,2],"dtype":"<f8","compressor":{"id":"blosc","cname":"lz4","clevel":5,"shuffle":0,"blocksize":0},"fill_value":0.0,"order":"C","filters":null,"dimension_separator":"."}"#
+        );
     }
 }

@@ -528,6 +528,8 @@ impl Store {
         }
     }
 
+    /// Moves a prepared source into the store (or reports why not) and records it in
+    /// the manifest.
     fn commit(
         &mut self,
         p: Prepared,
@@ -547,31 +549,7 @@ impl Store {
             return Err(e);
         }
         if let Some(first) = seen.get(&entry.id) {
-            if let Some(dir) = &staged {
-                let _ = fs_err::remove_dir_all(dir);
-            }
-            let problem = Problem::new(
-                ProblemCode::Duplicate,
-                &Location::episode(&entry.id).path(&source.path),
-                format!("same content as '{}', ingested once", first.display()),
-            );
-            tracing::info!("{problem}");
-            // A copy of a rejected input is rejected too (and counted so).
-            let rejected = entry.status == Status::Quarantined;
-            let mut problems = if rejected { entry.problems } else { Vec::new() };
-            problems.push(problem);
-            return Ok(SourceReport {
-                source: source.path,
-                id: entry.id,
-                outcome: if rejected {
-                    Outcome::Quarantined
-                } else {
-                    Outcome::Duplicate
-                },
-                path: entry.path,
-                problems,
-                notes: Vec::new(),
-            });
+            return Ok(duplicate_report(source, entry, staged.as_deref(), first));
         }
         seen.insert(entry.id.clone(), source.path.clone());
         let previous = self.manifest.get(&entry.id).cloned();
@@ -580,62 +558,21 @@ impl Store {
                 && entry.status == Status::Quarantined
                 && self.root.join(&prev.path).is_dir()
         }) {
-            // A stored episode redone under force that fails its re-check is never
-            // removed: it stays as it was, and the problems are reported.
-            if let Some(dir) = &staged {
-                let _ = fs_err::remove_dir_all(dir);
-            }
-            tracing::warn!(
-                "{}: the stored episode failed its re-check and is kept as it was: {}",
-                prev.path.display(),
-                entry
-                    .problems
-                    .first()
-                    .map(ToString::to_string)
-                    .unwrap_or_default()
-            );
-            return Ok(SourceReport {
-                source: source.path,
-                id: entry.id,
-                outcome: Outcome::RecheckFailed,
-                path: prev.path.clone(),
-                problems: entry.problems,
-                notes: entry.notes,
-            });
+            return Ok(recheck_failed_report(
+                source,
+                entry,
+                staged.as_deref(),
+                prev,
+            ));
         }
-        if let Some(staged) = staged {
-            if entry.status == Status::Ok {
-                // Force re-uses the episode's folder; otherwise the task's next index.
-                let reuse = previous
-                    .as_ref()
-                    .filter(|prev| prev.status == Status::Ok && opts.force)
-                    .map(|prev| prev.path.clone());
-                if reuse.is_some() {
-                    outcome = Outcome::Replaced;
-                }
-                let task = entry.task.clone().unwrap_or_default();
-                entry.path = reuse.unwrap_or_else(|| {
-                    let n = next_index.entry(task.clone()).or_insert(0);
-                    let path = Path::new(&task).join(format!("episode_{:06}", *n));
-                    *n += 1;
-                    path
-                });
-                write_atomic(
-                    &staged.join(ENTRY_FILE),
-                    &serde_json::to_vec_pretty(&entry).expect("entry serializes"),
-                )?;
+        let replaced = match staged {
+            Some(staged) => {
+                self.move_into_place(&staged, &mut entry, previous, next_index, opts.force)?
             }
-            if entry.status == Status::Quarantined {
-                keep_quarantined_copy(&staged, &self.root.join(&entry.path))?;
-            }
-            if let Some(prev) = previous.filter(|prev| prev.path != entry.path) {
-                // A quarantined input that now passes (or the reverse, under force).
-                let old = self.root.join(&prev.path);
-                if old.exists() {
-                    fs_err::remove_dir_all(&old).map_err(io_err("remove", &old))?;
-                }
-            }
-            replace_dir(&staged, &self.root.join(&entry.path))?;
+            None => false,
+        };
+        if replaced {
+            outcome = Outcome::Replaced;
         }
         self.manifest.upsert(entry.clone());
         Ok(SourceReport {
@@ -646,5 +583,115 @@ impl Store {
             problems: entry.problems,
             notes: entry.notes,
         })
+    }
+
+    /// Renames a staged folder into place: a landed episode at its folder (the one it had
+    /// under `force`, else its task's next index), a rejected input under quarantine.
+    /// Returns whether a stored episode was replaced.
+    fn move_into_place(
+        &self,
+        staged: &Path,
+        entry: &mut ManifestEntry,
+        previous: Option<ManifestEntry>,
+        next_index: &mut HashMap<String, usize>,
+        force: bool,
+    ) -> Result<bool> {
+        let mut replaced = false;
+        if entry.status == Status::Ok {
+            // Force re-uses the episode's folder; otherwise the task's next index.
+            let reuse = previous
+                .as_ref()
+                .filter(|prev| prev.status == Status::Ok && force)
+                .map(|prev| prev.path.clone());
+            replaced = reuse.is_some();
+            let task = entry.task.clone().unwrap_or_default();
+            entry.path = reuse.unwrap_or_else(|| {
+                let n = next_index.entry(task.clone()).or_insert(0);
+                let path = Path::new(&task).join(format!("episode_{:06}", *n));
+                *n += 1;
+                path
+            });
+            write_atomic(
+                &staged.join(ENTRY_FILE),
+                &serde_json::to_vec_pretty(&entry).expect("entry serializes"),
+            )?;
+        }
+        if entry.status == Status::Quarantined {
+            keep_quarantined_copy(staged, &self.root.join(&entry.path))?;
+        }
+        if let Some(prev) = previous.filter(|prev| prev.path != entry.path) {
+            // A quarantined input that now passes (or the reverse, under force).
+            let old = self.root.join(&prev.path);
+            if old.exists() {
+                fs_err::remove_dir_all(&old).map_err(io_err("remove", &old))?;
+            }
+        }
+        replace_dir(staged, &self.root.join(&entry.path))?;
+        Ok(replaced)
+    }
+}
+
+/// The report of a source with the same content as `first`, met earlier in this run:
+/// its staged copy is dropped.
+fn duplicate_report(
+    source: Source,
+    entry: ManifestEntry,
+    staged: Option<&Path>,
+    first: &Path,
+) -> SourceReport {
+    if let Some(dir) = staged {
+        let _ = fs_err::remove_dir_all(dir);
+    }
+    let problem = Problem::new(
+        ProblemCode::Duplicate,
+        &Location::episode(&entry.id).path(&source.path),
+        format!("same content as '{}', ingested once", first.display()),
+    );
+    tracing::info!("{problem}");
+    // A copy of a rejected input is rejected too (and counted so).
+    let rejected = entry.status == Status::Quarantined;
+    let mut problems = if rejected { entry.problems } else { Vec::new() };
+    problems.push(problem);
+    SourceReport {
+        source: source.path,
+        id: entry.id,
+        outcome: if rejected {
+            Outcome::Quarantined
+        } else {
+            Outcome::Duplicate
+        },
+        path: entry.path,
+        problems,
+        notes: Vec::new(),
+    }
+}
+
+/// The report of a stored episode redone under force that fails its re-check: it is
+/// never removed, it stays as it was (`prev`), and the problems are reported.
+fn recheck_failed_report(
+    source: Source,
+    entry: ManifestEntry,
+    staged: Option<&Path>,
+    prev: &ManifestEntry,
+) -> SourceReport {
+    if let Some(dir) = staged {
+        let _ = fs_err::remove_dir_all(dir);
+    }
+    tracing::warn!(
+        "{}: the stored episode failed its re-check and is kept as it was: {}",
+        prev.path.display(),
+        entry
+            .problems
+            .first()
+            .map(ToString::to_string)
+            .unwrap_or_default()
+    );
+    SourceReport {
+        source: source.path,
+        id: entry.id,
+        outcome: Outcome::RecheckFailed,
+        path: prev.path.clone(),
+        problems: entry.problems,
+        notes: entry.notes,
     }
 }

@@ -28,10 +28,17 @@ fn good(task: &str, frames: usize, seed: u64) -> Episode {
 /// Builds the corpus; returns (input root, expected (file name, code) of the bad ones,
 /// names of the good ones).
 fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
-    let mut bad = Vec::new();
-    let mut ok = Vec::new();
+    let ok = good_inputs(root);
+    let mut bad = vec![truncated_mcap(root, &ok[2])];
+    bad.extend(broken_raw_folders(root));
+    bad.extend(broken_files(root));
+    bad.extend(out_of_range_values(root));
+    (bad, ok)
+}
 
-    // Good: two raw folders and one MCAP file.
+/// Good: two raw folders and one MCAP file (last).
+fn good_inputs(root: &Path) -> Vec<PathBuf> {
+    let mut ok = Vec::new();
     let p = root.join("click_mouse/episode_000000");
     write_raw(&p, &good("click_mouse", 40, 1));
     fs_err::create_dir_all(p.join("videos")).unwrap();
@@ -50,10 +57,13 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
         &EpisodeMeta::default(),
     )
     .unwrap();
-    ok.push(p.clone());
+    ok.push(p);
+    ok
+}
 
-    // Truncated MCAP: a good file cut in half.
-    let bytes = fs_err::read(&p).unwrap();
+/// Truncated MCAP: a good file cut in half.
+fn truncated_mcap(root: &Path, good_mcap: &Path) -> (PathBuf, ProblemCode) {
+    let bytes = fs_err::read(good_mcap).unwrap();
     let t = root.join("truncated.mcap");
     let ep = good("water_plant", 40, 4);
     write_episode_mcap(
@@ -66,8 +76,12 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
     let full = fs_err::read(&t).unwrap();
     fs_err::write(&t, &full[..full.len() / 2]).unwrap();
     assert_ne!(bytes.len(), 0);
-    bad.push((t, ProblemCode::Truncated));
+    (t, ProblemCode::Truncated)
+}
 
+/// Raw folders with a damaged array, or of an unknown task.
+fn broken_raw_folders(root: &Path) -> Vec<(PathBuf, ProblemCode)> {
+    let mut bad = Vec::new();
     // Wrong dimensions: click_mouse state with 37 columns instead of 31.
     let mut ep = good("click_mouse", 40, 5);
     let wide = dexjoco_core::FrameArray::zeros(40, 37);
@@ -112,7 +126,12 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
     let p = root.join("juggle_knives/episode_000000");
     write_raw(&p, &good("click_mouse", 40, 10));
     bad.push((p, ProblemCode::UnknownTask));
+    bad
+}
 
+/// Files that are empty, unreadable, or not MCAP at all.
+fn broken_files(root: &Path) -> Vec<(PathBuf, ProblemCode)> {
+    let mut bad = Vec::new();
     // Empty file.
     let p = root.join("empty.mcap");
     fs_err::write(&p, b"").unwrap();
@@ -127,9 +146,13 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
     let p = root.join("garbage.mcap");
     fs_err::write(&p, b"this is not an mcap file").unwrap();
     bad.push((p, ProblemCode::Corrupt));
+    bad
+}
 
-    // Out of range values: dh above 0.05, a hand target beyond its range, a quaternion
-    // that is not unit, timestamps that go backwards, more frames than the cap.
+/// Out of range values: dh above 0.05, a hand target beyond its range, a quaternion
+/// that is not unit, timestamps that go backwards, more frames than the cap.
+fn out_of_range_values(root: &Path) -> Vec<(PathBuf, ProblemCode)> {
+    let mut bad = Vec::new();
     let mut ep = good("pinch_tongs", 40, 11);
     ep.arrays.get_mut(Episode::STATE).unwrap().row_mut(3)[30] = 0.2;
     let p = root.join("pinch_tongs/episode_000000");
@@ -153,8 +176,7 @@ fn corpus(root: &Path) -> (Vec<(PathBuf, ProblemCode)>, Vec<PathBuf>) {
     let p = root.join("pinch_tongs/episode_000004");
     write_raw(&p, &good("pinch_tongs", 1001, 15));
     bad.push((p, ProblemCode::TooLong));
-
-    (bad, ok)
+    bad
 }
 
 fn run(input: &Path, store: &Path, force: bool) -> dexjoco_ingest::IngestSummary {
@@ -180,12 +202,35 @@ fn broken_inputs_are_quarantined_with_named_problems_and_good_ones_land() {
     let summary = run(&input, &store, false);
     assert_eq!(summary.sources.len(), bad.len() + ok.len());
 
-    for (path, code) in &bad {
-        let r = summary
-            .sources
-            .iter()
-            .find(|s| &s.source == path)
-            .unwrap_or_else(|| panic!("{} not reported", path.display()));
+    assert_quarantined_with_named_problems(&summary, &bad, &store);
+    assert_fields_and_frames_named(&summary);
+    assert_good_ones_landed(&summary, &ok, &store);
+    assert_eq!(summary.rejected(), bad.len());
+    assert_manifest_lists_all(&store, bad.len(), ok.len());
+    assert!(!store.join(".staging").exists());
+}
+
+/// The report of the source at `path`.
+fn report<'a>(
+    summary: &'a dexjoco_ingest::IngestSummary,
+    path: &Path,
+) -> &'a dexjoco_ingest::SourceReport {
+    summary
+        .sources
+        .iter()
+        .find(|s| s.source == path)
+        .unwrap_or_else(|| panic!("{} not reported", path.display()))
+}
+
+/// Each broken input is quarantined with its code, its problems name the file and the
+/// episode, and its reason and copy are kept.
+fn assert_quarantined_with_named_problems(
+    summary: &dexjoco_ingest::IngestSummary,
+    bad: &[(PathBuf, ProblemCode)],
+    store: &Path,
+) {
+    for (path, code) in bad {
+        let r = report(summary, path);
         assert_eq!(r.outcome, Outcome::Quarantined, "{}: {r:?}", path.display());
         assert!(
             r.problems.iter().any(|p| p.code == *code),
@@ -205,12 +250,18 @@ fn broken_inputs_are_quarantined_with_named_problems_and_good_ones_land() {
             assert!(copy.exists(), "quarantined copy {}", copy.display());
         }
     }
-    // Field and frame where the problem has them.
-    let nan = summary
-        .sources
-        .iter()
-        .find(|s| s.source.ends_with("hammer_nail/episode_000000"))
-        .unwrap();
+}
+
+/// Field and frame where the problem has them.
+fn assert_fields_and_frames_named(summary: &dexjoco_ingest::IngestSummary) {
+    let ending = |tail: &str| {
+        summary
+            .sources
+            .iter()
+            .find(|s| s.source.ends_with(tail))
+            .unwrap()
+    };
+    let nan = ending("hammer_nail/episode_000000");
     let p = &nan.problems[0];
     assert_eq!(
         (p.field.as_deref(), p.frame),
@@ -222,23 +273,18 @@ fn broken_inputs_are_quarantined_with_named_problems_and_good_ones_land() {
         "{}",
         p.message
     );
-    let dims = summary
-        .sources
-        .iter()
-        .find(|s| s.source.ends_with("click_mouse/episode_000001"))
-        .unwrap();
+    let dims = ending("click_mouse/episode_000001");
     assert_eq!(dims.problems[0].field.as_deref(), Some("state"));
-    let hand = summary
-        .sources
-        .iter()
-        .find(|s| s.source.ends_with("pinch_tongs/episode_000001"))
-        .unwrap();
+    let hand = ending("pinch_tongs/episode_000001");
     assert_eq!(
         (hand.problems[0].field.as_deref(), hand.problems[0].frame),
         (Some("action[19]"), Some(9))
     );
+}
 
-    for path in &ok {
+/// The good inputs land whole, videos with their episode byte for byte.
+fn assert_good_ones_landed(summary: &dexjoco_ingest::IngestSummary, ok: &[PathBuf], store: &Path) {
+    for path in ok {
         let r = summary.sources.iter().find(|s| &s.source == path).unwrap();
         assert_eq!(r.outcome, Outcome::Landed, "{r:?}");
         let ep = read_stored_episode(&store.join(&r.path)).unwrap();
@@ -255,14 +301,16 @@ fn broken_inputs_are_quarantined_with_named_problems_and_good_ones_land() {
     assert_eq!(ep.cameras.len(), 1);
     assert_eq!(ep.cameras[0].name, "front");
     assert!(ep.cameras[0].depth.is_some());
-    assert_eq!(summary.rejected(), bad.len());
+}
 
-    let opened = Store::open(&store).unwrap();
+/// The reopened store's manifest lists every input and names every problem code.
+fn assert_manifest_lists_all(store: &Path, bad: usize, ok: usize) {
+    let opened = Store::open(store).unwrap();
     let m = opened.manifest();
-    assert_eq!(m.episodes.len(), bad.len() + ok.len());
+    assert_eq!(m.episodes.len(), bad + ok);
     assert_eq!(
         m.episodes.iter().filter(|e| e.status == Status::Ok).count(),
-        ok.len()
+        ok
     );
     let json = fs_err::read_to_string(store.join("manifest.json")).unwrap();
     for code in [
@@ -281,7 +329,6 @@ fn broken_inputs_are_quarantined_with_named_problems_and_good_ones_land() {
             "manifest names {code}"
         );
     }
-    assert!(!store.join(".staging").exists());
 }
 
 #[test]

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use dexjoco_core::{
-    ArmTargetInit, FrameArray, HAND_DOF, HandSource, LegStyle, NameKind, PoseSource, TaskSpec,
-    ZRule,
+    ArmTargetInit, ArrayLayout, DerivedPose, FrameArray, HAND_DOF, HandSource, LegStyle, NameKind,
+    PoseSource, TaskSpec, ZRule,
 };
 use mujoco_rs::prelude::{MjData, MjModel, MjtDisableBit};
 
@@ -345,140 +345,33 @@ impl TaskEnv {
         Self::check_names(spec, &scene.model)?;
         let robot = Robot::new(&scene.model, spec.setup)?;
         let dh = state0[layout.width() - 1];
-        let object = |name: &str| -> &[f64] {
-            let f = layout.get(&format!("{name}.pose")).expect("validated");
-            &state0[f.start..f.start + f.len]
-        };
 
         // Model edits: physics options, table, static objects.
         let mut model = (*scene.model).clone();
         if options.disable_multiccd {
             model.opt_mut().disableflags |= MjtDisableBit::mjDSBL_MULTICCD as i32;
         }
-        let table = name_id(&model, NameKind::Body, &spec.table.body).expect("resolved");
-        model.body_pos_mut()[table][2] = dh;
-        for leg in &spec.table.legs {
-            let g = name_id(&model, NameKind::Geom, leg).expect("resolved");
-            match spec.table.leg_style {
-                LegStyle::Extend => model.geom_size_mut()[g][1] += dh,
-                LegStyle::Half => {
-                    model.geom_pos_mut()[g][2] -= dh / 2.0;
-                    model.geom_size_mut()[g][1] += dh / 2.0;
-                }
-            }
-        }
-        let top_site = name_id(&model, NameKind::Site, &spec.table.top_site).expect("resolved");
-        let table_top_z = model.body_pos()[table][2] + model.site_pos()[top_site][2];
-        let pose_of = |v: &[f64]| -> ([Option<f64>; 3], Option<[f64; 4]>) {
-            let pos = [Some(v[0]), Some(v[1]), Some(v[2])];
-            let quat = (v.len() == 7).then(|| [v[3], v[4], v[5], v[6]]);
-            (pos, quat)
+        let table_top_z = raise_table(&mut model, spec, dh);
+        let recorded = RecordedState {
+            layout,
+            state0,
+            dh,
+            table_top_z,
         };
-        for o in &spec.state.objects {
-            if is_model_pose(&o.source) {
-                let (pos, quat) = pose_of(object(&o.name));
-                write_model_pose(
-                    &mut model,
-                    &o.source,
-                    pos,
-                    if o.restore_position_only { None } else { quat },
-                );
-            }
-        }
-        let derived_pose = |d: &dexjoco_core::DerivedPose| -> [Option<f64>; 3] {
-            let src = d.from.as_deref().map(object);
-            let xy = |i: usize| src.map(|s| s[i] + d.offset[i]);
-            let z = match d.z {
-                ZRule::Keep => None,
-                ZRule::DhPlus(v) => Some(v + dh),
-                ZRule::TableTopPlus(v) => Some(table_top_z + v),
-                ZRule::FromSource => src.map(|s| s[2] + d.offset[2]),
-            };
-            [xy(0), xy(1), z]
-        };
-        let derived: Vec<&dexjoco_core::DerivedPose> = spec
+        let derived: Vec<&DerivedPose> = spec
             .state
             .derived
             .iter()
             .filter(|d| !spec.state.objects.iter().any(|o| o.source == d.target))
             .collect();
-        for d in &derived {
-            if is_model_pose(&d.target) {
-                write_model_pose(&mut model, &d.target, derived_pose(d), d.quat);
-            }
-        }
+        recorded.write_model_poses(&mut model, spec, &derived);
 
         // The robot's reset.
-        let mut data = MjData::new(Arc::new(model));
-        data.reset();
-        let thumb = if spec.reset.exact_thumb {
-            THUMB_HOME
-        } else {
-            f64::from(THUMB_HOME as f32)
-        };
-        for arm in &robot.arms {
-            let qpos = data.qpos_mut();
-            for i in 0..ARM_HOME.len() {
-                qpos[arm.qpos[i]] = ARM_HOME[i];
-            }
-            for &a in &arm.hand_qpos {
-                qpos[a] = 0.0;
-            }
-            qpos[arm.thumb_base_qpos] = thumb;
-        }
+        let mut data = reset_robot(model, spec, &robot);
         let model = data.model_clone();
-        for (joint, value) in &spec.reset.joint_qpos {
-            let j = name_id(&model, NameKind::Joint, joint).expect("resolved");
-            data.qpos_mut()[model.jnt_qposadr()[j] as usize] = *value;
-        }
-        data.forward();
-        for arm in &robot.arms {
-            let sd = data.sensordata();
-            let pos: [f64; 3] = sd[arm.tcp_pos_sensor..arm.tcp_pos_sensor + 3]
-                .try_into()
-                .expect("3");
-            let quat: [f64; 4] = sd[arm.tcp_quat_sensor..arm.tcp_quat_sensor + 4]
-                .try_into()
-                .expect("4");
-            data.mocap_pos_mut()[arm.mocap] = pos;
-            if spec.reset.arm_target == ArmTargetInit::Pose {
-                data.mocap_quat_mut()[arm.mocap] = quat;
-            }
-        }
-        if let Some(hand) = &spec.reset.hand_qpos {
-            for arm in &robot.arms {
-                for (&act, &v) in arm.hand_actuators.iter().zip(hand) {
-                    // The reset pose is given in the action order; write it by actuator.
-                    let joint = model.actuator_trnid()[act][0] as usize;
-                    let a = model.jnt_qposadr()[joint] as usize;
-                    data.qpos_mut()[a] = v;
-                }
-            }
-            data.forward();
-            for arm in &robot.arms {
-                for (&act, &v) in arm.hand_actuators.iter().zip(hand) {
-                    data.ctrl_mut()[act] = v;
-                }
-            }
-        }
 
         // The recorded objects and the poses derived from them.
-        for o in &spec.state.objects {
-            if !is_model_pose(&o.source) {
-                let (pos, quat) = pose_of(object(&o.name));
-                write_data_pose(
-                    &mut data,
-                    &o.source,
-                    pos,
-                    if o.restore_position_only { None } else { quat },
-                );
-            }
-        }
-        for d in &derived {
-            if !is_model_pose(&d.target) {
-                write_data_pose(&mut data, &d.target, derived_pose(d), d.quat);
-            }
-        }
+        recorded.write_data_poses(&mut data, spec, &derived);
         data.forward();
 
         let mut privileged = Vec::new();
@@ -599,5 +492,166 @@ impl TaskEnv {
                 )
             })
             .collect()
+    }
+}
+
+/// The table edits of a height offset `dh` (the table body, its legs); returns the z of
+/// the table top.
+fn raise_table(model: &mut MjModel, spec: &TaskSpec, dh: f64) -> f64 {
+    let table = name_id(model, NameKind::Body, &spec.table.body).expect("resolved");
+    model.body_pos_mut()[table][2] = dh;
+    for leg in &spec.table.legs {
+        let g = name_id(model, NameKind::Geom, leg).expect("resolved");
+        match spec.table.leg_style {
+            LegStyle::Extend => model.geom_size_mut()[g][1] += dh,
+            LegStyle::Half => {
+                model.geom_pos_mut()[g][2] -= dh / 2.0;
+                model.geom_size_mut()[g][1] += dh / 2.0;
+            }
+        }
+    }
+    let top_site = name_id(model, NameKind::Site, &spec.table.top_site).expect("resolved");
+    model.body_pos()[table][2] + model.site_pos()[top_site][2]
+}
+
+/// The reset of the robot on the edited model: home pose, the task's joint values, arm
+/// targets at the TCPs, and the task's hand pose when it has one.
+fn reset_robot(model: MjModel, spec: &TaskSpec, robot: &Robot) -> MjData<Arc<MjModel>> {
+    let mut data = MjData::new(Arc::new(model));
+    data.reset();
+    let thumb = if spec.reset.exact_thumb {
+        THUMB_HOME
+    } else {
+        f64::from(THUMB_HOME as f32)
+    };
+    for arm in &robot.arms {
+        let qpos = data.qpos_mut();
+        for i in 0..ARM_HOME.len() {
+            qpos[arm.qpos[i]] = ARM_HOME[i];
+        }
+        for &a in &arm.hand_qpos {
+            qpos[a] = 0.0;
+        }
+        qpos[arm.thumb_base_qpos] = thumb;
+    }
+    let model = data.model_clone();
+    for (joint, value) in &spec.reset.joint_qpos {
+        let j = name_id(&model, NameKind::Joint, joint).expect("resolved");
+        data.qpos_mut()[model.jnt_qposadr()[j] as usize] = *value;
+    }
+    data.forward();
+    for arm in &robot.arms {
+        let sd = data.sensordata();
+        let pos: [f64; 3] = sd[arm.tcp_pos_sensor..arm.tcp_pos_sensor + 3]
+            .try_into()
+            .expect("3");
+        let quat: [f64; 4] = sd[arm.tcp_quat_sensor..arm.tcp_quat_sensor + 4]
+            .try_into()
+            .expect("4");
+        data.mocap_pos_mut()[arm.mocap] = pos;
+        if spec.reset.arm_target == ArmTargetInit::Pose {
+            data.mocap_quat_mut()[arm.mocap] = quat;
+        }
+    }
+    if let Some(hand) = &spec.reset.hand_qpos {
+        for arm in &robot.arms {
+            for (&act, &v) in arm.hand_actuators.iter().zip(hand) {
+                // The reset pose is given in the action order; write it by actuator.
+                let joint = model.actuator_trnid()[act][0] as usize;
+                let a = model.jnt_qposadr()[joint] as usize;
+                data.qpos_mut()[a] = v;
+            }
+        }
+        data.forward();
+        for arm in &robot.arms {
+            for (&act, &v) in arm.hand_actuators.iter().zip(hand) {
+                data.ctrl_mut()[act] = v;
+            }
+        }
+    }
+    data
+}
+
+/// A recorded initial state (`state[0]`) read by its task's layout, with the table top
+/// its objects are placed on.
+struct RecordedState<'a> {
+    layout: ArrayLayout,
+    state0: &'a [f64],
+    dh: f64,
+    table_top_z: f64,
+}
+
+impl RecordedState<'_> {
+    /// The recorded pose (or position) of a state object.
+    fn object(&self, name: &str) -> &[f64] {
+        let f = self.layout.get(&format!("{name}.pose")).expect("validated");
+        &self.state0[f.start..f.start + f.len]
+    }
+
+    /// The recorded position and, for a full pose, orientation of a state object, as
+    /// written to the scene.
+    fn object_pose(&self, name: &str) -> ([Option<f64>; 3], Option<[f64; 4]>) {
+        let v = self.object(name);
+        let pos = [Some(v[0]), Some(v[1]), Some(v[2])];
+        let quat = (v.len() == 7).then(|| [v[3], v[4], v[5], v[6]]);
+        (pos, quat)
+    }
+
+    /// The position of a derived pose: offsets from its source object, z by its rule.
+    fn derived_position(&self, d: &DerivedPose) -> [Option<f64>; 3] {
+        let src = d.from.as_deref().map(|name| self.object(name));
+        let xy = |i: usize| src.map(|s| s[i] + d.offset[i]);
+        let z = match d.z {
+            ZRule::Keep => None,
+            ZRule::DhPlus(v) => Some(v + self.dh),
+            ZRule::TableTopPlus(v) => Some(self.table_top_z + v),
+            ZRule::FromSource => src.map(|s| s[2] + d.offset[2]),
+        };
+        [xy(0), xy(1), z]
+    }
+
+    /// Writes the recorded and derived poses kept in the model (static objects).
+    fn write_model_poses(&self, model: &mut MjModel, spec: &TaskSpec, derived: &[&DerivedPose]) {
+        for o in &spec.state.objects {
+            if is_model_pose(&o.source) {
+                let (pos, quat) = self.object_pose(&o.name);
+                write_model_pose(
+                    model,
+                    &o.source,
+                    pos,
+                    if o.restore_position_only { None } else { quat },
+                );
+            }
+        }
+        for d in derived {
+            if is_model_pose(&d.target) {
+                write_model_pose(model, &d.target, self.derived_position(d), d.quat);
+            }
+        }
+    }
+
+    /// Writes the recorded and derived poses kept in the data (free joints, mocap).
+    fn write_data_poses(
+        &self,
+        data: &mut MjData<Arc<MjModel>>,
+        spec: &TaskSpec,
+        derived: &[&DerivedPose],
+    ) {
+        for o in &spec.state.objects {
+            if !is_model_pose(&o.source) {
+                let (pos, quat) = self.object_pose(&o.name);
+                write_data_pose(
+                    data,
+                    &o.source,
+                    pos,
+                    if o.restore_position_only { None } else { quat },
+                );
+            }
+        }
+        for d in derived {
+            if !is_model_pose(&d.target) {
+                write_data_pose(data, &d.target, self.derived_position(d), d.quat);
+            }
+        }
     }
 }

@@ -24,6 +24,7 @@ pub mod primitives;
 mod render;
 mod scene;
 pub mod scripted;
+mod sheet;
 
 pub use checker::{SuccessChecker, Verdict, name_id, unresolved_names};
 pub use control::{
@@ -36,6 +37,7 @@ pub use feedback::Feedback;
 pub use geometry::Geometry;
 pub use render::{CameraView, Frame, RenderQuality, RenderSettings, RenderTimes, Renderer};
 pub use scene::{Scene, mujoco_library_path, mujoco_version, route_mujoco_warnings};
+pub use sheet::{SheetLayout, contact_sheet};
 
 /// Re-exported so callers can step and inspect the simulation without naming the crate.
 pub use mujoco_rs;

@@ -47,7 +47,7 @@ fn remove_spans(s: &str, start: &str, end: &str, keep: impl Fn(&str) -> bool) ->
 /// fragment included instead. Written into `dir` beside links to the reference files, so
 /// the robot's and arena's relative asset paths resolve.
 fn compose(spec: &TaskSpec, dir: &Path, fragment: Option<&Path>) -> PathBuf {
-    let xmls = common::scene_dir();
+    let xmls = dexjoco_testkit::reference_scene_dir();
     for e in fs_err::read_dir(&xmls).unwrap() {
         let e = e.unwrap();
         let link = dir.join(e.file_name());

@@ -65,6 +65,18 @@ impl LanguageReport {
             episodes,
             self.seeds
         );
+        self.markdown_distribution(&mut s);
+        self.markdown_precision(&mut s);
+        self.markdown_tests(&mut s);
+        let _ = writeln!(s, "\nVerdict: {}", self.verdict);
+        for w in &self.warnings {
+            let _ = writeln!(s, "\nwarning: {w}");
+        }
+        s
+    }
+
+    /// The output distribution table: each instruction's share of episodes per output.
+    fn markdown_distribution(&self, s: &mut String) {
         s.push_str("Output distribution (share of each instruction's episodes; expected answer in bold):\n\n| Instruction | Expected |");
         for o in &self.outputs {
             let _ = write!(s, " {o} |");
@@ -84,6 +96,10 @@ impl LanguageReport {
             }
             let _ = writeln!(s, " {} |", self.counts[i].iter().sum::<u64>());
         }
+    }
+
+    /// The precision table: mean ± sample std over seeds, and each seed's.
+    fn markdown_precision(&self, s: &mut String) {
         let _ = writeln!(
             s,
             "\nPrecision (% of episodes entering the expected answer), mean ± sample std (n - 1) over {} seed(s):\n",
@@ -105,6 +121,10 @@ impl LanguageReport {
                 fmt_std(p.over_seeds.std)
             );
         }
+    }
+
+    /// The tests: chi-square, normalized mutual information, Jensen-Shannon divergence.
+    fn markdown_tests(&self, s: &mut String) {
         let c = &self.chi_square;
         s.push_str("\nTests (all seeds pooled):\n\n");
         let _ = writeln!(
@@ -156,11 +176,6 @@ impl LanguageReport {
                 "- Jensen-Shannon divergence: fewer than two instructions with episodes\n",
             ),
         }
-        let _ = writeln!(s, "\nVerdict: {}", self.verdict);
-        for w in &self.warnings {
-            let _ = writeln!(s, "\nwarning: {w}");
-        }
-        s
     }
 
     /// Writes `language_eval.json`, `summary.md`, `distribution.csv`, `precision.csv`,

@@ -101,6 +101,80 @@ const CELL_H: i32 = 50;
 const LEFT: i32 = 170;
 const TOP: i32 = 80;
 
+impl Heatmap<'_> {
+    /// One row per instruction: its label, then a cell per output (shaded by its
+    /// proportion, the expected one boxed in red).
+    fn draw_cells<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
+        let r = self.report;
+        for (i, ins) in r.instructions.iter().enumerate() {
+            let y = TOP + CELL_H * i as i32;
+            let label = format!("\"{}\"  ({})", ins.label, ins.expected);
+            root.draw(&Text::new(
+                label,
+                (LEFT - 10, y + CELL_H / 2),
+                text_style(15.0, BLACK, HPos::Right, VPos::Center),
+            ))?;
+            for (j, out) in r.outputs.iter().enumerate() {
+                let x = LEFT + CELL_W * j as i32;
+                let p = r.proportions[i][j];
+                let t = if self.vmax > 0.0 { p / self.vmax } else { 0.0 };
+                root.draw(&Rectangle::new(
+                    [(x, y), (x + CELL_W, y + CELL_H)],
+                    blues(t).filled(),
+                ))?;
+                if *out == ins.expected {
+                    root.draw(&Rectangle::new(
+                        [(x + 1, y + 1), (x + CELL_W - 2, y + CELL_H - 2)],
+                        ShapeStyle::from(&RGBColor(214, 39, 40)).stroke_width(2),
+                    ))?;
+                }
+                let color = if t > 0.55 { WHITE } else { BLACK };
+                root.draw(&Text::new(
+                    format!("{p:.3}"),
+                    (x + CELL_W / 2, y + CELL_H / 2),
+                    text_style(14.0, color, HPos::Center, VPos::Center),
+                ))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The colour bar right of the grid, from the top of the grid to `bottom`, with
+    /// five ticks up to the largest proportion.
+    fn draw_colour_bar<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        bottom: i32,
+    ) -> DrawResult<DB> {
+        let r = self.report;
+        let bx = LEFT + CELL_W * r.outputs.len() as i32 + 30;
+        let steps = 100;
+        let height = bottom - TOP;
+        for k in 0..steps {
+            let y0 = bottom - height * k / steps;
+            let y1 = bottom - height * (k + 1) / steps;
+            root.draw(&Rectangle::new(
+                [(bx, y1), (bx + 18, y0)],
+                blues(f64::from(k) / f64::from(steps)).filled(),
+            ))?;
+        }
+        root.draw(&Rectangle::new(
+            [(bx, TOP), (bx + 18, bottom)],
+            ShapeStyle::from(&RGBColor(120, 120, 120)).stroke_width(1),
+        ))?;
+        for k in 0..=4 {
+            let v = self.vmax * f64::from(k) / 4.0;
+            let y = bottom - height * k / 4;
+            root.draw(&Text::new(
+                format!("{v:.2}"),
+                (bx + 24, y),
+                text_style(12.0, BLACK, HPos::Left, VPos::Center),
+            ))?;
+        }
+        Ok(())
+    }
+}
+
 impl Figure for Heatmap<'_> {
     fn size(&self) -> (u32, u32) {
         let r = &self.report;
@@ -138,36 +212,7 @@ impl Figure for Heatmap<'_> {
             (LEFT - 10, TOP - 12),
             text_style(13.0, RGBColor(90, 90, 90), HPos::Right, VPos::Center),
         ))?;
-        for (i, ins) in r.instructions.iter().enumerate() {
-            let y = TOP + CELL_H * i as i32;
-            let label = format!("\"{}\"  ({})", ins.label, ins.expected);
-            root.draw(&Text::new(
-                label,
-                (LEFT - 10, y + CELL_H / 2),
-                text_style(15.0, BLACK, HPos::Right, VPos::Center),
-            ))?;
-            for (j, out) in r.outputs.iter().enumerate() {
-                let x = LEFT + CELL_W * j as i32;
-                let p = r.proportions[i][j];
-                let t = if self.vmax > 0.0 { p / self.vmax } else { 0.0 };
-                root.draw(&Rectangle::new(
-                    [(x, y), (x + CELL_W, y + CELL_H)],
-                    blues(t).filled(),
-                ))?;
-                if *out == ins.expected {
-                    root.draw(&Rectangle::new(
-                        [(x + 1, y + 1), (x + CELL_W - 2, y + CELL_H - 2)],
-                        ShapeStyle::from(&RGBColor(214, 39, 40)).stroke_width(2),
-                    ))?;
-                }
-                let color = if t > 0.55 { WHITE } else { BLACK };
-                root.draw(&Text::new(
-                    format!("{p:.3}"),
-                    (x + CELL_W / 2, y + CELL_H / 2),
-                    text_style(14.0, color, HPos::Center, VPos::Center),
-                ))?;
-            }
-        }
+        self.draw_cells(root)?;
         let bottom = TOP + CELL_H * r.instructions.len() as i32;
         root.draw(&Rectangle::new(
             [
@@ -190,31 +235,7 @@ impl Figure for Heatmap<'_> {
             (mid, bottom + 44),
             text_style(15.0, BLACK, HPos::Center, VPos::Center),
         ))?;
-        // Colour bar.
-        let bx = LEFT + CELL_W * r.outputs.len() as i32 + 30;
-        let steps = 100;
-        let height = bottom - TOP;
-        for k in 0..steps {
-            let y0 = bottom - height * k / steps;
-            let y1 = bottom - height * (k + 1) / steps;
-            root.draw(&Rectangle::new(
-                [(bx, y1), (bx + 18, y0)],
-                blues(f64::from(k) / f64::from(steps)).filled(),
-            ))?;
-        }
-        root.draw(&Rectangle::new(
-            [(bx, TOP), (bx + 18, bottom)],
-            ShapeStyle::from(&RGBColor(120, 120, 120)).stroke_width(1),
-        ))?;
-        for k in 0..=4 {
-            let v = self.vmax * f64::from(k) / 4.0;
-            let y = bottom - height * k / 4;
-            root.draw(&Text::new(
-                format!("{v:.2}"),
-                (bx + 24, y),
-                text_style(12.0, BLACK, HPos::Left, VPos::Center),
-            ))?;
-        }
+        self.draw_colour_bar(root, bottom)?;
         Ok(())
     }
 }

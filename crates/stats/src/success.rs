@@ -9,7 +9,7 @@ use dexjoco_core::TaskSpec;
 use serde::{Deserialize, Serialize};
 
 use crate::error::StatsError;
-use crate::evaltree::{DEFAULT_REGIME, find_runs};
+use crate::evaltree::{DEFAULT_REGIME, Run, find_runs};
 use crate::measures::{MeanStd, mean_std};
 
 /// The display name of a task: its spec's (the paper's) for DexJoCo tasks, else the id
@@ -120,14 +120,56 @@ impl SuccessTable {
                     .into(),
             });
         }
+        let mut warnings = Vec::new();
+        let rates = Self::rates(root, &runs, &mut warnings)?;
+        let policies: Vec<String> = rates
+            .keys()
+            .map(|k| k.0.clone())
+            .collect::<BTreeSet<_>>()
+            .into_iter()
+            .collect();
+        let mut regimes: Vec<String> = rates
+            .keys()
+            .map(|k| k.1.clone())
+            .collect::<BTreeSet<_>>()
+            .into_iter()
+            .collect();
+        regimes.sort_by_key(|r| (r != DEFAULT_REGIME, r != "rand_full", r.clone()));
+        let mut tasks: Vec<String> = rates
+            .keys()
+            .map(|k| k.2.clone())
+            .collect::<BTreeSet<_>>()
+            .into_iter()
+            .collect();
+        tasks.sort_by_key(|t| (table_position(t), t.clone()));
+        let cells = Self::cells(rates, &policies, &regimes, &tasks);
+        let averages = Self::averages(&cells, &policies, &regimes, &tasks, &mut warnings);
+        Ok(Self {
+            source: root.to_path_buf(),
+            example: root.join(crate::language::EXAMPLE_MARKER).is_file(),
+            policies,
+            regimes,
+            tasks,
+            cells,
+            averages,
+            warnings,
+        })
+    }
+
+    /// The success rate (%) and episode count of every run by (policy, regime, task) and
+    /// seed, each run's consistency warning added to `warnings`.
+    fn rates(
+        root: &Path,
+        runs: &[Run],
+        warnings: &mut Vec<String>,
+    ) -> Result<BTreeMap<(String, String, String), PerSeed>, StatsError> {
         let root_name = root
             .canonicalize()
             .ok()
             .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
             .unwrap_or_else(|| "policy".into());
-        let mut warnings = Vec::new();
         let mut rates: BTreeMap<(String, String, String), PerSeed> = BTreeMap::new();
-        for run in &runs {
+        for run in runs {
             let parent = run.relative.parent().unwrap_or(Path::new(""));
             let policy = if parent.as_os_str().is_empty() {
                 root_name.clone()
@@ -159,27 +201,16 @@ impl SuccessTable {
                 ));
             }
         }
-        let policies: Vec<String> = rates
-            .keys()
-            .map(|k| k.0.clone())
-            .collect::<BTreeSet<_>>()
-            .into_iter()
-            .collect();
-        let mut regimes: Vec<String> = rates
-            .keys()
-            .map(|k| k.1.clone())
-            .collect::<BTreeSet<_>>()
-            .into_iter()
-            .collect();
-        regimes.sort_by_key(|r| (r != DEFAULT_REGIME, r != "rand_full", r.clone()));
-        let mut tasks: Vec<String> = rates
-            .keys()
-            .map(|k| k.2.clone())
-            .collect::<BTreeSet<_>>()
-            .into_iter()
-            .collect();
-        tasks.sort_by_key(|t| (table_position(t), t.clone()));
+        Ok(rates)
+    }
 
+    /// One cell per (policy, regime, task), in table order.
+    fn cells(
+        rates: BTreeMap<(String, String, String), PerSeed>,
+        policies: &[String],
+        regimes: &[String],
+        tasks: &[String],
+    ) -> Vec<SuccessCell> {
         let cells: Vec<SuccessCell> = rates
             .into_iter()
             .map(|((policy, regime, task), per_seed)| {
@@ -198,14 +229,26 @@ impl SuccessTable {
         let rank = |list: &[String], x: &String| list.iter().position(|y| y == x);
         cells.sort_by_key(|c| {
             (
-                rank(&policies, &c.policy),
-                rank(&regimes, &c.regime),
-                rank(&tasks, &c.task),
+                rank(policies, &c.policy),
+                rank(regimes, &c.regime),
+                rank(tasks, &c.task),
             )
         });
+        cells
+    }
+
+    /// The average of each policy and regime over its tasks (over the seeds every task
+    /// has), a warning added to `warnings` for each incomplete one.
+    fn averages(
+        cells: &[SuccessCell],
+        policies: &[String],
+        regimes: &[String],
+        tasks: &[String],
+        warnings: &mut Vec<String>,
+    ) -> Vec<AverageCell> {
         let mut averages = Vec::new();
-        for policy in &policies {
-            for regime in &regimes {
+        for policy in policies {
+            for regime in regimes {
                 let column: Vec<&SuccessCell> = cells
                     .iter()
                     .filter(|c| &c.policy == policy && &c.regime == regime)
@@ -254,16 +297,7 @@ impl SuccessTable {
                 });
             }
         }
-        Ok(Self {
-            source: root.to_path_buf(),
-            example: root.join(crate::language::EXAMPLE_MARKER).is_file(),
-            policies,
-            regimes,
-            tasks,
-            cells,
-            averages,
-            warnings,
-        })
+        averages
     }
 
     /// The cell of a policy, regime and task.

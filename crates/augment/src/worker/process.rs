@@ -8,7 +8,7 @@ use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
-use super::WorkerProcesses;
+use super::executor::{Executor, WorkerProcesses};
 use super::protocol::{FromWorker, SLOT_ENV, ToWorker, send};
 use crate::config::AugmentConfig;
 use crate::error::AugmentError;
@@ -68,7 +68,7 @@ impl Worker {
         if let Some(dev) = assigned {
             cmd.env(dexjoco_sim::EGL_DEVICE_ENV, dev.to_string());
         }
-        super::share_llvmpipe_threads(&mut cmd, busy);
+        share_llvmpipe_threads(&mut cmd, busy);
         let mut child = cmd.spawn().map_err(|e| {
             AugmentError::Input(format!(
                 "cannot start a worker process '{}': {e}",
@@ -256,7 +256,7 @@ impl WorkerPool {
     /// have) that preload the scenes of `tasks`, each with its share of the cores; none
     /// for the thread executor.
     pub(crate) fn start(
-        executor: &super::Executor,
+        executor: &Executor,
         config: &AugmentConfig,
         tasks: &[String],
         max_units: usize,
@@ -264,7 +264,7 @@ impl WorkerPool {
         let mut pool = Self {
             workers: Vec::new(),
         };
-        if let super::Executor::Processes(w) = executor {
+        if let Executor::Processes(w) = executor {
             let count = w.count.min(max_units).max(1);
             for slot in 0..count {
                 pool.workers
@@ -281,5 +281,20 @@ impl WorkerPool {
         let mut out: Vec<Option<Worker>> = self.workers.drain(..keep).map(Some).collect();
         out.resize_with(slots, || None);
         out
+    }
+}
+
+/// Gives one of `processes` rendering processes its share of the cores for Mesa's
+/// llvmpipe, which otherwise gives each process a raster thread per core (N processes
+/// would oversubscribe the cores N times over). A value the user set is kept; other
+/// drivers ignore the variable.
+pub fn share_llvmpipe_threads(cmd: &mut Command, processes: usize) {
+    const LP_THREADS_ENV: &str = "LP_NUM_THREADS";
+    if std::env::var_os(LP_THREADS_ENV).is_none() {
+        let cores = dexjoco_core::available_cores();
+        cmd.env(
+            LP_THREADS_ENV,
+            (cores / processes.max(1)).max(1).to_string(),
+        );
     }
 }

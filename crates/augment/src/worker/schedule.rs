@@ -9,9 +9,9 @@ use std::sync::{Condvar, Mutex, MutexGuard};
 
 use dexjoco_core::Progress;
 
+use super::executor::{UnitResult, WorkerProcesses};
 use super::process::{Silence, Worker, WorkerPool};
 use super::protocol::{FromWorker, ToWorker};
-use super::{UnitResult, WorkerProcesses};
 use crate::config::AugmentConfig;
 use crate::error::AugmentError;
 use crate::profile::StageTimes;

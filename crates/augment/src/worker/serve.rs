@@ -11,14 +11,23 @@ use dexjoco_core::TaskSet;
 use dexjoco_formats::Source as FoundSource;
 
 use super::protocol::{FromWorker, SLOT_ENV, ToWorker, send};
-use super::{FAULT_ENV, STALL_ENV};
+use crate::assets::{TaskAssets, load_assets};
 use crate::config::AugmentConfig;
 use crate::error::AugmentError;
 use crate::inputs::{Source, check_fields};
 use crate::render::{
     UnitInputs, UnitJob, close_renderer, preload_renderer, render_unit, renderer_ready,
 };
-use crate::run::{TaskAssets, load_assets};
+
+/// Environment variable of a test hook: `<task>/<episode>@<k>` makes a worker process die
+/// (exit status 134, as a crash would end it, without a core file) after the first rendered
+/// frames of that episode's units, on their first `k` attempts.
+pub const FAULT_ENV: &str = "DEXJOCO_TEST_WORKER_ABORT";
+
+/// Environment variable of a test hook: worker slots (`0,2`, or `all`) whose worker
+/// processes open their renderer and then stall before their first frame, as a hung EGL
+/// driver does.
+pub const STALL_ENV: &str = "DEXJOCO_TEST_WORKER_STALL";
 
 /// What a worker process holds between jobs.
 struct WorkerState {

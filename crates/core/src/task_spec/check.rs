@@ -67,33 +67,44 @@ impl TaskSpec {
     /// exist), the graph has no cycle, the state width matches the layout, objects named
     /// by placements and derived poses exist, ranges and counts are sensible.
     pub fn validate(&self) -> Result<(), TaskSpecError> {
-        let check_ref = |field: &str, r: &str| -> Result<(), TaskSpecError> {
-            let (base, out) = match r.split_once('.') {
-                Some((b, o)) => (b, Some(o)),
-                None => (r, None),
+        self.validate_nodes()?;
+        self.validate_state()?;
+        if let Some(h) = &self.reset.hand_qpos
+            && h.len() != crate::layout::HAND_DOF
+        {
+            return Err(self.invalid("reset.hand_qpos", format!("{} values, not 16", h.len())));
+        }
+        if self.step_cap == 0 {
+            return Err(self.invalid("step_cap", "must not be 0".into()));
+        }
+        if self.cameras.is_empty() {
+            return Err(self.invalid("cameras", "must not be empty".into()));
+        }
+        for (i, d) in self.dynamics.iter().enumerate() {
+            let r = match d {
+                DynamicsRandomization::MassScale { range, .. }
+                | DynamicsRandomization::FrictionlossUniform { range, .. }
+                | DynamicsRandomization::FrictionlossScale { range, .. }
+                | DynamicsRandomization::StiffnessScale { range, .. } => range,
             };
-            let node = self.nodes.get(base).ok_or_else(|| {
-                self.invalid(field, format!("reference to unknown node '{base}'"))
-            })?;
-            if let Some(o) = out
-                && !node.outputs().contains(&o)
-            {
-                return Err(self.invalid(
-                    field,
-                    format!(
-                        "node '{base}' has no output '{o}' (it has: {})",
-                        node.outputs().join(", ")
-                    ),
-                ));
+            if r[0] > r[1] || r[0] < 0.0 {
+                return Err(
+                    self.invalid(&format!("dynamics[{i}].range"), format!("bad range {r:?}"))
+                );
             }
-            Ok(())
-        };
+        }
+        Ok(())
+    }
+
+    /// The condition graph's checks: node names, references (and the outputs they
+    /// name), each node's own fields, the success and failure nodes, no cycle.
+    fn validate_nodes(&self) -> Result<(), TaskSpecError> {
         for (name, node) in &self.nodes {
             if name.contains('.') || name.is_empty() {
                 return Err(self.invalid("nodes", format!("bad node name '{name}'")));
             }
             for input in node.inputs() {
-                check_ref(&format!("nodes.{name}"), input)?;
+                self.check_ref(&format!("nodes.{name}"), input)?;
             }
             if let Node::ValueThreshold { of, .. } = node
                 && !of.contains('.')
@@ -105,12 +116,42 @@ impl TaskSpec {
             }
             self.validate_node(name, node)?;
         }
-        check_ref("success", &self.success)?;
+        self.check_ref("success", &self.success)?;
         if let Some(f) = &self.failure {
-            check_ref("failure", f)?;
+            self.check_ref("failure", f)?;
         }
         self.evaluation_order()?;
+        Ok(())
+    }
 
+    /// A reference at `field` to a node (`on_pad`) or a node's output (`nail.depth`)
+    /// resolves.
+    fn check_ref(&self, field: &str, r: &str) -> Result<(), TaskSpecError> {
+        let (base, out) = match r.split_once('.') {
+            Some((b, o)) => (b, Some(o)),
+            None => (r, None),
+        };
+        let node = self
+            .nodes
+            .get(base)
+            .ok_or_else(|| self.invalid(field, format!("reference to unknown node '{base}'")))?;
+        if let Some(o) = out
+            && !node.outputs().contains(&o)
+        {
+            return Err(self.invalid(
+                field,
+                format!(
+                    "node '{base}' has no output '{o}' (it has: {})",
+                    node.outputs().join(", ")
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The state's checks: the width matches the layout, object names are unique, and
+    /// placements and derived poses name known objects.
+    fn validate_state(&self) -> Result<(), TaskSpecError> {
         let width = self.state_layout().width();
         if width != self.state.width {
             return Err(self.invalid(
@@ -144,30 +185,6 @@ impl TaskSpec {
                     &format!("state.derived[{i}].from"),
                     format!("unknown object '{f}'"),
                 ));
-            }
-        }
-        if let Some(h) = &self.reset.hand_qpos
-            && h.len() != crate::layout::HAND_DOF
-        {
-            return Err(self.invalid("reset.hand_qpos", format!("{} values, not 16", h.len())));
-        }
-        if self.step_cap == 0 {
-            return Err(self.invalid("step_cap", "must not be 0".into()));
-        }
-        if self.cameras.is_empty() {
-            return Err(self.invalid("cameras", "must not be empty".into()));
-        }
-        for (i, d) in self.dynamics.iter().enumerate() {
-            let r = match d {
-                DynamicsRandomization::MassScale { range, .. }
-                | DynamicsRandomization::FrictionlossUniform { range, .. }
-                | DynamicsRandomization::FrictionlossScale { range, .. }
-                | DynamicsRandomization::StiffnessScale { range, .. } => range,
-            };
-            if r[0] > r[1] || r[0] < 0.0 {
-                return Err(
-                    self.invalid(&format!("dynamics[{i}].range"), format!("bad range {r:?}"))
-                );
             }
         }
         Ok(())
@@ -267,96 +284,99 @@ impl TaskSpec {
                 }
             }
         }
-        let point = |p: &PointRef, push: &mut dyn FnMut(NameKind, &str)| match p {
-            PointRef::Sensor(n) => push(NameKind::Sensor, n),
-            PointRef::Site(n) => push(NameKind::Site, n),
-            PointRef::Body(n) => push(NameKind::Body, n),
-            PointRef::Geom(n) => push(NameKind::Geom, n),
-        };
-        let frame = |f: &FrameRef, push: &mut dyn FnMut(NameKind, &str)| match f {
-            FrameRef::Site(n) => push(NameKind::Site, n),
-            FrameRef::Body(n) => push(NameKind::Body, n),
-            FrameRef::Geom(n) => push(NameKind::Geom, n),
-        };
-        let joint = |j: &JointRef, push: &mut dyn FnMut(NameKind, &str)| match j {
-            JointRef::Sensor(n) => push(NameKind::Sensor, n),
-            JointRef::Qpos(n) => push(NameKind::Joint, n),
-        };
-        let geoms = |g: &GeomSet, push: &mut dyn FnMut(NameKind, &str)| match g {
-            GeomSet::Any => {}
-            GeomSet::Geoms(v) => v.iter().for_each(|n| push(NameKind::Geom, n)),
-            GeomSet::Subtree(b) | GeomSet::OutsideSubtree(b) => push(NameKind::Body, b),
-        };
         for node in self.nodes.values() {
-            match node {
-                Node::PointInCylinder {
-                    point: p, center, ..
-                } => {
-                    point(p, &mut push);
-                    point(center, &mut push);
-                }
-                Node::PointInBox {
-                    point: p, origin, ..
-                } => {
-                    point(p, &mut push);
-                    frame(origin, &mut push);
-                }
-                Node::PointInSiteBox { point: p, sites } => {
-                    point(p, &mut push);
-                    sites.iter().for_each(|s| push(NameKind::Site, s));
-                }
-                Node::HeightAboveReset { sites, .. } => {
-                    sites.iter().for_each(|s| push(NameKind::Site, s))
-                }
-                Node::AboveReference {
-                    point: p,
-                    reference,
-                    ..
-                } => {
-                    point(p, &mut push);
-                    point(reference, &mut push);
-                }
-                Node::AxisAlignment { frame: f, .. } => frame(f, &mut push),
-                Node::JointThreshold { joint: j, .. }
-                | Node::JointAboveReset { joint: j, .. }
-                | Node::JointHysteresis { joint: j, .. } => joint(j, &mut push),
-                Node::Contact { a, b, .. } => {
-                    geoms(a, &mut push);
-                    geoms(b, &mut push);
-                }
-                Node::NailSinking {
-                    hammer,
-                    nail,
-                    face,
-                    nail_body,
-                    ..
-                } => {
-                    hammer
-                        .iter()
-                        .chain(nail)
-                        .chain([face])
-                        .for_each(|g| push(NameKind::Geom, g));
-                    push(NameKind::Body, nail_body);
-                }
-                Node::Keypad {
-                    buttons, fingers, ..
-                } => {
-                    buttons.iter().for_each(|b| push(NameKind::Geom, &b.geom));
-                    fingers.iter().for_each(|g| push(NameKind::Geom, g));
-                }
-                Node::HanoiTowers {
-                    base, posts, disks, ..
-                } => {
-                    push(NameKind::Body, base);
-                    posts.iter().for_each(|s| push(NameKind::Site, s));
-                    disks.iter().for_each(|d| push(NameKind::Joint, &d.joint));
-                }
-                _ => {}
-            }
+            node_scene_names(node, &mut push);
         }
         out.sort();
         out.dedup();
         out
+    }
+}
+
+/// The scene names one condition node refers to, given to `push`.
+fn node_scene_names(node: &Node, push: &mut dyn FnMut(NameKind, &str)) {
+    let point = |p: &PointRef, push: &mut dyn FnMut(NameKind, &str)| match p {
+        PointRef::Sensor(n) => push(NameKind::Sensor, n),
+        PointRef::Site(n) => push(NameKind::Site, n),
+        PointRef::Body(n) => push(NameKind::Body, n),
+        PointRef::Geom(n) => push(NameKind::Geom, n),
+    };
+    let frame = |f: &FrameRef, push: &mut dyn FnMut(NameKind, &str)| match f {
+        FrameRef::Site(n) => push(NameKind::Site, n),
+        FrameRef::Body(n) => push(NameKind::Body, n),
+        FrameRef::Geom(n) => push(NameKind::Geom, n),
+    };
+    let joint = |j: &JointRef, push: &mut dyn FnMut(NameKind, &str)| match j {
+        JointRef::Sensor(n) => push(NameKind::Sensor, n),
+        JointRef::Qpos(n) => push(NameKind::Joint, n),
+    };
+    let geoms = |g: &GeomSet, push: &mut dyn FnMut(NameKind, &str)| match g {
+        GeomSet::Any => {}
+        GeomSet::Geoms(v) => v.iter().for_each(|n| push(NameKind::Geom, n)),
+        GeomSet::Subtree(b) | GeomSet::OutsideSubtree(b) => push(NameKind::Body, b),
+    };
+    match node {
+        Node::PointInCylinder {
+            point: p, center, ..
+        } => {
+            point(p, push);
+            point(center, push);
+        }
+        Node::PointInBox {
+            point: p, origin, ..
+        } => {
+            point(p, push);
+            frame(origin, push);
+        }
+        Node::PointInSiteBox { point: p, sites } => {
+            point(p, push);
+            sites.iter().for_each(|s| push(NameKind::Site, s));
+        }
+        Node::HeightAboveReset { sites, .. } => sites.iter().for_each(|s| push(NameKind::Site, s)),
+        Node::AboveReference {
+            point: p,
+            reference,
+            ..
+        } => {
+            point(p, push);
+            point(reference, push);
+        }
+        Node::AxisAlignment { frame: f, .. } => frame(f, push),
+        Node::JointThreshold { joint: j, .. }
+        | Node::JointAboveReset { joint: j, .. }
+        | Node::JointHysteresis { joint: j, .. } => joint(j, push),
+        Node::Contact { a, b, .. } => {
+            geoms(a, push);
+            geoms(b, push);
+        }
+        Node::NailSinking {
+            hammer,
+            nail,
+            face,
+            nail_body,
+            ..
+        } => {
+            hammer
+                .iter()
+                .chain(nail)
+                .chain([face])
+                .for_each(|g| push(NameKind::Geom, g));
+            push(NameKind::Body, nail_body);
+        }
+        Node::Keypad {
+            buttons, fingers, ..
+        } => {
+            buttons.iter().for_each(|b| push(NameKind::Geom, &b.geom));
+            fingers.iter().for_each(|g| push(NameKind::Geom, g));
+        }
+        Node::HanoiTowers {
+            base, posts, disks, ..
+        } => {
+            push(NameKind::Body, base);
+            posts.iter().for_each(|s| push(NameKind::Site, s));
+            disks.iter().for_each(|d| push(NameKind::Joint, &d.joint));
+        }
+        _ => {}
     }
 }
 

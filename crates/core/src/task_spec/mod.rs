@@ -16,12 +16,15 @@
 //! from these types, so schema and reader cannot disagree.
 //!
 //! The module is split by job: this file holds the spec itself and its loading;
-//! `state` the reset, table, privileged state and randomization types; `nodes`
+//! `builtin` the specs shipped in `schemas/tasks/`; `state` the reset, table, privileged
+//! state and randomization types; `privileged` the privileged state's columns; `nodes`
 //! the condition graph's node types; `check` the validation, evaluation order and the
 //! scene names a spec uses.
 
+mod builtin;
 mod check;
 mod nodes;
+mod privileged;
 mod state;
 #[cfg(test)]
 mod tests;
@@ -32,10 +35,12 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::layout::{ArmSetup, ArrayLayout};
-use crate::task_set::TaskSet;
 
+pub use builtin::BUILTIN_SPEC_FILES;
+pub(crate) use builtin::builtin_specs;
 pub use check::NameKind;
 pub use nodes::*;
+pub use privileged::{PrivilegedField, PrivilegedKind};
 pub use state::*;
 
 /// One DexJoCo task.
@@ -161,12 +166,6 @@ impl TaskSpecError {
 }
 
 impl TaskSpec {
-    /// The shipped spec of a task (embedded from `schemas/tasks/`, parsed once per
-    /// process); `None` for an unknown id.
-    pub fn builtin(id: &str) -> Option<&'static Self> {
-        TaskSet::builtin().get(id)
-    }
-
     /// Parses a spec from TOML text (strict: unknown keys are errors; every number
     /// finite) and validates it. Errors name `label` and the field.
     pub fn from_toml_str(text: &str, label: &str) -> Result<Self, TaskSpecError> {
@@ -227,5 +226,10 @@ impl TaskSpec {
         }
         l.push("dh", 1);
         l
+    }
+
+    /// The raw keys of the task's camera streams (`front`, `ego`, `wrist_left`...).
+    pub fn camera_keys(&self) -> impl Iterator<Item = &str> {
+        self.cameras.iter().map(|c| c.key.as_str())
     }
 }

@@ -1,7 +1,6 @@
 //! Tests of task specs: the shipped files, the schema, the checks.
 
 use super::*;
-use crate::task_set::{BUILTIN_SPEC_FILES, TaskSet};
 use std::path::PathBuf;
 
 fn schemas_dir() -> PathBuf {
@@ -22,34 +21,6 @@ const TASKS: [(&str, usize); 11] = [
     ("pinch_tongs", 31),
     ("water_plant", 38),
 ];
-
-#[test]
-fn the_embedded_specs_are_the_folder() {
-    let from_dir = TaskSpec::load_dir(&schemas_dir().join("tasks")).unwrap();
-    let embedded: Vec<TaskSpec> = TaskSet::builtin().iter().cloned().collect();
-    assert_eq!(embedded, from_dir);
-    assert_eq!(TaskSpec::builtin("click_mouse").unwrap(), &from_dir[5]);
-    assert!(TaskSpec::builtin("no_such_task").is_none());
-    // A folder of specs replaces built-in ones by id and adds new ones.
-    let tmp = tempfile::tempdir().unwrap();
-    let mut text = BUILTIN_SPEC_FILES[5]
-        .1
-        .replace("prompt = \"", "prompt = \"Changed. ");
-    fs_err::write(tmp.path().join("click_mouse.toml"), &text).unwrap();
-    text = text.replace("id = \"click_mouse\"", "id = \"my_click\"");
-    fs_err::write(tmp.path().join("my_click.toml"), &text).unwrap();
-    let all: Vec<TaskSpec> = TaskSet::with_dir(Some(tmp.path()))
-        .unwrap()
-        .iter()
-        .cloned()
-        .collect();
-    assert_eq!(all.len(), 12);
-    let mine = all.iter().find(|s| s.id == "click_mouse").unwrap();
-    assert!(mine.prompt.starts_with("Changed. "), "{}", mine.prompt);
-    assert!(all.iter().any(|s| s.id == "my_click"));
-    let builtin: Vec<TaskSpec> = TaskSet::with_dir(None).unwrap().iter().cloned().collect();
-    assert_eq!(builtin, from_dir);
-}
 
 #[test]
 fn every_task_spec_loads_and_validates() {
@@ -207,4 +178,16 @@ fn unknown_keys_and_bad_references_are_refused() {
         "[nodes.done]\nkind = \"any\"\nof = [\"e\"]\n[nodes.e]\nkind = \"joint_threshold\"\njoint = { qpos = \"j\" }\nop = \"gt\"\nvalue = 1.0\n",
     ) + "\n[extra]\nx = 1\n";
     assert!(TaskSpec::from_toml_str(&top, "t").is_err());
+}
+
+#[test]
+fn privileged_fields_cover_the_state_after_proprioception() {
+    for t in builtin_specs().values() {
+        let p = t.privileged();
+        assert_eq!(p.first().unwrap().start, t.setup.proprio_dim(), "{}", t.id);
+        assert_eq!(p.last().unwrap().start, t.dh_column());
+        assert_eq!(t.state_layout().column_name(t.dh_column()), "dh[0]");
+    }
+    let hanoi = TaskSpec::builtin("bimanual_hanoi").unwrap();
+    assert_eq!(hanoi.privileged()[0].kind, PrivilegedKind::Position);
 }

@@ -5,7 +5,8 @@
 use std::collections::BTreeSet;
 
 use dexjoco_core::{
-    Axis, BoxAxes, Cmp, FrameRef, GeomSet, JointRef, NameKind, Node, PointRef, TaskSpec, Threshold,
+    Axis, BoxAxes, Cmp, FrameRef, GeomSet, HanoiDisk, JointRef, KeypadButton, NameKind, Node,
+    PointRef, TaskSpec, Threshold,
 };
 use mujoco_rs::prelude::MjModel;
 
@@ -339,9 +340,38 @@ impl Compiler<'_> {
         v.iter().map(|s| self.res.id(NameKind::Site, s)).collect()
     }
 
-    /// Compiles one node.
+    /// Compiles one node, by constraint kind.
     fn node(&mut self, node: &Node) -> Result<Compiled, SimError> {
-        Ok(match node {
+        match node {
+            Node::PointInCylinder { .. }
+            | Node::PointInBox { .. }
+            | Node::PointInSiteBox { .. }
+            | Node::HeightAboveReset { .. }
+            | Node::AboveReference { .. }
+            | Node::AxisAlignment { .. } => Ok(self.pose_node(node)),
+            Node::JointThreshold { .. }
+            | Node::JointAboveReset { .. }
+            | Node::JointHysteresis { .. }
+            | Node::Contact { .. } => Ok(self.joint_or_contact_node(node)),
+            Node::All { .. }
+            | Node::Any { .. }
+            | Node::Not { .. }
+            | Node::Held { .. }
+            | Node::RisingEdge { .. }
+            | Node::FallingEdge { .. }
+            | Node::Counter { .. }
+            | Node::Latch { .. }
+            | Node::Sequence { .. }
+            | Node::ValueThreshold { .. } => self.seq_node(node),
+            Node::NailSinking { .. } | Node::Keypad { .. } | Node::HanoiTowers { .. } => {
+                self.mechanic_node(node)
+            }
+        }
+    }
+
+    /// Compiles a g_pose node.
+    fn pose_node(&mut self, node: &Node) -> Compiled {
+        match node {
             Node::PointInCylinder {
                 point: pt,
                 center,
@@ -400,6 +430,13 @@ impl Compiler<'_> {
                 target: *target,
                 max_angle_deg: *max_angle_deg,
             },
+            _ => unreachable!("node() sends only g_pose nodes here"),
+        }
+    }
+
+    /// Compiles a g_joint or g_contact node.
+    fn joint_or_contact_node(&mut self, node: &Node) -> Compiled {
+        match node {
             Node::JointThreshold {
                 joint: j,
                 op,
@@ -431,6 +468,13 @@ impl Compiler<'_> {
                 b: self.geoms(b),
                 max_dist: *max_dist,
             },
+            _ => unreachable!("node() sends only g_joint and g_contact nodes here"),
+        }
+    }
+
+    /// Compiles a g_seq node (time, order, counting, logic).
+    fn seq_node(&mut self, node: &Node) -> Result<Compiled, SimError> {
+        Ok(match node {
             Node::All { of } => Compiled::All(self.ports(of)?),
             Node::Any { of } => Compiled::Any(self.ports(of)?),
             Node::Not { of } => Compiled::Not(self.port(of)?),
@@ -466,6 +510,13 @@ impl Compiler<'_> {
                 op: *op,
                 value: *value,
             },
+            _ => unreachable!("node() sends only g_seq nodes here"),
+        })
+    }
+
+    /// Compiles a scene mechanic (nail, keypad, Hanoi).
+    fn mechanic_node(&mut self, node: &Node) -> Result<Compiled, SimError> {
+        Ok(match node {
             Node::NailSinking {
                 hammer,
                 nail,
@@ -478,18 +529,12 @@ impl Compiler<'_> {
                 max_scale,
                 max_depth,
             } => {
-                let body = self.res.id(NameKind::Body, nail_body);
-                let mocap = self.model.body_mocapid().get(body).copied().unwrap_or(-1);
-                if body != usize::MAX && mocap < 0 {
-                    return Err(SimError::Spec(format!(
-                        "body '{nail_body}' is not a mocap body"
-                    )));
-                }
+                let mocap = self.nail_mocap(nail_body)?;
                 Compiled::Nail {
                     hammer: self.set(hammer),
                     nail: self.set(nail),
                     face: self.res.id(NameKind::Geom, face),
-                    mocap: mocap.max(0) as usize,
+                    mocap,
                     params: NailParams {
                         window: *window,
                         vz_divisor: *vz_divisor,
@@ -506,20 +551,12 @@ impl Compiler<'_> {
                 buttons,
                 fingers,
                 password,
-            } => {
-                let mut b: Vec<(usize, u8)> = buttons
-                    .iter()
-                    .map(|b| (self.res.id(NameKind::Geom, &b.geom), b.digit))
-                    .collect();
-                // New presses are handled in ascending geom id order.
-                b.sort();
-                Compiled::Keypad {
-                    buttons: b,
-                    fingers: self.set(fingers),
-                    password: password.clone(),
-                    state: Keypad::default(),
-                }
-            }
+            } => Compiled::Keypad {
+                buttons: self.keypad_buttons(buttons),
+                fingers: self.set(fingers),
+                password: password.clone(),
+                state: Keypad::default(),
+            },
             Node::HanoiTowers {
                 base,
                 posts,
@@ -536,15 +573,7 @@ impl Compiler<'_> {
             } => Compiled::Hanoi {
                 base: self.res.id(NameKind::Body, base),
                 posts: self.sites(posts),
-                disks: disks
-                    .iter()
-                    .map(|d| {
-                        let j = self.res.id(NameKind::Joint, &d.joint);
-                        let q = self.model.jnt_qposadr().get(j).map_or(0, |a| *a as usize);
-                        let v = self.model.jnt_dofadr().get(j).map_or(0, |a| *a as usize);
-                        (q, v)
-                    })
-                    .collect(),
+                disks: self.hanoi_disks(disks),
                 params: HanoiParams {
                     top_offset: *top_offset,
                     half_height: *half_height,
@@ -558,7 +587,45 @@ impl Compiler<'_> {
                 },
                 state: Hanoi::default(),
             },
+            _ => unreachable!("node() sends only scene mechanics here"),
         })
+    }
+
+    /// The mocap id of the nail's body (which must be a mocap body; 0 when the body is
+    /// missing, which the resolver reports).
+    fn nail_mocap(&mut self, nail_body: &str) -> Result<usize, SimError> {
+        let body = self.res.id(NameKind::Body, nail_body);
+        let mocap = self.model.body_mocapid().get(body).copied().unwrap_or(-1);
+        if body != usize::MAX && mocap < 0 {
+            return Err(SimError::Spec(format!(
+                "body '{nail_body}' is not a mocap body"
+            )));
+        }
+        Ok(mocap.max(0) as usize)
+    }
+
+    /// The keypad's buttons as (geom id, digit), sorted.
+    fn keypad_buttons(&mut self, buttons: &[KeypadButton]) -> Vec<(usize, u8)> {
+        let mut b: Vec<(usize, u8)> = buttons
+            .iter()
+            .map(|b| (self.res.id(NameKind::Geom, &b.geom), b.digit))
+            .collect();
+        // New presses are handled in ascending geom id order.
+        b.sort();
+        b
+    }
+
+    /// The Hanoi disks' free joints as (qpos address, dof address).
+    fn hanoi_disks(&mut self, disks: &[HanoiDisk]) -> Vec<(usize, usize)> {
+        disks
+            .iter()
+            .map(|d| {
+                let j = self.res.id(NameKind::Joint, &d.joint);
+                let q = self.model.jnt_qposadr().get(j).map_or(0, |a| *a as usize);
+                let v = self.model.jnt_dofadr().get(j).map_or(0, |a| *a as usize);
+                (q, v)
+            })
+            .collect()
     }
 }
 

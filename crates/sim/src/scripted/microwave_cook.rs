@@ -267,89 +267,167 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let s = env.state();
     let right_home = [s[3], s[4], s[5], s[6]];
     let mut rec = Recorder::new(env);
-    let door = |e: &TaskEnv| kin::joint(e, "microjoint");
-    let show = |rec: &Recorder, what: &str| {
-        if debug() {
-            let e = rec.env();
-            eprintln!(
-                "{what}: step {} door {:.3} hot dog {:.3?} closed {:?} inside {:?} pressed {:?}",
-                e.steps(),
-                door(e).unwrap_or(f64::NAN),
-                kin::body(e, "hot_dog").map(|b| b.0).unwrap_or_default(),
-                e.checker().value("door_closed"),
-                e.checker().value("food_inside"),
-                e.checker().value("start_pressed"),
-            );
+    let setup = Setup::measure(rec.env(), right_home)?;
+    grip_handle_and_hot_dog(&mut rec, &setup)?;
+    let spot = pull_door_open(&mut rec, &setup)?;
+    let back = place_hot_dog(&mut rec, &setup, spot)?;
+    let ready = shut_door(&mut rec, &setup, back)?;
+    press_start(&mut rec, &setup, ready)?;
+    rec.finish(id)
+}
+
+/// Where the pictures of [`snap`] look by default.
+const VIEW: V3 = [-0.3, 0.0, 1.1];
+
+/// The microwave's door angle (rad; 0 closed, negative open).
+fn door_angle(e: &TaskEnv) -> Result<f64, SimError> {
+    kin::joint(e, "microjoint")
+}
+
+/// In debug mode, prints the door, the hot dog and the success nodes after a phase.
+fn show(rec: &Recorder, what: &str) {
+    if debug() {
+        let e = rec.env();
+        eprintln!(
+            "{what}: step {} door {:.3} hot dog {:.3?} closed {:?} inside {:?} pressed {:?}",
+            e.steps(),
+            door_angle(e).unwrap_or(f64::NAN),
+            kin::body(e, "hot_dog").map(|b| b.0).unwrap_or_default(),
+            e.checker().value("door_closed"),
+            e.checker().value("food_inside"),
+            e.checker().value("start_pressed"),
+        );
+    }
+}
+
+/// The scene as the plan measures it at the start: the door's frame and the hook on its
+/// handle, the clamp across the hot dog, the oven's frame and the hand's orientations
+/// for placing and pressing, the start button.
+#[derive(Debug)]
+struct Setup {
+    hinge: V3,
+    theta0: f64,
+    pivot: V3,
+    hook_rel: V3,
+    dog: usize,
+    dp: V3,
+    grip: V3,
+    rq: Q,
+    mp: V3,
+    mm: [f64; 9],
+    into: V3,
+    floor: f64,
+    iyaw: f64,
+    level: Q,
+    pq: Q,
+    button: usize,
+    button_depth: f64,
+}
+
+impl Setup {
+    /// Measures the scene of an environment just restored from its initial state.
+    fn measure(e: &TaskEnv, right_home: Q) -> Result<Self, SimError> {
+        let geom_id = |name: &str| {
+            name_id(e.data().model(), NameKind::Geom, name)
+                .ok_or_else(|| SimError::Spec(format!("the scene has no geom '{name}'")))
+        };
+        // The door's frame: offsets from the hinge as they are with the door closed.
+        let hinge = kin::anchor(e, "microjoint")?;
+        let theta0 = door_angle(e)?;
+        let bar = rz(kin::sub(kin::geom(e, "door_handle")?.0, hinge), -theta0);
+        // The bar's half width along the door and half depth (its box, microwave frame).
+        let [bar_width, bar_depth, _] = e.data().model().geom_size()[geom_id("door_handle")?];
+        // The hook: left fingers pointing along the door toward its free edge through the gap
+        // between the bar and the door, palm toward the door (thumb down), turned about the
+        // vertical through the gap at the bar.
+        let gap = (bar[0] + bar_depth) / 2.0;
+        let pivot = [gap, bar[1], 0.0];
+        let hook_rel = [
+            gap - FINGERS_OUT,
+            bar[1] + bar_width + HOOK_IN,
+            bar[2] + HOOK_UP,
+        ];
+        // The right hand's clamp across the hot dog, fingers along its width (+x-ish).
+        let dog = super::geom_of_body(e, "hot_dog")
+            .ok_or_else(|| SimError::Spec("no hot dog collision geom".into()))?;
+        let (dp, dm) = (e.data().geom_xpos()[dog], e.data().geom_xmat()[dog]);
+        let mut d = [dm[1], dm[4], 0.0];
+        if d[0] < 0.0 {
+            d = [-d[0], -d[1], 0.0];
         }
-    };
-    let view = [-0.3, 0.0, 1.1];
-    let e = rec.env();
-    let geom_id = |name: &str| {
-        name_id(e.data().model(), NameKind::Geom, name)
-            .ok_or_else(|| SimError::Spec(format!("the scene has no geom '{name}'")))
-    };
-    // The door's frame: offsets from the hinge as they are with the door closed.
-    let hinge = kin::anchor(e, "microjoint")?;
-    let theta0 = door(e)?;
-    let bar = rz(kin::sub(kin::geom(e, "door_handle")?.0, hinge), -theta0);
-    // The bar's half width along the door and half depth (its box, microwave frame).
-    let [bar_width, bar_depth, _] = e.data().model().geom_size()[geom_id("door_handle")?];
-    // The hook: left fingers pointing along the door toward its free edge through the gap
-    // between the bar and the door, palm toward the door (thumb down), turned about the
-    // vertical through the gap at the bar.
-    let gap = (bar[0] + bar_depth) / 2.0;
-    let pivot = [gap, bar[1], 0.0];
-    let hook_rel = [
-        gap - FINGERS_OUT,
-        bar[1] + bar_width + HOOK_IN,
-        bar[2] + HOOK_UP,
-    ];
-    let hook = |theta: f64, out: f64, along: f64, h: [f64; HAND_DOF]| {
-        let local = kin::add(hook_rel, [out, along, 0.0]);
-        let local = kin::add(pivot, rz(kin::sub(local, pivot), HOOK_YAW));
+        let d = kin::horizontal(d);
+        let rq = kin::qmul(kin::yaw(d[1].atan2(d[0])), right_home);
+        let mut grip = kin::sub(dp, kin::scale(d, FOOD_X));
+        grip[2] = dp[2] + FOOD_DOWN;
+        // The oven's frame; the hand placing (yawed, pitched) and pressing (level).
+        let (mp, mm) = kin::body(e, "microwave_object")?;
+        let into = kin::horizontal(kin::mulv(&mm, [0.0, 1.0, 0.0]));
+        let floor = mp[2] - 0.126;
+        let iyaw = into[1].atan2(into[0]);
+        let level = kin::qmul(kin::yaw(iyaw), right_home);
+        let pyaw = iyaw + PLACE_YAW;
+        let pq = kin::qmul(
+            kin::axis_angle([-pyaw.sin(), pyaw.cos(), 0.0], -PITCH),
+            kin::qmul(kin::yaw(pyaw), right_home),
+        );
+        let button = geom_id("start_button")?;
+        let button_depth = e.data().model().geom_size()[button][1];
+        Ok(Self {
+            hinge,
+            theta0,
+            pivot,
+            hook_rel,
+            dog,
+            dp,
+            grip,
+            rq,
+            mp,
+            mm,
+            into,
+            floor,
+            iyaw,
+            level,
+            pq,
+            button,
+            button_depth,
+        })
+    }
+
+    /// The left hand hooked in the handle with the door at `theta`, moved `out` from
+    /// the door and `along` it toward the hinge side.
+    fn hook(&self, theta: f64, out: f64, along: f64, h: [f64; HAND_DOF]) -> Pose {
+        let local = kin::add(self.hook_rel, [out, along, 0.0]);
+        let local = kin::add(self.pivot, rz(kin::sub(local, self.pivot), HOOK_YAW));
         Pose {
-            p: kin::add(hinge, rz(local, theta)),
+            p: kin::add(self.hinge, rz(local, theta)),
             q: frame(
                 rz([0.0, -1.0, 0.0], theta + HOOK_YAW),
                 rz([1.0, 0.0, 0.0], theta + HOOK_YAW),
             ),
             h,
         }
-    };
-    // The right hand's clamp across the hot dog, fingers along its width (+x-ish).
-    let dog = super::geom_of_body(e, "hot_dog")
-        .ok_or_else(|| SimError::Spec("no hot dog collision geom".into()))?;
-    let (dp, dm) = (e.data().geom_xpos()[dog], e.data().geom_xmat()[dog]);
-    let mut d = [dm[1], dm[4], 0.0];
-    if d[0] < 0.0 {
-        d = [-d[0], -d[1], 0.0];
     }
-    let d = kin::horizontal(d);
-    let rq = kin::qmul(kin::yaw(d[1].atan2(d[0])), right_home);
-    let mut grip = kin::sub(dp, kin::scale(d, FOOD_X));
-    grip[2] = dp[2] + FOOD_DOWN;
-    let clamp = |p: V3, h: [f64; HAND_DOF]| Pose { p, q: rq, h };
-    // The oven's frame; the hand placing (yawed, pitched) and pressing (level).
-    let (mp, mm) = kin::body(e, "microwave_object")?;
-    let oven = |p: V3| kin::add(mp, kin::mulv(&mm, p));
-    let into = kin::horizontal(kin::mulv(&mm, [0.0, 1.0, 0.0]));
-    let floor = mp[2] - 0.126;
-    let iyaw = into[1].atan2(into[0]);
-    let level = kin::qmul(kin::yaw(iyaw), right_home);
-    let pyaw = iyaw + PLACE_YAW;
-    let pq = kin::qmul(
-        kin::axis_angle([-pyaw.sin(), pyaw.cos(), 0.0], -PITCH),
-        kin::qmul(kin::yaw(pyaw), right_home),
-    );
-    let button = geom_id("start_button")?;
-    let button_depth = e.data().model().geom_size()[button][1];
 
-    // Both hands above their grips, then in: the left fingers slide into the gap while
-    // the right hand clamps the hot dog.
+    /// The right hand's clamp orientation at `p` with hand `h`.
+    fn clamp(&self, p: V3, h: [f64; HAND_DOF]) -> Pose {
+        Pose { p, q: self.rq, h }
+    }
+
+    /// A point given in the oven's frame, in world coordinates.
+    fn oven(&self, p: V3) -> V3 {
+        kin::add(self.mp, kin::mulv(&self.mm, p))
+    }
+}
+
+/// Both hands above their grips, then in: the left fingers slide into the gap while
+/// the right hand clamps the hot dog.
+fn grip_handle_and_hot_dog(rec: &mut Recorder, setup: &Setup) -> Result<(), SimError> {
     rec.go_many(
         &[
-            hook(theta0, -0.1, 0.15, HOOK).goal(LEFT),
-            clamp(kin::add(grip, [0.0, 0.0, 0.1]), CLAMP_OPEN).goal(RIGHT),
+            setup.hook(setup.theta0, -0.1, 0.15, HOOK).goal(LEFT),
+            setup
+                .clamp(kin::add(setup.grip, [0.0, 0.0, 0.1]), CLAMP_OPEN)
+                .goal(RIGHT),
         ],
         90,
         |_| false,
@@ -357,38 +435,45 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     rec.settle(0.01, 30)?;
     rec.go_many(
         &[
-            hook(theta0, 0.0, 0.15, HOOK).goal(LEFT),
-            clamp(grip, CLAMP_OPEN).goal(RIGHT),
+            setup.hook(setup.theta0, 0.0, 0.15, HOOK).goal(LEFT),
+            setup.clamp(setup.grip, CLAMP_OPEN).goal(RIGHT),
         ],
         40,
         |_| false,
     )?;
     rec.settle(0.005, 30)?;
-    show(&rec, "at the handle and the hot dog");
-    snap(&mut rec, "a_grip", dp, 0.4);
+    show(rec, "at the handle and the hot dog");
+    snap(rec, "a_grip", setup.dp, 0.4);
     rec.go_many(
         &[
-            hook(theta0, 0.0, 0.0, HOOK).goal(LEFT),
-            clamp(grip, CLOSE).goal(RIGHT),
+            setup.hook(setup.theta0, 0.0, 0.0, HOOK).goal(LEFT),
+            setup.clamp(setup.grip, CLOSE).goal(RIGHT),
         ],
         10,
         |_| false,
     )?;
     rec.wait(30)?;
-    show(&rec, "hooked and clamped");
-    snap(&mut rec, "b_hooked", view, 1.0);
+    show(rec, "hooked and clamped");
+    snap(rec, "b_hooked", VIEW, 1.0);
+    Ok(())
+}
 
-    // Pull the door open; the right hand lifts the hot dog and takes it beside the
-    // opening, clear of the door's sweep, turning to its placing orientation.
-    let mut spot = oven([PLACE_X, DROP_Y, 0.0]);
-    spot[2] = floor + 0.03 + DROP_UP;
+/// Pull the door open; the right hand lifts the hot dog and takes it beside the
+/// opening, clear of the door's sweep, turning to its placing orientation. Returns the
+/// spot where the hot dog goes.
+fn pull_door_open(rec: &mut Recorder, setup: &Setup) -> Result<V3, SimError> {
+    let mut spot = setup.oven([PLACE_X, DROP_Y, 0.0]);
+    spot[2] = setup.floor + 0.03 + DROP_UP;
     let aside = kin::add(spot, [-0.35, -0.2, 0.1]);
     let mut track = Track::default()
-        .then(clamp(kin::add(grip, [0.0, 0.0, 0.15]), CLOSE), 50)
+        .then(
+            setup.clamp(kin::add(setup.grip, [0.0, 0.0, 0.15]), CLOSE),
+            50,
+        )
         .then(
             Pose {
                 p: aside,
-                q: pq,
+                q: setup.pq,
                 h: CLOSE,
             },
             70,
@@ -396,57 +481,79 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let start = rec.env().steps();
     let mut pulling = true;
     while !rec.done() {
-        let theta = door(rec.env())?;
+        let theta = door_angle(rec.env())?;
         pulling &= theta > OPEN_TO && rec.env().steps() < start + PULL_STEPS;
-        let left = hook(theta, if pulling { -PULL } else { 0.0 }, 0.0, HOOK);
+        let left = setup.hook(theta, if pulling { -PULL } else { 0.0 }, 0.0, HOOK);
         let Some(right) = track
-            .next(now(&rec, RIGHT))
-            .or(pulling.then(|| now(&rec, RIGHT)))
+            .next(now(rec, RIGHT))
+            .or(pulling.then(|| now(rec, RIGHT)))
         else {
             break;
         };
-        step(&mut rec, left, right)?;
+        step(rec, left, right)?;
     }
-    show(&rec, "door open, hot dog lifted");
-    snap(&mut rec, "c_open", view, 1.0);
+    show(rec, "door open, hot dog lifted");
+    snap(rec, "c_open", VIEW, 1.0);
+    Ok(spot)
+}
 
-    // In over the floor's front edge, down, let go (the fingers straighten upward, the
-    // thumb folds up), back out.
+/// In over the floor's front edge, down to `spot`, let go (the fingers straighten
+/// upward, the thumb folds up), back out. Returns where the right hand backed out to.
+fn place_hot_dog(rec: &mut Recorder, setup: &Setup, spot: V3) -> Result<V3, SimError> {
     let e = rec.env();
     let place = kin::sub(
         spot,
-        kin::sub(e.data().geom_xpos()[dog], kin::tcp(e, RIGHT).0),
+        kin::sub(e.data().geom_xpos()[setup.dog], kin::tcp(e, RIGHT).0),
     );
-    let front = kin::add(kin::sub(place, kin::scale(into, 0.14)), [0.0, 0.0, 0.02]);
-    rec.go(RIGHT, front, pq, CLOSE, 50)?;
-    rec.go(RIGHT, kin::add(place, [0.0, 0.0, 0.02]), pq, CLOSE, 50)?;
-    rec.go(RIGHT, place, pq, CLOSE, 15)?;
+    let front = kin::add(
+        kin::sub(place, kin::scale(setup.into, 0.14)),
+        [0.0, 0.0, 0.02],
+    );
+    rec.go(RIGHT, front, setup.pq, CLOSE, 50)?;
+    rec.go(
+        RIGHT,
+        kin::add(place, [0.0, 0.0, 0.02]),
+        setup.pq,
+        CLOSE,
+        50,
+    )?;
+    rec.go(RIGHT, place, setup.pq, CLOSE, 15)?;
     rec.settle(0.005, 30)?;
-    show(&rec, "placed");
+    show(rec, "placed");
     if debug() {
         eprintln!(
             "  right arm touching {:?}",
             contacts(rec.env(), None, "_right")
         );
     }
-    snap(&mut rec, "d_placed", spot, 0.5);
-    rec.go(RIGHT, place, pq, RELEASE, 10)?;
+    snap(rec, "d_placed", spot, 0.5);
+    rec.go(RIGHT, place, setup.pq, RELEASE, 10)?;
     rec.wait(12)?;
-    let back = kin::sub(place, kin::scale(into, 0.14));
-    rec.go(RIGHT, back, pq, RELEASE, 30)?;
-    show(&rec, "let go");
+    let back = kin::sub(place, kin::scale(setup.into, 0.14));
+    rec.go(RIGHT, back, setup.pq, RELEASE, 30)?;
+    show(rec, "let go");
+    Ok(back)
+}
 
-    // The right hand waits aside, clear of the door's sweep and of the left arm; once
-    // it is clear the left hand pushes the door shut.
+/// The right hand waits aside (coming from `back`), clear of the door's sweep and of
+/// the left arm; once it is clear the left hand pushes the door shut. Returns where the
+/// right index finger presses from.
+fn shut_door(rec: &mut Recorder, setup: &Setup, back: V3) -> Result<V3, SimError> {
     let e = rec.env();
-    let face = kin::sub(e.data().geom_xpos()[button], kin::scale(into, button_depth));
-    let ready = kin::sub(kin::sub(face, kin::scale(into, 0.03)), rz(INDEX_TIP, iyaw));
+    let face = kin::sub(
+        e.data().geom_xpos()[setup.button],
+        kin::scale(setup.into, setup.button_depth),
+    );
+    let ready = kin::sub(
+        kin::sub(face, kin::scale(setup.into, 0.03)),
+        rz(INDEX_TIP, setup.iyaw),
+    );
     let wait = kin::add(ready, [-0.12, -0.25, 0.15]);
     let mut track = Track::default()
         .then(
             Pose {
                 p: kin::add(back, [0.0, -0.15, 0.0]),
-                q: pq,
+                q: setup.pq,
                 h: RELEASE,
             },
             40,
@@ -454,7 +561,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         .then(
             Pose {
                 p: wait,
-                q: level,
+                q: setup.level,
                 h: PRESS,
             },
             50,
@@ -464,40 +571,48 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
             break;
         }
         let e = rec.env();
-        let theta = door(e)?;
-        let r = kin::sub(kin::tcp(e, RIGHT).0, hinge);
+        let theta = door_angle(e)?;
+        let r = kin::sub(kin::tcp(e, RIGHT).0, setup.hinge);
         let out = if (r[0] * r[0] + r[1] * r[1]).sqrt() > CLEAR {
             SHUT_HOLD + (SHUT - SHUT_HOLD) * (-theta / 0.05).clamp(0.0, 1.0)
         } else {
             0.0
         };
-        let right = track.next(now(&rec, RIGHT));
+        let right = track.next(now(rec, RIGHT));
         if right.is_none() && theta.abs() < 0.004 {
             break;
         }
-        let right = right.unwrap_or(now(&rec, RIGHT));
-        step(&mut rec, hook(theta, out, 0.0, SHUT_HAND), right)?;
+        let right = right.unwrap_or(now(rec, RIGHT));
+        step(rec, setup.hook(theta, out, 0.0, SHUT_HAND), right)?;
     }
-    show(&rec, "door shut");
-    snap(&mut rec, "e_shut", view, 1.0);
+    show(rec, "door shut");
+    snap(rec, "e_shut", VIEW, 1.0);
+    Ok(ready)
+}
 
-    // The left fingers slide out of the handle and the hand backs away; the right index
-    // finger comes in front of the button, then presses it with a guarded move.
-    let theta = door(rec.env())?;
-    let slid = hook(theta, 0.0, 0.13, HOOK);
+/// The left fingers slide out of the handle and the hand backs away; the right index
+/// finger comes in front of the button (`ready`), then presses it with a guarded move.
+fn press_start(rec: &mut Recorder, setup: &Setup, ready: V3) -> Result<(), SimError> {
+    let theta = door_angle(rec.env())?;
+    let slid = setup.hook(theta, 0.0, 0.13, HOOK);
     rec.go_many(
         &[
             slid.goal(LEFT),
-            Goal::new(RIGHT, kin::sub(ready, kin::scale(into, 0.03)), level, PRESS),
+            Goal::new(
+                RIGHT,
+                kin::sub(ready, kin::scale(setup.into, 0.03)),
+                setup.level,
+                PRESS,
+            ),
         ],
         25,
         |_| false,
     )?;
-    let away = kin::add(hook(theta, -0.15, 0.13, HOOK).p, [0.0, 0.0, 0.08]);
+    let away = kin::add(setup.hook(theta, -0.15, 0.13, HOOK).p, [0.0, 0.0, 0.08]);
     rec.go_many(
         &[
             Goal::new(LEFT, away, slid.q, HOOK),
-            Goal::new(RIGHT, ready, level, PRESS),
+            Goal::new(RIGHT, ready, setup.level, PRESS),
         ],
         25,
         |_| false,
@@ -505,16 +620,16 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let arrived = |e: &TaskEnv| kin::norm(kin::sub(kin::tcp(e, RIGHT).0, ready)) < 0.004;
     rec.go_many(&[], 30, arrived)?;
     let pressed = |e: &TaskEnv| e.checker().value("start_pressed") == Some(true);
-    let deep = kin::add(ready, kin::scale(into, 0.045));
-    rec.go_many(&[Goal::new(RIGHT, deep, level, PRESS)], 25, pressed)?;
-    show(&rec, "pressed");
+    let deep = kin::add(ready, kin::scale(setup.into, 0.045));
+    rec.go_many(&[Goal::new(RIGHT, deep, setup.level, PRESS)], 25, pressed)?;
+    show(rec, "pressed");
     if debug() {
         eprintln!(
             "  button touched by {:?}",
-            contacts(rec.env(), Some(button), "")
+            contacts(rec.env(), Some(setup.button), "")
         );
     }
     rec.wait(20)?;
-    snap(&mut rec, "f_end", view, 1.0);
-    rec.finish(id)
+    snap(rec, "f_end", VIEW, 1.0);
+    Ok(())
 }

@@ -44,19 +44,6 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let grip = kin::add(lens.0, kin::scale(along, GRIP_Y - 0.055));
     let mut at = kin::sub(grip, kin::scale(d, GRIP_X));
     at[2] = grip[2] + GRIP_UP;
-    let show = |rec: &Recorder, what: &str| {
-        if debug() {
-            let e = rec.env();
-            let (a, v) = optics(e).unwrap_or_default();
-            eprintln!(
-                "{what}: step {} axis {a:.2?} view {v:.3?} aimed {:?} level {:?} shutter {:?}",
-                e.steps(),
-                e.checker().value("aimed"),
-                e.checker().value("level"),
-                e.checker().value("shutter"),
-            );
-        }
-    };
     rec.go(LEFT, kin::add(at, [0.0, 0.0, 0.1]), q, OPEN, 90)?;
     rec.settle(0.005, 40)?;
     rec.go(LEFT, at, q, OPEN, 40)?;
@@ -73,28 +60,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     // Aim: turn the hand so the optical axis points at +x (the rotation that takes the
     // measured axis there, about the TCP), and move the point in front of the lens to the
     // middle of the target region; a few closed-loop rounds.
-    let region = kin::geom(rec.env(), "photograph_target_region_visual")?.0;
-    for k in 0..AIM_ROUNDS {
-        let e = rec.env();
-        let (a, v) = optics(e)?;
-        let c = [0.0, a[2], -a[1]]; // a x (+x)
-        let n = kin::norm(c);
-        let (mut p, mut qq) = rec.target(LEFT);
-        if n > 1e-6 {
-            let angle = a[0].clamp(-1.0, 1.0).acos();
-            let turn = kin::axis_angle(kin::scale(c, 1.0 / n), angle);
-            qq = kin::qmul(turn, qq);
-            // The view point turns with the hand about the TCP.
-            let tcp = kin::tcp(e, LEFT).0;
-            let moved = kin::add(tcp, kin::mulv(&kin::qmat(turn), kin::sub(v, tcp)));
-            p = kin::add(p, kin::sub(region, moved));
-        } else {
-            p = kin::add(p, kin::sub(region, v));
-        }
-        rec.go(LEFT, p, qq, CLOSE, if k == 0 { 120 } else { 40 })?;
-        rec.settle(0.003, 60)?;
-        show(&rec, &format!("aim {k}"));
-    }
+    aim_camera(&mut rec)?;
     rec.snap(LEFT, "camera_aimed");
     // The right index finger over the shutter, then a guarded press.
     let start = kin::add(rec.target(RIGHT).0, [0.0, 0.0, 0.05]);
@@ -124,4 +90,48 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     show(&rec, "pressed");
     rec.wait(10)?;
     rec.finish(id)
+}
+
+/// In debug mode, prints the optical axis, the view point and the success nodes after
+/// a phase.
+fn show(rec: &Recorder, what: &str) {
+    if debug() {
+        let e = rec.env();
+        let (a, v) = optics(e).unwrap_or_default();
+        eprintln!(
+            "{what}: step {} axis {a:.2?} view {v:.3?} aimed {:?} level {:?} shutter {:?}",
+            e.steps(),
+            e.checker().value("aimed"),
+            e.checker().value("level"),
+            e.checker().value("shutter"),
+        );
+    }
+}
+
+/// Aims the gripped camera in closed-loop rounds: turns the left hand so the optical axis
+/// points at +x and moves the view point to the middle of the target region.
+fn aim_camera(rec: &mut Recorder) -> Result<(), SimError> {
+    let region = kin::geom(rec.env(), "photograph_target_region_visual")?.0;
+    for k in 0..AIM_ROUNDS {
+        let e = rec.env();
+        let (a, v) = optics(e)?;
+        let c = [0.0, a[2], -a[1]]; // a x (+x)
+        let n = kin::norm(c);
+        let (mut p, mut qq) = rec.target(LEFT);
+        if n > 1e-6 {
+            let angle = a[0].clamp(-1.0, 1.0).acos();
+            let turn = kin::axis_angle(kin::scale(c, 1.0 / n), angle);
+            qq = kin::qmul(turn, qq);
+            // The view point turns with the hand about the TCP.
+            let tcp = kin::tcp(e, LEFT).0;
+            let moved = kin::add(tcp, kin::mulv(&kin::qmat(turn), kin::sub(v, tcp)));
+            p = kin::add(p, kin::sub(region, moved));
+        } else {
+            p = kin::add(p, kin::sub(region, v));
+        }
+        rec.go(LEFT, p, qq, CLOSE, if k == 0 { 120 } else { 40 })?;
+        rec.settle(0.003, 60)?;
+        show(rec, &format!("aim {k}"));
+    }
+    Ok(())
 }

@@ -1,7 +1,6 @@
 //! Shared helpers of the simulation tests.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
 use std::sync::{Mutex, OnceLock};
 
 use dexjoco_core::TaskSpec;
@@ -18,11 +17,6 @@ pub fn spec(id: &str) -> TaskSpec {
     specs().into_iter().find(|s| s.id == id).expect("task")
 }
 
-/// The reference scene folder (`--scene-dir`).
-pub fn scene_dir() -> PathBuf {
-    dexjoco_testkit::upstream_dir().join("xmls")
-}
-
 /// Loads a task's reference scene once per test binary.
 pub fn scene(id: &str) -> Scene {
     static CACHE: OnceLock<Mutex<Vec<(String, Scene)>>> = OnceLock::new();
@@ -30,8 +24,11 @@ pub fn scene(id: &str) -> Scene {
     if let Some((_, s)) = cache.lock().unwrap().iter().find(|(k, _)| k == id) {
         return s.clone();
     }
-    let s = load_task_scene(&dexjoco_sim::SceneSource::Dir(scene_dir()), &spec(id))
-        .expect("reference scene loads");
+    let s = load_task_scene(
+        &dexjoco_sim::SceneSource::Dir(dexjoco_testkit::reference_scene_dir()),
+        &spec(id),
+    )
+    .expect("reference scene loads");
     cache.lock().unwrap().push((id.to_owned(), s.clone()));
     s
 }

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::StatsError;
-use crate::evaltree::{Entered, find_runs};
+use crate::evaltree::{Entered, Run, find_runs};
 
 /// The output label of an episode in which no digit was entered.
 pub const NONE_OUTPUT: &str = "none";
@@ -164,51 +164,11 @@ impl LanguageInput {
             });
         }
         let mut warnings = Vec::new();
-        let mut configs: Vec<String> = manifest.iter().map(|(c, _)| c.clone()).collect();
-        let mut by_config: BTreeMap<String, Vec<&crate::evaltree::Run>> = BTreeMap::new();
-        for run in &runs {
-            let parent = run.relative.parent().unwrap_or(Path::new(""));
-            let config = if parent.as_os_str().is_empty() {
-                let name = &run.name;
-                if name.regime == crate::evaltree::DEFAULT_REGIME {
-                    name.task.clone()
-                } else {
-                    format!("{}_{}", name.task, name.regime)
-                }
-            } else {
-                parent
-                    .components()
-                    .map(|c| c.as_os_str().to_string_lossy())
-                    .collect::<Vec<_>>()
-                    .join("/")
-            };
-            if !configs.contains(&config) {
-                configs.push(config.clone());
-            }
-            by_config.entry(config).or_default().push(run);
-        }
+        let (configs, by_config) = group_by_config(&manifest, &runs);
         let mut instructions = Vec::new();
         let mut trials = Vec::new();
         for config in &configs {
-            let instruction = match manifest.iter().find(|(c, _)| c == config) {
-                Some((_, i)) => i.clone(),
-                None => {
-                    let expected = infer_expected(config).ok_or_else(|| {
-                        StatsError::invalid(
-                            root.join(config),
-                            format!(
-                                "cannot tell the expected answer of instruction config '{config}': \
-                                 list it in {MANIFEST_FILE} (columns config,instruction,expected[,prompt])"
-                            ),
-                        )
-                    })?;
-                    Instruction {
-                        label: config.clone(),
-                        expected,
-                        prompt: None,
-                    }
-                }
-            };
+            let instruction = instruction_of(root, &manifest, config)?;
             let Some(runs) = by_config.get(config) else {
                 warnings.push(format!(
                     "{}: instruction '{}' is listed but has no runs; left out",
@@ -237,37 +197,7 @@ impl LanguageInput {
                 if let Some(w) = run.consistency_warning() {
                     warnings.push(w);
                 }
-                for e in &run.episodes {
-                    let output = match &e.entered {
-                        Entered::Digits(d) => d.clone(),
-                        Entered::NoInput => NONE_OUTPUT.to_string(),
-                        Entered::NotRecorded if e.success => instruction.expected.clone(),
-                        Entered::NotRecorded => {
-                            return Err(StatsError::invalid(
-                                run.dir.join(format!("episode_{:02}_failure", e.index)),
-                                "a failed episode without the digits entered: the language study needs \
-                                 episode_XX_failure_<digits> or episode_XX_failure_no_password_input",
-                            ));
-                        }
-                    };
-                    if e.success != (output == instruction.expected) {
-                        warnings.push(format!(
-                            "{}: episode {} is marked {} but entered '{}' where '{}' is expected",
-                            run.dir.display(),
-                            e.index,
-                            if e.success { "a success" } else { "a failure" },
-                            output,
-                            instruction.expected
-                        ));
-                    }
-                    trials.push(Trial {
-                        instruction: instruction.label.clone(),
-                        expected: instruction.expected.clone(),
-                        seed: run.name.seed,
-                        episode: e.index,
-                        output,
-                    });
-                }
+                run_trials(run, &instruction, &mut warnings, &mut trials)?;
             }
             instructions.push(instruction);
         }
@@ -467,6 +397,110 @@ struct RawRow {
     episode: String,
     output: String,
     prompt: Option<String>,
+}
+
+/// The instruction configs of an evaluation tree, in order (those of the manifest, then
+/// new ones as their runs come), and the runs of each. A config is the path of a run
+/// folder's parent below the root, or the run folder's name without `_seed<s>` when it
+/// sits in the root.
+fn group_by_config<'r>(
+    manifest: &[(String, Instruction)],
+    runs: &'r [Run],
+) -> (Vec<String>, BTreeMap<String, Vec<&'r Run>>) {
+    let mut configs: Vec<String> = manifest.iter().map(|(c, _)| c.clone()).collect();
+    let mut by_config: BTreeMap<String, Vec<&Run>> = BTreeMap::new();
+    for run in runs {
+        let parent = run.relative.parent().unwrap_or(Path::new(""));
+        let config = if parent.as_os_str().is_empty() {
+            let name = &run.name;
+            if name.regime == crate::evaltree::DEFAULT_REGIME {
+                name.task.clone()
+            } else {
+                format!("{}_{}", name.task, name.regime)
+            }
+        } else {
+            parent
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy())
+                .collect::<Vec<_>>()
+                .join("/")
+        };
+        if !configs.contains(&config) {
+            configs.push(config.clone());
+        }
+        by_config.entry(config).or_default().push(run);
+    }
+    (configs, by_config)
+}
+
+/// The instruction of a config: the manifest's, else labelled by the config name with
+/// the expected answer inferred from it.
+fn instruction_of(
+    root: &Path,
+    manifest: &[(String, Instruction)],
+    config: &str,
+) -> Result<Instruction, StatsError> {
+    Ok(match manifest.iter().find(|(c, _)| c == config) {
+        Some((_, i)) => i.clone(),
+        None => {
+            let expected = infer_expected(config).ok_or_else(|| {
+                StatsError::invalid(
+                    root.join(config),
+                    format!(
+                        "cannot tell the expected answer of instruction config '{config}': \
+                         list it in {MANIFEST_FILE} (columns config,instruction,expected[,prompt])"
+                    ),
+                )
+            })?;
+            Instruction {
+                label: config.to_owned(),
+                expected,
+                prompt: None,
+            }
+        }
+    })
+}
+
+/// The trials of one run's episodes, added to `trials`; a warning for each episode
+/// whose outcome disagrees with its answer.
+fn run_trials(
+    run: &Run,
+    instruction: &Instruction,
+    warnings: &mut Vec<String>,
+    trials: &mut Vec<Trial>,
+) -> Result<(), StatsError> {
+    for e in &run.episodes {
+        let output = match &e.entered {
+            Entered::Digits(d) => d.clone(),
+            Entered::NoInput => NONE_OUTPUT.to_string(),
+            Entered::NotRecorded if e.success => instruction.expected.clone(),
+            Entered::NotRecorded => {
+                return Err(StatsError::invalid(
+                    run.dir.join(format!("episode_{:02}_failure", e.index)),
+                    "a failed episode without the digits entered: the language study needs \
+                     episode_XX_failure_<digits> or episode_XX_failure_no_password_input",
+                ));
+            }
+        };
+        if e.success != (output == instruction.expected) {
+            warnings.push(format!(
+                "{}: episode {} is marked {} but entered '{}' where '{}' is expected",
+                run.dir.display(),
+                e.index,
+                if e.success { "a success" } else { "a failure" },
+                output,
+                instruction.expected
+            ));
+        }
+        trials.push(Trial {
+            instruction: instruction.label.clone(),
+            expected: instruction.expected.clone(),
+            seed: run.name.seed,
+            episode: e.index,
+            output,
+        });
+    }
+    Ok(())
 }
 
 /// Reads `instructions.csv` of an evaluation tree, when there is one.

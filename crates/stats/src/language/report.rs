@@ -133,6 +133,58 @@ pub(super) fn output_order(a: &String, b: &String) -> std::cmp::Ordering {
     key(a).cmp(&key(b))
 }
 
+/// The precision of each instruction: the share of its trials that entered the
+/// expected answer, per seed and over seeds.
+fn precision(input: &LanguageInput, instructions: &[Instruction]) -> Vec<Precision> {
+    instructions
+        .iter()
+        .map(|ins| {
+            let mut per_seed_counts: BTreeMap<u32, (u64, u64)> = BTreeMap::new();
+            for t in input.trials.iter().filter(|t| t.instruction == ins.label) {
+                let e = per_seed_counts.entry(t.seed).or_default();
+                e.0 += 1;
+                e.1 += u64::from(t.output == ins.expected);
+            }
+            let per_seed: BTreeMap<u32, f64> = per_seed_counts
+                .iter()
+                .map(|(&s, &(n, k))| (s, 100.0 * k as f64 / n as f64))
+                .collect();
+            let values: Vec<f64> = per_seed.values().copied().collect();
+            Precision {
+                instruction: ins.label.clone(),
+                expected: ins.expected.clone(),
+                episodes: per_seed_counts.values().map(|c| c.0).sum(),
+                correct: per_seed_counts.values().map(|c| c.1).sum(),
+                per_seed,
+                over_seeds: mean_std(&values).unwrap_or(MeanStd {
+                    mean: f64::NAN,
+                    std: None,
+                    n: 0,
+                }),
+            }
+        })
+        .collect()
+}
+
+/// The Jensen-Shannon divergence of every pair of instructions' output counts.
+fn js_pairs(instructions: &[Instruction], counts: &[Vec<u64>], base: LogBase) -> Vec<JsPair> {
+    let mut js_pairs = Vec::new();
+    for a in 0..instructions.len() {
+        for b in a + 1..instructions.len() {
+            let p: Vec<f64> = counts[a].iter().map(|&c| c as f64).collect();
+            let q: Vec<f64> = counts[b].iter().map(|&c| c as f64).collect();
+            if let Some(d) = js_divergence(&p, &q, base) {
+                js_pairs.push(JsPair {
+                    a: instructions[a].label.clone(),
+                    b: instructions[b].label.clone(),
+                    divergence: d,
+                });
+            }
+        }
+    }
+    js_pairs
+}
+
 impl LanguageReport {
     /// Runs the analysis.
     pub fn analyze(input: &LanguageInput, options: LanguageOptions) -> Self {
@@ -172,34 +224,7 @@ impl LanguageReport {
             .into_iter()
             .collect();
 
-        let precision = instructions
-            .iter()
-            .map(|ins| {
-                let mut per_seed_counts: BTreeMap<u32, (u64, u64)> = BTreeMap::new();
-                for t in input.trials.iter().filter(|t| t.instruction == ins.label) {
-                    let e = per_seed_counts.entry(t.seed).or_default();
-                    e.0 += 1;
-                    e.1 += u64::from(t.output == ins.expected);
-                }
-                let per_seed: BTreeMap<u32, f64> = per_seed_counts
-                    .iter()
-                    .map(|(&s, &(n, k))| (s, 100.0 * k as f64 / n as f64))
-                    .collect();
-                let values: Vec<f64> = per_seed.values().copied().collect();
-                Precision {
-                    instruction: ins.label.clone(),
-                    expected: ins.expected.clone(),
-                    episodes: per_seed_counts.values().map(|c| c.0).sum(),
-                    correct: per_seed_counts.values().map(|c| c.1).sum(),
-                    per_seed,
-                    over_seeds: mean_std(&values).unwrap_or(MeanStd {
-                        mean: f64::NAN,
-                        std: None,
-                        n: 0,
-                    }),
-                }
-            })
-            .collect();
+        let precision = precision(input, &instructions);
 
         let chi = chi_square(&counts);
         let chi_square_dropped_outputs = chi
@@ -209,20 +234,7 @@ impl LanguageReport {
             .collect();
         let nmi = normalized_mutual_information(&counts);
 
-        let mut js_pairs = Vec::new();
-        for a in 0..instructions.len() {
-            for b in a + 1..instructions.len() {
-                let p: Vec<f64> = counts[a].iter().map(|&c| c as f64).collect();
-                let q: Vec<f64> = counts[b].iter().map(|&c| c as f64).collect();
-                if let Some(d) = js_divergence(&p, &q, options.js_base) {
-                    js_pairs.push(JsPair {
-                        a: instructions[a].label.clone(),
-                        b: instructions[b].label.clone(),
-                        divergence: d,
-                    });
-                }
-            }
-        }
+        let js_pairs = js_pairs(&instructions, &counts, options.js_base);
         let js_mean = (!js_pairs.is_empty())
             .then(|| js_pairs.iter().map(|p| p.divergence).sum::<f64>() / js_pairs.len() as f64);
         let js_max = js_pairs

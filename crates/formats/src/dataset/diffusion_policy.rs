@@ -17,15 +17,14 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use dexjoco_core::Location;
-use dexjoco_formats::zarr_v2::{self, Blosc};
 use dexjoco_video::VideoReader;
 use serde_json::json;
 use zarrs::array::{Array, ArrayMetadata, ArrayMetadataOptions, CodecOptions};
 use zarrs::filesystem::FilesystemStore;
 
-use crate::error::ConvertError;
-use crate::lerobot_v3::write_json;
-use crate::prepare::PreparedEpisode;
+use super::{DatasetWriter, PreparedEpisode, VideoPart, place_video, write_json};
+use crate::error::{DatasetError, ZarrWriteError};
+use crate::zarr_v2::{self, Blosc};
 
 /// The store's folder name inside the output folder.
 pub const REPLAY_BUFFER: &str = "replay_buffer.zarr";
@@ -36,10 +35,11 @@ const CHUNK_BYTES: usize = 2_000_000;
 /// Array names the cameras may not take.
 const RESERVED: [&str; 3] = ["action", "state", "timestamp"];
 
-fn zarr_err(path: &Path) -> impl Fn(String) -> ConvertError + '_ {
-    move |message| ConvertError::Input {
+/// A zarrs error on the store at `path`, as [`DatasetError::Zarr`].
+fn zarr_err(path: &Path, e: impl Into<ZarrWriteError>) -> DatasetError {
+    DatasetError::Zarr {
         path: path.to_path_buf(),
-        message: format!("writing Zarr: {message}"),
+        source: Box::new(e.into()),
     }
 }
 
@@ -49,9 +49,10 @@ fn metadata(
     chunks: &[u64],
     dtype: &str,
     compressed: bool,
-) -> Result<ArrayMetadata, ConvertError> {
+) -> Result<ArrayMetadata, DatasetError> {
     let compressor = compressed.then_some(Blosc::DIFFUSION_POLICY);
-    zarr_v2::array_metadata(shape, chunks, dtype, compressor).map_err(zarr_err(path))
+    zarr_v2::array_metadata(shape, chunks, dtype, compressor)
+        .map_err(|e| zarr_err(path, ZarrWriteError::Layout(e)))
 }
 
 /// A float64 array along time, written a chunk at a time.
@@ -75,27 +76,23 @@ impl Series {
         }
     }
 
-    fn store_chunk(&mut self, data: &[f64], opts: &CodecOptions) -> Result<(), String> {
+    fn store_chunk(&mut self, data: &[f64], opts: &CodecOptions) -> Result<(), ZarrWriteError> {
         let mut idx = vec![self.chunks_written];
         if !self.one_d {
             idx.push(0);
         }
-        self.array
-            .store_chunk_opt(&idx, data, opts)
-            .map_err(|e| e.to_string())?;
+        self.array.store_chunk_opt(&idx, data, opts)?;
         self.chunks_written += 1;
         Ok(())
     }
 
-    fn push(&mut self, rows: &[f64], opts: &CodecOptions) -> Result<(), String> {
+    fn push(&mut self, rows: &[f64], opts: &CodecOptions) -> Result<(), ZarrWriteError> {
         self.buf.extend_from_slice(rows);
         self.rows += (rows.len() / self.width) as u64;
         let per = self.chunk * self.width;
         while self.buf.len() >= per {
             let full = (self.chunks_written + 1) * self.chunk as u64;
-            self.array
-                .set_shape(self.shape(full))
-                .map_err(|e| e.to_string())?;
+            self.array.set_shape(self.shape(full))?;
             let rest = self.buf.split_off(per);
             let data = std::mem::replace(&mut self.buf, rest);
             self.store_chunk(&data, opts)?;
@@ -103,18 +100,18 @@ impl Series {
         Ok(())
     }
 
-    fn finish(mut self, opts: &CodecOptions, meta: &ArrayMetadataOptions) -> Result<(), String> {
-        self.array
-            .set_shape(self.shape(self.rows))
-            .map_err(|e| e.to_string())?;
+    fn finish(
+        mut self,
+        opts: &CodecOptions,
+        meta: &ArrayMetadataOptions,
+    ) -> Result<(), ZarrWriteError> {
+        self.array.set_shape(self.shape(self.rows))?;
         if !self.buf.is_empty() {
             let mut data = std::mem::take(&mut self.buf);
             data.resize(self.chunk * self.width, 0.0);
             self.store_chunk(&data, opts)?;
         }
-        self.array
-            .store_metadata_opt(meta)
-            .map_err(|e| e.to_string())
+        Ok(self.array.store_metadata_opt(meta)?)
     }
 }
 
@@ -158,14 +155,14 @@ impl ZarrWriter {
         root: impl Into<PathBuf>,
         first: &PreparedEpisode,
         videos: bool,
-    ) -> Result<Self, ConvertError> {
+    ) -> Result<Self, DatasetError> {
         let root = root.into();
         let zarr = root.join(REPLAY_BUFFER);
-        let err = zarr_err(&zarr);
         fs_err::create_dir_all(&zarr)?;
-        let store = Arc::new(FilesystemStore::new(&zarr).map_err(|e| err(e.to_string()))?);
-        zarr_v2::create_groups(&store, &["/", "/data", "/meta"]).map_err(&err)?;
-        let series = |name: &str, width: usize, one_d: bool| -> Result<Series, ConvertError> {
+        let store = Arc::new(FilesystemStore::new(&zarr).map_err(|e| zarr_err(&zarr, e))?);
+        zarr_v2::create_groups(&store, &["/", "/data", "/meta"])
+            .map_err(|e| zarr_err(&zarr, ZarrWriteError::Layout(e)))?;
+        let series = |name: &str, width: usize, one_d: bool| -> Result<Series, DatasetError> {
             let chunk = (CHUNK_BYTES / (8 * width.max(1))).max(1);
             let (shape, chunks) = if one_d {
                 (vec![0], vec![chunk as u64])
@@ -177,7 +174,7 @@ impl ZarrWriter {
                 &format!("/data/{name}"),
                 metadata(&zarr, &shape, &chunks, "<f8", true)?,
             )
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| zarr_err(&zarr, e))?;
             Ok(Series {
                 array,
                 width: width.max(1),
@@ -188,31 +185,7 @@ impl ZarrWriter {
                 chunks_written: 0,
             })
         };
-        let mut images = Vec::new();
-        for v in &first.videos {
-            if RESERVED.contains(&v.name.as_str()) {
-                return Err(ConvertError::episode(
-                    &first.id,
-                    format!(
-                        "camera name '{}' is taken by a data array (rename it in the camera mapping)",
-                        v.name
-                    ),
-                ));
-            }
-            let (h, w) = (u64::from(v.info.height), u64::from(v.info.width));
-            let array = Array::new_with_metadata(
-                store.clone(),
-                &format!("/data/{}", v.name),
-                metadata(&zarr, &[0, h, w, 3], &[1, h, w, 3], "|u1", true)?,
-            )
-            .map_err(|e| err(e.to_string()))?;
-            images.push(Images {
-                name: v.name.clone(),
-                array,
-                height: v.info.height,
-                width: v.info.width,
-            });
-        }
+        let images = image_arrays(&store, &zarr, first)?;
         Ok(Self {
             action: series("action", first.action.width(), false)?,
             state: series("state", first.state.width(), false)?,
@@ -230,23 +203,110 @@ impl ZarrWriter {
         })
     }
 
-    /// Episodes written so far.
-    pub fn episodes(&self) -> usize {
-        self.episode_ends.len()
+    /// Decodes one camera's frames from its source, after the trimmed start, into the
+    /// camera's array from frame `start` on.
+    fn write_frames(
+        &mut self,
+        c: usize,
+        part: &VideoPart,
+        ep: &PreparedEpisode,
+        start: u64,
+    ) -> Result<(), DatasetError> {
+        let n = ep.len();
+        let zarr = &self.zarr;
+        let err = |e: ZarrWriteError| zarr_err(zarr, e);
+        let img = &mut self.images[c];
+        let at = || {
+            Location::episode(&ep.id)
+                .field(format!("camera {}", part.name))
+                .path(&part.source)
+        };
+        let vid_err = |source: dexjoco_video::VideoError| DatasetError::Video {
+            at: at().into(),
+            source: source.into(),
+        };
+        let mut reader = VideoReader::open(&part.source, None).map_err(vid_err)?;
+        if reader.size() != (img.width, img.height) {
+            return Err(DatasetError::Episode {
+                at: at().into(),
+                message: format!(
+                    "{}x{} frames differ from the dataset's {}x{}",
+                    reader.size().0,
+                    reader.size().1,
+                    img.width,
+                    img.height
+                ),
+            });
+        }
+        let (h, w) = (u64::from(img.height), u64::from(img.width));
+        let mut frame = Vec::new();
+        let mut k = 0usize;
+        let mut kept = 0u64;
+        while reader.next_frame(&mut frame).map_err(vid_err)? {
+            if k >= ep.skipped && (kept as usize) < n {
+                let t = start + kept;
+                img.array
+                    .set_shape(vec![t + 1, h, w, 3])
+                    .map_err(|e| err(e.into()))?;
+                img.array
+                    .store_chunk_opt(&[t, 0, 0, 0], &frame[..], &self.codec)
+                    .map_err(|e| err(e.into()))?;
+                kept += 1;
+            }
+            k += 1;
+        }
+        if kept as usize != n {
+            return Err(DatasetError::Episode {
+                at: at().into(),
+                message: format!("decoded {kept} frames after the trimmed start, expected {n}"),
+            });
+        }
+        Ok(())
     }
+}
 
-    /// Frames written so far.
-    pub fn frames(&self) -> usize {
-        self.episode_ends.last().map_or(0, |e| *e as usize)
+/// The image arrays of `first`'s cameras, (0, H, W, 3) in chunks of one frame.
+fn image_arrays(
+    store: &Arc<FilesystemStore>,
+    zarr: &Path,
+    first: &PreparedEpisode,
+) -> Result<Vec<Images>, DatasetError> {
+    let mut images = Vec::new();
+    for v in &first.videos {
+        if RESERVED.contains(&v.name.as_str()) {
+            return Err(DatasetError::episode(
+                &first.id,
+                format!(
+                    "camera name '{}' is taken by a data array (rename it in the camera mapping)",
+                    v.name
+                ),
+            ));
+        }
+        let (h, w) = (u64::from(v.info.height), u64::from(v.info.width));
+        let array = Array::new_with_metadata(
+            store.clone(),
+            &format!("/data/{}", v.name),
+            metadata(zarr, &[0, h, w, 3], &[1, h, w, 3], "|u1", true)?,
+        )
+        .map_err(|e| zarr_err(zarr, e))?;
+        images.push(Images {
+            name: v.name.clone(),
+            array,
+            height: v.info.height,
+            width: v.info.width,
+        });
     }
+    Ok(images)
+}
 
+impl DatasetWriter for ZarrWriter {
     /// Checks that `ep` can join this store (fps, widths, cameras).
-    pub(crate) fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), ConvertError> {
+    fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), DatasetError> {
         let want: Vec<&str> = self.images.iter().map(|c| c.name.as_str()).collect();
         ep.check_layout(self.fps, self.action.width, self.state.width, &want)?;
         for (v, img) in ep.videos.iter().zip(&self.images) {
             if (v.info.width, v.info.height) != (img.width, img.height) {
-                return Err(ConvertError::episode(
+                return Err(DatasetError::episode(
                     &ep.id,
                     format!(
                         "camera '{}': {}x{} differs from the store's {}x{}",
@@ -259,11 +319,11 @@ impl ZarrWriter {
     }
 
     /// Appends one episode: arrays, decoded camera frames, and its videos.
-    pub fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), ConvertError> {
+    fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), DatasetError> {
         self.check_compatible(&ep)?;
         let n = ep.len();
         let start = self.frames() as u64;
-        let err = zarr_err(&self.zarr);
+        let err = |e| zarr_err(&self.zarr, e);
         self.action
             .push(ep.action.as_slice(), &self.codec)
             .map_err(&err)?;
@@ -275,64 +335,15 @@ impl ZarrWriter {
         self.timestamp.push(&ts, &self.codec).map_err(&err)?;
 
         let index = self.episode_ends.len();
-        for (c, (part, img)) in ep.videos.iter().zip(&mut self.images).enumerate() {
-            let at = || {
-                Location::episode(&ep.id)
-                    .field(format!("camera {}", part.name))
-                    .path(&part.source)
-            };
-            let vid_err = |source: dexjoco_video::VideoError| ConvertError::Video {
-                at: at().into(),
-                source: source.into(),
-            };
-            let mut reader = VideoReader::open(&part.source, None).map_err(vid_err)?;
-            if reader.size() != (img.width, img.height) {
-                return Err(ConvertError::Episode {
-                    at: at().into(),
-                    message: format!(
-                        "{}x{} frames differ from the dataset's {}x{}",
-                        reader.size().0,
-                        reader.size().1,
-                        img.width,
-                        img.height
-                    ),
-                });
-            }
-            let (h, w) = (u64::from(img.height), u64::from(img.width));
-            let mut frame = Vec::new();
-            let mut k = 0usize;
-            let mut kept = 0u64;
-            while reader.next_frame(&mut frame).map_err(vid_err)? {
-                if k >= ep.skipped && (kept as usize) < n {
-                    let t = start + kept;
-                    img.array
-                        .set_shape(vec![t + 1, h, w, 3])
-                        .map_err(|e| err(e.to_string()))?;
-                    img.array
-                        .store_chunk_opt(&[t, 0, 0, 0], &frame[..], &self.codec)
-                        .map_err(|e| err(e.to_string()))?;
-                    kept += 1;
-                }
-                k += 1;
-            }
-            if kept as usize != n {
-                return Err(ConvertError::Episode {
-                    at: at().into(),
-                    message: format!("decoded {kept} frames after the trimmed start, expected {n}"),
-                });
-            }
+        for (c, part) in ep.videos.iter().enumerate() {
+            self.write_frames(c, part, &ep, start)?;
             if self.videos {
                 let dst = self
                     .root
                     .join("videos")
                     .join(index.to_string())
                     .join(format!("{c}.mp4"));
-                fs_err::create_dir_all(dst.parent().expect("has parent"))?;
-                if part.temporary {
-                    fs_err::rename(&part.path, &dst)?;
-                } else {
-                    fs_err::copy(&part.path, &dst)?;
-                }
+                place_video(part, &dst)?;
             } else if part.temporary {
                 let _ = fs_err::remove_file(&part.path);
             }
@@ -342,44 +353,54 @@ impl ZarrWriter {
         Ok(())
     }
 
+    fn episodes(&self) -> usize {
+        self.episode_ends.len()
+    }
+
+    fn frames(&self) -> usize {
+        self.episode_ends.last().map_or(0, |e| *e as usize)
+    }
+
     /// Completes the arrays' metadata, writes `meta/episode_ends` and the name map.
-    pub fn finish(self) -> Result<(), ConvertError> {
-        let err = zarr_err(&self.zarr);
-        let total = self.frames() as u64;
-        let cameras: Vec<String> = self.images.iter().map(|i| i.name.clone()).collect();
-        for s in [self.action, self.state, self.timestamp] {
-            s.finish(&self.codec, &self.meta).map_err(&err)?;
+    fn finish(self: Box<Self>) -> Result<(), DatasetError> {
+        let this = *self;
+        let zarr = &this.zarr;
+        let total = this.frames() as u64;
+        let cameras: Vec<String> = this.images.iter().map(|i| i.name.clone()).collect();
+        for s in [this.action, this.state, this.timestamp] {
+            s.finish(&this.codec, &this.meta)
+                .map_err(|e| zarr_err(zarr, e))?;
         }
-        for mut img in self.images {
+        for mut img in this.images {
             let (h, w) = (u64::from(img.height), u64::from(img.width));
             img.array
                 .set_shape(vec![total, h, w, 3])
-                .map_err(|e| err(e.to_string()))?;
+                .map_err(|e| zarr_err(zarr, e))?;
             img.array
-                .store_metadata_opt(&self.meta)
-                .map_err(|e| err(e.to_string()))?;
+                .store_metadata_opt(&this.meta)
+                .map_err(|e| zarr_err(zarr, e))?;
         }
-        let n = self.episode_ends.len() as u64;
+        let n = this.episode_ends.len() as u64;
         let array = Array::new_with_metadata(
-            self.store.clone(),
+            this.store.clone(),
             "/meta/episode_ends",
-            metadata(&self.zarr, &[n], &[n.max(1)], "<i8", false)?,
+            metadata(zarr, &[n], &[n.max(1)], "<i8", false)?,
         )
-        .map_err(|e| err(e.to_string()))?;
+        .map_err(|e| zarr_err(zarr, e))?;
         array
-            .store_metadata_opt(&self.meta)
-            .map_err(|e| err(e.to_string()))?;
+            .store_metadata_opt(&this.meta)
+            .map_err(|e| zarr_err(zarr, e))?;
         if n > 0 {
             array
-                .store_array_subset_opt(&array.subset_all(), &self.episode_ends[..], &self.codec)
-                .map_err(|e| err(e.to_string()))?;
+                .store_array_subset_opt(&array.subset_all(), &this.episode_ends[..], &this.codec)
+                .map_err(|e| zarr_err(zarr, e))?;
         }
-        if self.videos {
+        if this.videos {
             let map = json!({
                 "cameras": cameras,
-                "episodes": self.episode_ids,
+                "episodes": this.episode_ids,
             });
-            write_json(&self.root.join("videos").join("name_map.json"), &map)?;
+            write_json(&this.root.join("videos").join("name_map.json"), &map)?;
         }
         Ok(())
     }

@@ -17,13 +17,15 @@ use std::path::PathBuf;
 
 use serde_json::{Value, json};
 
-use crate::error::ConvertError;
-use crate::lerobot_v3::{
-    CHUNKS_SIZE, CameraSpec, Ordered, data_columns, index_stats, stats_json, write_json,
+use super::lerobot_info::{
+    CameraSpec, Features, Info, InfoVersion, Tasks, VideoMeta, VideoMetaV21, check_episode,
+    stats_json, train_split,
 };
-use crate::parquet_io as pq;
-use crate::prepare::PreparedEpisode;
-use crate::stats::{FeatureStats, aggregate};
+use super::lerobot_v3::{CHUNKS_SIZE, data_columns, index_stats};
+use super::parquet as pq;
+use super::stats::{FeatureStats, aggregate};
+use super::{DatasetWriter, PreparedEpisode, place_video, write_json};
+use crate::error::DatasetError;
 
 /// Writes a LeRobot v2.1 dataset into `root` (a fresh folder).
 pub struct V21Writer {
@@ -37,8 +39,7 @@ pub struct V21Writer {
     episodes_stats: fs_err::File,
     /// Per episode, its statistics (kept for stats.json; a few hundred numbers each).
     stats: Vec<BTreeMap<String, FeatureStats>>,
-    tasks: Vec<String>,
-    task_index: HashMap<String, usize>,
+    tasks: Tasks,
     frames: usize,
 }
 
@@ -51,7 +52,7 @@ impl std::fmt::Debug for V21Writer {
     }
 }
 
-fn jsonl_line(file: &mut fs_err::File, value: &Value) -> Result<(), ConvertError> {
+fn jsonl_line(file: &mut fs_err::File, value: &Value) -> Result<(), DatasetError> {
     let mut line = serde_json::to_string(value).expect("JSON values serialize");
     line.push('\n');
     file.write_all(line.as_bytes())?;
@@ -62,12 +63,13 @@ fn jsonl_line(file: &mut fs_err::File, value: &Value) -> Result<(), ConvertError
 fn hf_metadata(action: usize, state: usize) -> String {
     let seq = |n: usize| json!({"feature": {"dtype": "float32", "_type": "Value"}, "length": n, "_type": "Sequence"});
     let value = |t: &str| json!({"dtype": t, "_type": "Value"});
-    let mut features = Ordered::default();
-    features.push("action", seq(action));
-    features.push("observation.state", seq(state));
-    features.push("timestamp", value("float32"));
+    // serde_json keeps insertion order (its `preserve_order`, which zarrs turns on).
+    let mut features = serde_json::Map::new();
+    features.insert("action".into(), seq(action));
+    features.insert("observation.state".into(), seq(state));
+    features.insert("timestamp".into(), value("float32"));
     for k in ["frame_index", "episode_index", "index", "task_index"] {
-        features.push(k, value("int64"));
+        features.insert(k.into(), value("int64"));
     }
     serde_json::to_string(&json!({"info": {"features": features}})).expect("serializes")
 }
@@ -78,11 +80,11 @@ impl V21Writer {
         root: impl Into<PathBuf>,
         first: &PreparedEpisode,
         robot_type: Option<String>,
-    ) -> Result<Self, ConvertError> {
+    ) -> Result<Self, DatasetError> {
         let root = root.into();
         let meta = root.join("meta");
         fs_err::create_dir_all(&meta)?;
-        let open = |name: &str| -> Result<fs_err::File, ConvertError> {
+        let open = |name: &str| -> Result<fs_err::File, DatasetError> {
             Ok(fs_err::File::create(meta.join(name))?)
         };
         Ok(Self {
@@ -95,58 +97,80 @@ impl V21Writer {
             cameras: CameraSpec::of(first),
             root,
             stats: Vec::new(),
-            tasks: Vec::new(),
-            task_index: HashMap::new(),
+            tasks: Tasks::default(),
             frames: 0,
         })
     }
 
-    /// Episodes written so far.
-    pub fn episodes(&self) -> usize {
-        self.stats.len()
-    }
-
-    /// Frames written so far.
-    pub fn frames(&self) -> usize {
-        self.frames
-    }
-
-    /// Checks that `ep` can join this dataset (layout, video size and codec).
-    pub(crate) fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), ConvertError> {
-        let bad = |m: String| Err(ConvertError::episode(&ep.id, m));
-        let want: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
-        ep.check_layout(
-            self.fps,
-            self.action_names.len(),
-            self.state_names.len(),
-            &want,
-        )?;
-        for (v, c) in ep.videos.iter().zip(&self.cameras) {
-            if (v.info.width, v.info.height) != (c.width, c.height) || v.info.codec != c.codec {
-                return bad(format!(
-                    "camera '{}': {}x{} {} differs from the dataset's {}x{} {}",
-                    c.name, v.info.width, v.info.height, v.info.codec, c.width, c.height, c.codec
-                ));
-            }
+    fn info(&self) -> Info {
+        let features =
+            Features::lerobot(&self.action_names, &self.state_names, &self.cameras, |c| {
+                VideoMeta::V21(VideoMetaV21 {
+                    fps: f64::from(self.fps),
+                    height: c.height,
+                    width: c.width,
+                    channels: 3,
+                    codec: c.codec.clone(),
+                    pix_fmt: c.pix_fmt.clone(),
+                    video_is_depth_map: false,
+                    has_audio: false,
+                })
+            });
+        let episodes = self.stats.len();
+        Info {
+            version: InfoVersion::V21 {
+                total_videos: episodes * self.cameras.len(),
+                total_chunks: episodes.div_ceil(CHUNKS_SIZE),
+            },
+            robot_type: self.robot_type.clone(),
+            fps: self.fps,
+            features,
+            total_episodes: episodes,
+            total_frames: self.frames,
+            total_tasks: self.tasks.list().len(),
+            chunks_size: CHUNKS_SIZE,
+            splits: train_split(episodes),
+            data_path: "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet",
+            video_path: (!self.cameras.is_empty()).then_some(
+                "videos/chunk-{episode_chunk:03d}/{video_key}/episode_{episode_index:06d}.mp4",
+            ),
         }
-        Ok(())
+    }
+}
+
+impl DatasetWriter for V21Writer {
+    /// Checks that `ep` can join this dataset (layout, video size, codec and pixel format).
+    fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), DatasetError> {
+        check_episode(
+            ep,
+            self.fps,
+            (self.action_names.len(), self.state_names.len()),
+            &self.cameras,
+            |c, v| {
+                // v2.1 encodes every video alike, so the pixel formats agree in practice.
+                let (ours, theirs) = if v.pix_fmt == c.pix_fmt {
+                    (v.codec.clone(), c.codec.clone())
+                } else {
+                    (
+                        format!("{} {}", v.codec, v.pix_fmt),
+                        format!("{} {}", c.codec, c.pix_fmt),
+                    )
+                };
+                format!(
+                    "camera '{}': {}x{} {ours} differs from the dataset's {}x{} {theirs}",
+                    c.name, v.width, v.height, c.width, c.height
+                )
+            },
+        )
     }
 
     /// Writes one episode's parquet and videos and its metadata lines.
-    pub fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), ConvertError> {
+    fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), DatasetError> {
         self.check_compatible(&ep)?;
         let n = ep.len();
         let index = self.stats.len();
         let chunk = index / CHUNKS_SIZE;
-        let task_index = match self.task_index.get(&ep.instruction) {
-            Some(i) => *i,
-            None => {
-                self.tasks.push(ep.instruction.clone());
-                self.task_index
-                    .insert(ep.instruction.clone(), self.tasks.len() - 1);
-                self.tasks.len() - 1
-            }
-        };
+        let task_index = self.tasks.index_of(&ep.instruction);
         let mut stats = ep.stats.clone();
         let timestamps = index_stats(&mut stats, n, self.fps, index, self.frames, task_index);
         let columns = data_columns(&ep, &timestamps, index, self.frames, task_index);
@@ -168,12 +192,7 @@ impl V21Writer {
                 "videos/chunk-{chunk:03}/{}/episode_{index:06}.mp4",
                 cam.key
             ));
-            fs_err::create_dir_all(dst.parent().expect("has parent"))?;
-            if part.temporary {
-                fs_err::rename(&part.path, &dst)?;
-            } else {
-                fs_err::copy(&part.path, &dst)?;
-            }
+            place_video(part, &dst)?;
         }
 
         jsonl_line(
@@ -196,13 +215,21 @@ impl V21Writer {
         Ok(())
     }
 
+    fn episodes(&self) -> usize {
+        self.stats.len()
+    }
+
+    fn frames(&self) -> usize {
+        self.frames
+    }
+
     /// Writes tasks.jsonl, stats.json and info.json.
-    pub fn finish(mut self) -> Result<(), ConvertError> {
+    fn finish(mut self: Box<Self>) -> Result<(), DatasetError> {
         self.episodes.flush()?;
         self.episodes_stats.flush()?;
         let meta = self.root.join("meta");
         let mut tasks = fs_err::File::create(meta.join("tasks.jsonl"))?;
-        for (i, t) in self.tasks.iter().enumerate() {
+        for (i, t) in self.tasks.list().iter().enumerate() {
             jsonl_line(&mut tasks, &json!({"task_index": i, "task": t}))?;
         }
         let mut agg = serde_json::Map::new();
@@ -220,78 +247,4 @@ impl V21Writer {
         write_json(&meta.join("info.json"), &self.info())?;
         Ok(())
     }
-
-    fn info(&self) -> InfoV21 {
-        let mut features = Ordered::default();
-        features.push(
-            "action",
-            json!({"dtype": "float32", "shape": [self.action_names.len()], "names": self.action_names}),
-        );
-        features.push(
-            "observation.state",
-            json!({"dtype": "float32", "shape": [self.state_names.len()], "names": self.state_names}),
-        );
-        for c in &self.cameras {
-            features.push(
-                &c.key,
-                json!({
-                    "dtype": "video",
-                    "shape": [c.height, c.width, 3],
-                    "names": ["height", "width", "channels"],
-                    "info": {
-                        "video.fps": f64::from(self.fps),
-                        "video.height": c.height,
-                        "video.width": c.width,
-                        "video.channels": 3,
-                        "video.codec": c.codec,
-                        "video.pix_fmt": c.pix_fmt,
-                        "video.is_depth_map": false,
-                        "has_audio": false,
-                    }
-                }),
-            );
-        }
-        features.push(
-            "timestamp",
-            json!({"dtype": "float32", "shape": [1], "names": null}),
-        );
-        for k in ["frame_index", "episode_index", "index", "task_index"] {
-            features.push(k, json!({"dtype": "int64", "shape": [1], "names": null}));
-        }
-        let episodes = self.stats.len();
-        InfoV21 {
-            codebase_version: "v2.1",
-            robot_type: self.robot_type.clone(),
-            total_episodes: episodes,
-            total_frames: self.frames,
-            total_tasks: self.tasks.len(),
-            total_videos: episodes * self.cameras.len(),
-            total_chunks: episodes.div_ceil(CHUNKS_SIZE),
-            chunks_size: CHUNKS_SIZE,
-            fps: self.fps,
-            splits: BTreeMap::from([("train", format!("0:{episodes}"))]),
-            data_path: "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet",
-            video_path: (!self.cameras.is_empty()).then_some(
-                "videos/chunk-{episode_chunk:03d}/{video_key}/episode_{episode_index:06d}.mp4",
-            ),
-            features,
-        }
-    }
-}
-
-#[derive(Debug, serde::Serialize)]
-struct InfoV21 {
-    codebase_version: &'static str,
-    robot_type: Option<String>,
-    total_episodes: usize,
-    total_frames: usize,
-    total_tasks: usize,
-    total_videos: usize,
-    total_chunks: usize,
-    chunks_size: usize,
-    fps: u32,
-    splits: BTreeMap<&'static str, String>,
-    data_path: &'static str,
-    video_path: Option<&'static str>,
-    features: Ordered,
 }

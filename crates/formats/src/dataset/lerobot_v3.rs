@@ -5,13 +5,16 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 use parquet::arrow::ArrowWriter;
-use serde::Serialize;
-use serde_json::{Value, json};
+use serde_json::Value;
 
-use crate::error::ConvertError;
-use crate::parquet_io::{self as pq, parquet_err};
-use crate::prepare::PreparedEpisode;
-use crate::stats::{FeatureStats, aggregate, column_stats};
+use super::lerobot_info::{
+    CameraSpec, Features, Info, InfoVersion, Tasks, VideoMeta, VideoMetaV3, check_episode,
+    stats_json, train_split,
+};
+use super::parquet::{self as pq, parquet_err};
+use super::stats::{FeatureStats, aggregate, column_stats};
+use super::{DatasetWriter, PreparedEpisode, write_json};
+use crate::error::DatasetError;
 
 /// Episodes per chunk folder.
 pub const CHUNKS_SIZE: usize = 1000;
@@ -38,36 +41,6 @@ impl Default for V3Options {
             data_file_mb: DEFAULT_DATA_FILE_MB,
             video_file_mb: DEFAULT_VIDEO_FILE_MB,
         }
-    }
-}
-
-/// A camera feature of the dataset, from its first episode's video part.
-#[derive(Debug, Clone)]
-pub(crate) struct CameraSpec {
-    pub(crate) name: String,
-    pub(crate) key: String,
-    pub(crate) width: u32,
-    pub(crate) height: u32,
-    pub(crate) codec: String,
-    pub(crate) pix_fmt: String,
-    pub(crate) copied: bool,
-}
-
-impl CameraSpec {
-    pub(crate) fn of(first: &PreparedEpisode) -> Vec<Self> {
-        first
-            .videos
-            .iter()
-            .map(|v| Self {
-                name: v.name.clone(),
-                key: format!("observation.images.{}", v.name),
-                width: v.info.width,
-                height: v.info.height,
-                codec: v.info.codec.clone(),
-                pix_fmt: v.info.pix_fmt.clone(),
-                copied: v.copied,
-            })
-            .collect()
     }
 }
 
@@ -174,8 +147,7 @@ pub struct V3Writer {
     data_index: (usize, usize),
     videos: Vec<VideoFile>,
     episodes: Vec<EpisodeRow>,
-    tasks: Vec<String>,
-    task_index: HashMap<String, usize>,
+    tasks: Tasks,
     frames: usize,
 }
 
@@ -207,7 +179,7 @@ impl V3Writer {
         root: impl Into<PathBuf>,
         first: &PreparedEpisode,
         options: V3Options,
-    ) -> Result<Self, ConvertError> {
+    ) -> Result<Self, DatasetError> {
         let root = root.into();
         fs_err::create_dir_all(root.join("meta"))?;
         let cameras = CameraSpec::of(first);
@@ -222,77 +194,14 @@ impl V3Writer {
             data: None,
             data_index: (0, 0),
             episodes: Vec::new(),
-            tasks: Vec::new(),
-            task_index: HashMap::new(),
+            tasks: Tasks::default(),
             frames: 0,
         })
     }
 
-    /// Episodes written so far.
-    pub fn episodes(&self) -> usize {
-        self.episodes.len()
-    }
-
-    /// Frames written so far.
-    pub fn frames(&self) -> usize {
-        self.frames
-    }
-
-    /// Checks that `ep` can join this dataset (layout, and videos that stream-copy).
-    pub(crate) fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), ConvertError> {
-        let bad = |m: String| Err(ConvertError::episode(&ep.id, m));
-        let want: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
-        ep.check_layout(
-            self.fps,
-            self.action_names.len(),
-            self.state_names.len(),
-            &want,
-        )?;
-        for (v, c) in ep.videos.iter().zip(&self.cameras) {
-            if (v.info.width, v.info.height) != (c.width, c.height)
-                || v.info.codec != c.codec
-                || v.info.pix_fmt != c.pix_fmt
-            {
-                return bad(format!(
-                    "camera '{}': {}x{} {} {} cannot join the dataset's {}x{} {} {} video by stream copy (use --reencode)",
-                    c.name,
-                    v.info.width,
-                    v.info.height,
-                    v.info.codec,
-                    v.info.pix_fmt,
-                    c.width,
-                    c.height,
-                    c.codec,
-                    c.pix_fmt
-                ));
-            }
-        }
-        Ok(())
-    }
-
-    /// Appends one episode: its rows to the current data file (one row group), its video
-    /// parts to each camera's current file.
-    pub fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), ConvertError> {
-        self.check_compatible(&ep)?;
-        let n = ep.len();
-        let episode_index = self.episodes.len();
-        let task_index = match self.task_index.get(&ep.instruction) {
-            Some(i) => *i,
-            None => {
-                self.tasks.push(ep.instruction.clone());
-                self.task_index
-                    .insert(ep.instruction.clone(), self.tasks.len() - 1);
-                self.tasks.len() - 1
-            }
-        };
-        let from = self.frames;
-        let fps = f64::from(self.fps);
-        let mut index_st = BTreeMap::new();
-        let timestamps = index_stats(&mut index_st, n, self.fps, episode_index, from, task_index);
-        let columns = data_columns(&ep, &timestamps, episode_index, from, task_index);
-        let batch = pq::batch(columns, HashMap::new());
-
-        // Roll the data file over when it has reached its cap.
+    /// Appends one episode's rows to the current data file (one row group), rolling the
+    /// file over when it has reached its cap.
+    fn write_data(&mut self, batch: &arrow_array::RecordBatch) -> Result<(), DatasetError> {
         let cap = (self.options.data_file_mb * 1e6) as u64;
         if let Some(d) = &self.data
             && d.writer.bytes_written() as u64 >= cap
@@ -310,17 +219,23 @@ impl V3Writer {
             fs_err::create_dir_all(path.parent().expect("has parent"))?;
             let file = fs_err::File::create(&path)?;
             let writer = ArrowWriter::try_new(file, batch.schema(), Some(pq::props()))
-                .map_err(|e| parquet_err(&path)(e.to_string()))?;
+                .map_err(parquet_err(&path))?;
             self.data = Some(DataFile { writer, path });
         }
-        {
-            let d = self.data.as_mut().expect("opened above");
-            let err = parquet_err(&d.path);
-            d.writer.write(&batch).map_err(|e| err(e.to_string()))?;
-            d.writer.flush().map_err(|e| err(e.to_string()))?;
-        }
+        let d = self.data.as_mut().expect("opened above");
+        let err = parquet_err(&d.path);
+        d.writer.write(batch).map_err(&err)?;
+        d.writer.flush().map_err(&err)?;
+        Ok(())
+    }
 
-        // Videos.
+    /// Appends one episode's video parts to each camera's current file (rolled over at
+    /// its cap); returns each camera's (chunk, file, from, to timestamps).
+    fn append_videos(
+        &mut self,
+        ep: &PreparedEpisode,
+    ) -> Result<Vec<(usize, usize, f64, f64)>, DatasetError> {
+        let fps = f64::from(self.fps);
         let vcap = (self.options.video_file_mb * 1e6) as u64;
         let mut videos = Vec::new();
         for (i, part) in ep.videos.iter().enumerate() {
@@ -344,32 +259,17 @@ impl V3Writer {
             v.frames += part.frames;
             v.bytes += part.bytes;
         }
-
-        let mut stats = ep.stats;
-        stats.extend(index_st);
-        self.episodes.push(EpisodeRow {
-            tasks: vec![ep.instruction],
-            length: n,
-            data: self.data_index,
-            from,
-            to: from + n,
-            videos,
-            stats,
-        });
-        self.frames += n;
-        Ok(())
+        Ok(videos)
     }
 
-    fn close_data(&mut self) -> Result<(), ConvertError> {
+    fn close_data(&mut self) -> Result<(), DatasetError> {
         if let Some(d) = self.data.take() {
-            d.writer
-                .close()
-                .map_err(|e| parquet_err(&d.path)(e.to_string()))?;
+            d.writer.close().map_err(parquet_err(&d.path))?;
         }
         Ok(())
     }
 
-    fn close_video(&mut self, i: usize) -> Result<(), ConvertError> {
+    fn close_video(&mut self, i: usize) -> Result<(), DatasetError> {
         let c = &self.cameras[i];
         let v = &mut self.videos[i];
         if v.parts.is_empty() {
@@ -383,7 +283,7 @@ impl V3Writer {
         );
         fs_err::create_dir_all(path.parent().expect("has parent"))?;
         dexjoco_video::concat_copy(&v.parts, &path, self.fps).map_err(|source| {
-            ConvertError::Video {
+            DatasetError::Video {
                 at: dexjoco_core::Location::default()
                     .field(c.key.clone())
                     .path(&path)
@@ -398,29 +298,30 @@ impl V3Writer {
         Ok(())
     }
 
-    /// Closes the files and writes `meta/` (info, stats, tasks, episodes).
-    pub fn finish(mut self) -> Result<(), ConvertError> {
-        self.close_data()?;
-        for i in 0..self.cameras.len() {
-            self.close_video(i)?;
-        }
-        let meta = self.root.join("meta");
-        // tasks.parquet, with the pandas index metadata the loader needs.
+    /// `meta/tasks.parquet`, with the pandas index metadata the loader needs.
+    fn write_tasks(&self, meta: &Path) -> Result<(), DatasetError> {
         let pandas = r#"{"index_columns":["task"],"column_indexes":[],"columns":[{"name":"task_index","field_name":"task_index","pandas_type":"int64","numpy_type":"int64","metadata":null},{"name":"task","field_name":"task","pandas_type":"unicode","numpy_type":"object","metadata":null}]}"#;
+        let tasks = self.tasks.list();
         let tasks = pq::batch(
             vec![
                 (
                     "task_index".into(),
-                    pq::i64_column((0..self.tasks.len()).map(|i| i as i64)),
+                    pq::i64_column((0..tasks.len()).map(|i| i as i64)),
                 ),
-                ("task".into(), pq::string_column(&self.tasks)),
+                ("task".into(), pq::string_column(tasks)),
             ],
             HashMap::from([("pandas".to_owned(), pandas.to_owned())]),
         );
-        pq::write_file(&meta.join("tasks.parquet"), &tasks)?;
+        pq::write_file(&meta.join("tasks.parquet"), &tasks)
+    }
 
-        // Episodes.
-        let feature_keys = self.stat_features();
+    /// `meta/episodes/chunk-000/file-000.parquet`: per episode its task, length, data
+    /// and video file indices, video time ranges and statistics.
+    fn write_episodes(
+        &self,
+        meta: &Path,
+        feature_keys: &[(String, bool)],
+    ) -> Result<(), DatasetError> {
         let rows = &self.episodes;
         let mut cols: Vec<(String, arrow_array::ArrayRef)> = vec![
             (
@@ -452,6 +353,25 @@ impl V3Writer {
                 pq::i64_column(rows.iter().map(|r| r.to as i64)),
             ),
         ];
+        cols.extend(self.video_columns());
+        cols.extend(stats_columns(rows, feature_keys));
+        cols.push((
+            "meta/episodes/chunk_index".into(),
+            pq::i64_column(rows.iter().map(|_| 0)),
+        ));
+        cols.push((
+            "meta/episodes/file_index".into(),
+            pq::i64_column(rows.iter().map(|_| 0)),
+        ));
+        let ep_path = chunk_path(&meta.join("episodes"), 0, 0, "parquet");
+        fs_err::create_dir_all(ep_path.parent().expect("has parent"))?;
+        pq::write_file(&ep_path, &pq::batch(cols, HashMap::new()))
+    }
+
+    /// Per camera, the episodes' video chunk and file indices and time ranges.
+    fn video_columns(&self) -> Vec<(String, arrow_array::ArrayRef)> {
+        let rows = &self.episodes;
+        let mut cols: Vec<(String, arrow_array::ArrayRef)> = Vec::new();
         for (i, c) in self.cameras.iter().enumerate() {
             let k = &c.key;
             cols.push((
@@ -475,51 +395,7 @@ impl V3Writer {
                 )),
             ));
         }
-        for (key, image) in &feature_keys {
-            let get = |r: &EpisodeRow| {
-                r.stats
-                    .get(key)
-                    .cloned()
-                    .expect("every episode has every feature's stats")
-            };
-            let all: Vec<FeatureStats> = rows.iter().map(get).collect();
-            let names: Vec<&str> = all[0].named().iter().map(|(n, _)| *n).collect();
-            for (si, stat) in names.iter().enumerate() {
-                let vals: Vec<Vec<f64>> = all.iter().map(|s| s.named()[si].1.to_vec()).collect();
-                let col = if *image {
-                    pq::f64_channel_lists(&vals)
-                } else {
-                    pq::f64_lists(&vals)
-                };
-                cols.push((format!("stats/{key}/{stat}"), col));
-            }
-            cols.push((
-                format!("stats/{key}/count"),
-                pq::i64_lists(&all.iter().map(|s| vec![s.count as i64]).collect::<Vec<_>>()),
-            ));
-        }
-        cols.push((
-            "meta/episodes/chunk_index".into(),
-            pq::i64_column(rows.iter().map(|_| 0)),
-        ));
-        cols.push((
-            "meta/episodes/file_index".into(),
-            pq::i64_column(rows.iter().map(|_| 0)),
-        ));
-        let ep_path = chunk_path(&meta.join("episodes"), 0, 0, "parquet");
-        fs_err::create_dir_all(ep_path.parent().expect("has parent"))?;
-        pq::write_file(&ep_path, &pq::batch(cols, HashMap::new()))?;
-
-        // stats.json
-        let mut stats = serde_json::Map::new();
-        for (key, image) in &feature_keys {
-            let per: Vec<&FeatureStats> = rows.iter().map(|r| &r.stats[key]).collect();
-            let agg = aggregate(&per).expect("at least one episode");
-            stats.insert(key.clone(), stats_json(&agg, *image));
-        }
-        write_json(&meta.join("stats.json"), &Value::Object(stats))?;
-        write_json(&meta.join("info.json"), &self.info())?;
-        Ok(())
+        cols
     }
 
     /// Features with statistics, and whether each is an image.
@@ -542,136 +418,158 @@ impl V3Writer {
     }
 
     fn info(&self) -> Info {
-        let mut features = Ordered::default();
-        features.push(
-            "action",
-            json!({"dtype": "float32", "shape": [self.action_names.len()], "names": self.action_names}),
-        );
-        features.push(
-            "observation.state",
-            json!({"dtype": "float32", "shape": [self.state_names.len()], "names": self.state_names}),
-        );
-        for c in &self.cameras {
-            let encoded = !c.copied;
-            features.push(
-                &c.key,
-                json!({
-                    "dtype": "video",
-                    "shape": [c.height, c.width, 3],
-                    "names": ["height", "width", "channels"],
-                    "info": {
-                        "video.height": c.height,
-                        "video.width": c.width,
-                        "video.codec": c.codec,
-                        "video.pix_fmt": c.pix_fmt,
-                        "video.is_depth_map": false,
-                        "video.fps": self.fps,
-                        "video.channels": 3,
-                        "video.g": if encoded { json!(2) } else { Value::Null },
-                        "video.crf": if encoded { json!(if c.codec == "av1" { 30 } else { 21 }) } else { Value::Null },
-                        "video.preset": if encoded && c.codec == "av1" { json!(12) } else { Value::Null },
-                        "video.fast_decode": 0,
-                        "video.video_backend": Value::Null,
-                        "video.extra_options": {},
-                        "has_audio": false,
-                        "is_depth_map": false,
-                    }
-                }),
-            );
-        }
-        features.push(
-            "timestamp",
-            json!({"dtype": "float32", "shape": [1], "names": null}),
-        );
-        for k in ["frame_index", "episode_index", "index", "task_index"] {
-            features.push(k, json!({"dtype": "int64", "shape": [1], "names": null}));
-        }
+        let features =
+            Features::lerobot(&self.action_names, &self.state_names, &self.cameras, |c| {
+                let encoded = !c.copied;
+                VideoMeta::V3(VideoMetaV3 {
+                    height: c.height,
+                    width: c.width,
+                    codec: c.codec.clone(),
+                    pix_fmt: c.pix_fmt.clone(),
+                    video_is_depth_map: false,
+                    fps: self.fps,
+                    channels: 3,
+                    g: encoded.then_some(2),
+                    crf: encoded.then_some(if c.codec == "av1" { 30 } else { 21 }),
+                    preset: (encoded && c.codec == "av1").then_some(12),
+                    fast_decode: 0,
+                    video_backend: None,
+                    extra_options: BTreeMap::new(),
+                    has_audio: false,
+                    is_depth_map: false,
+                })
+            });
         Info {
-            codebase_version: "v3.0",
+            version: InfoVersion::V3 {
+                data_files_size_in_mb: (self.options.data_file_mb.round() as u64).max(1),
+                video_files_size_in_mb: (self.options.video_file_mb.round() as u64).max(1),
+            },
+            robot_type: self.options.robot_type.clone(),
             fps: self.fps,
             features,
             total_episodes: self.episodes.len(),
             total_frames: self.frames,
-            total_tasks: self.tasks.len(),
+            total_tasks: self.tasks.list().len(),
             chunks_size: CHUNKS_SIZE,
-            data_files_size_in_mb: (self.options.data_file_mb.round() as u64).max(1),
-            video_files_size_in_mb: (self.options.video_file_mb.round() as u64).max(1),
+            splits: train_split(self.episodes.len()),
             data_path: "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
             video_path: (!self.cameras.is_empty())
                 .then_some("videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"),
-            robot_type: self.options.robot_type.clone(),
-            splits: BTreeMap::from([("train", format!("0:{}", self.episodes.len()))]),
         }
     }
 }
 
-/// A JSON object that keeps insertion order.
-#[derive(Debug, Default)]
-pub(crate) struct Ordered(Vec<(String, Value)>);
-
-impl Ordered {
-    pub(crate) fn push(&mut self, k: &str, v: Value) {
-        self.0.push((k.to_owned(), v));
-    }
-}
-
-impl Serialize for Ordered {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        use serde::ser::SerializeMap;
-        let mut m = s.serialize_map(Some(self.0.len()))?;
-        for (k, v) in &self.0 {
-            m.serialize_entry(k, v)?;
+/// Per feature, the episodes' statistics (`stats/<key>/<stat>`, then `count`).
+fn stats_columns(
+    rows: &[EpisodeRow],
+    feature_keys: &[(String, bool)],
+) -> Vec<(String, arrow_array::ArrayRef)> {
+    let mut cols: Vec<(String, arrow_array::ArrayRef)> = Vec::new();
+    for (key, image) in feature_keys {
+        let get = |r: &EpisodeRow| {
+            r.stats
+                .get(key)
+                .cloned()
+                .expect("every episode has every feature's stats")
+        };
+        let all: Vec<FeatureStats> = rows.iter().map(get).collect();
+        let names: Vec<&str> = all[0].named().iter().map(|(n, _)| *n).collect();
+        for (si, stat) in names.iter().enumerate() {
+            let vals: Vec<Vec<f64>> = all.iter().map(|s| s.named()[si].1.to_vec()).collect();
+            let col = if *image {
+                pq::f64_channel_lists(&vals)
+            } else {
+                pq::f64_lists(&vals)
+            };
+            cols.push((format!("stats/{key}/{stat}"), col));
         }
-        m.end()
+        cols.push((
+            format!("stats/{key}/count"),
+            pq::i64_lists(&all.iter().map(|s| vec![s.count as i64]).collect::<Vec<_>>()),
+        ));
     }
+    cols
 }
 
-#[derive(Debug, Serialize)]
-struct Info {
-    codebase_version: &'static str,
-    fps: u32,
-    features: Ordered,
-    total_episodes: usize,
-    total_frames: usize,
-    total_tasks: usize,
-    chunks_size: usize,
-    data_files_size_in_mb: u64,
-    video_files_size_in_mb: u64,
-    data_path: &'static str,
-    video_path: Option<&'static str>,
-    robot_type: Option<String>,
-    splits: BTreeMap<&'static str, String>,
-}
+impl DatasetWriter for V3Writer {
+    /// Checks that `ep` can join this dataset (layout, and videos that stream-copy).
+    fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), DatasetError> {
+        check_episode(
+            ep,
+            self.fps,
+            (self.action_names.len(), self.state_names.len()),
+            &self.cameras,
+            |c, v| {
+                format!(
+                    "camera '{}': {}x{} {} {} cannot join the dataset's {}x{} {} {} video by stream copy (use --reencode)",
+                    c.name,
+                    v.width,
+                    v.height,
+                    v.codec,
+                    v.pix_fmt,
+                    c.width,
+                    c.height,
+                    c.codec,
+                    c.pix_fmt
+                )
+            },
+        )
+    }
 
-/// `{min, max, mean, std, count, q01..q99}`; images as 3x1x1 nested lists.
-pub(crate) fn stats_json(s: &FeatureStats, image: bool) -> Value {
-    let mut m = serde_json::Map::new();
-    let shape = |v: &[f64]| -> Value {
-        if image {
-            Value::Array(v.iter().map(|x| json!([[x]])).collect())
-        } else {
-            json!(v)
+    /// Appends one episode: its rows to the current data file (one row group), its video
+    /// parts to each camera's current file.
+    fn write_episode(&mut self, ep: PreparedEpisode) -> Result<(), DatasetError> {
+        self.check_compatible(&ep)?;
+        let n = ep.len();
+        let episode_index = self.episodes.len();
+        let task_index = self.tasks.index_of(&ep.instruction);
+        let from = self.frames;
+        let mut index_st = BTreeMap::new();
+        let timestamps = index_stats(&mut index_st, n, self.fps, episode_index, from, task_index);
+        let columns = data_columns(&ep, &timestamps, episode_index, from, task_index);
+        self.write_data(&pq::batch(columns, HashMap::new()))?;
+        let videos = self.append_videos(&ep)?;
+        let mut stats = ep.stats;
+        stats.extend(index_st);
+        self.episodes.push(EpisodeRow {
+            tasks: vec![ep.instruction],
+            length: n,
+            data: self.data_index,
+            from,
+            to: from + n,
+            videos,
+            stats,
+        });
+        self.frames += n;
+        Ok(())
+    }
+
+    fn episodes(&self) -> usize {
+        self.episodes.len()
+    }
+
+    fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// Closes the files and writes `meta/` (info, stats, tasks, episodes).
+    fn finish(mut self: Box<Self>) -> Result<(), DatasetError> {
+        self.close_data()?;
+        for i in 0..self.cameras.len() {
+            self.close_video(i)?;
         }
-    };
-    for (k, v) in s.named() {
-        m.insert(k.to_owned(), shape(v));
+        let meta = self.root.join("meta");
+        self.write_tasks(&meta)?;
+        let feature_keys = self.stat_features();
+        self.write_episodes(&meta, &feature_keys)?;
+        let mut stats = serde_json::Map::new();
+        for (key, image) in &feature_keys {
+            let per: Vec<&FeatureStats> = self.episodes.iter().map(|r| &r.stats[key]).collect();
+            let agg = aggregate(&per).expect("at least one episode");
+            stats.insert(key.clone(), stats_json(&agg, *image));
+        }
+        write_json(&meta.join("stats.json"), &Value::Object(stats))?;
+        write_json(&meta.join("info.json"), &self.info())?;
+        Ok(())
     }
-    m.insert("count".into(), json!([s.count]));
-    Value::Object(m)
-}
-
-/// JSON with a 4-space indent, as lerobot writes it.
-pub(crate) fn write_json(path: &Path, value: &impl Serialize) -> Result<(), ConvertError> {
-    let mut buf = Vec::new();
-    let fmt = serde_json::ser::PrettyFormatter::with_indent(b"    ");
-    let mut ser = serde_json::Serializer::with_formatter(&mut buf, fmt);
-    value
-        .serialize(&mut ser)
-        .map_err(|e| ConvertError::Parquet {
-            path: path.into(),
-            message: e.to_string(),
-        })?;
-    buf.push(b'\n');
-    fs_err::write(path, buf)?;
-    Ok(())
 }

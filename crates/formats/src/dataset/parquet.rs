@@ -1,4 +1,5 @@
-//! Small helpers over arrow/parquet: column builders and file writing with snappy.
+//! Small helpers over arrow/parquet for the LeRobot writers: column builders and file
+//! writing with snappy.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -11,17 +12,20 @@ use arrow_array::{
 use arrow_schema::{DataType, Field, Schema, SchemaRef};
 use parquet::arrow::ArrowWriter;
 use parquet::basic::Compression;
+use parquet::errors::ParquetError;
 use parquet::file::properties::WriterProperties;
 
-use crate::error::ConvertError;
+use crate::error::DatasetError;
 
-pub(crate) fn parquet_err(path: &Path) -> impl Fn(String) -> ConvertError + '_ {
-    move |message| ConvertError::Parquet {
+/// Maps a parquet error of the file at `path` into [`DatasetError::Parquet`].
+pub(crate) fn parquet_err(path: &Path) -> impl Fn(ParquetError) -> DatasetError + '_ {
+    move |source| DatasetError::Parquet {
         path: path.to_path_buf(),
-        message,
+        source,
     }
 }
 
+/// Snappy compression, as lerobot writes its files.
 pub(crate) fn props() -> WriterProperties {
     WriterProperties::builder()
         .set_compression(Compression::SNAPPY)
@@ -37,18 +41,22 @@ pub(crate) fn f32_vectors(values: &[f64], width: usize) -> ArrayRef {
     )
 }
 
+/// A `float32` column.
 pub(crate) fn f32_column(values: impl IntoIterator<Item = f32>) -> ArrayRef {
     Arc::new(Float32Array::from_iter_values(values))
 }
 
+/// An `int64` column.
 pub(crate) fn i64_column(values: impl IntoIterator<Item = i64>) -> ArrayRef {
     Arc::new(Int64Array::from_iter_values(values))
 }
 
+/// A `string` column.
 pub(crate) fn string_column<S: AsRef<str>>(values: impl IntoIterator<Item = S>) -> ArrayRef {
     Arc::new(StringArray::from_iter_values(values))
 }
 
+/// A `list<string>` column.
 pub(crate) fn string_lists(values: &[Vec<String>]) -> ArrayRef {
     let mut b = ListBuilder::new(StringBuilder::new());
     for v in values {
@@ -60,6 +68,7 @@ pub(crate) fn string_lists(values: &[Vec<String>]) -> ArrayRef {
     Arc::new(b.finish())
 }
 
+/// A `list<double>` column.
 pub(crate) fn f64_lists(values: &[Vec<f64>]) -> ArrayRef {
     let mut b = ListBuilder::new(Float64Builder::new());
     for v in values {
@@ -69,6 +78,7 @@ pub(crate) fn f64_lists(values: &[Vec<f64>]) -> ArrayRef {
     Arc::new(b.finish())
 }
 
+/// A `list<int64>` column.
 pub(crate) fn i64_lists(values: &[Vec<i64>]) -> ArrayRef {
     let mut b = ListBuilder::new(Int64Builder::new());
     for v in values {
@@ -108,12 +118,11 @@ pub(crate) fn batch(
 }
 
 /// Writes one record batch as a whole parquet file (one row group).
-pub(crate) fn write_file(path: &Path, batch: &RecordBatch) -> Result<(), ConvertError> {
+pub(crate) fn write_file(path: &Path, batch: &RecordBatch) -> Result<(), DatasetError> {
     let file = fs_err::File::create(path)?;
     let err = parquet_err(path);
-    let mut w = ArrowWriter::try_new(file, batch.schema(), Some(props()))
-        .map_err(|e| err(e.to_string()))?;
-    w.write(batch).map_err(|e| err(e.to_string()))?;
-    w.close().map_err(|e| err(e.to_string()))?;
+    let mut w = ArrowWriter::try_new(file, batch.schema(), Some(props())).map_err(&err)?;
+    w.write(batch).map_err(&err)?;
+    w.close().map_err(&err)?;
     Ok(())
 }

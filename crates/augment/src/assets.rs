@@ -1,0 +1,80 @@
+//! A task's assets for augmenting it: its scene, the camera pool and table looks that
+//! randomization draws from, loaded once and shared by every unit that renders the task.
+
+use dexjoco_core::TaskSpec;
+use dexjoco_sim::{Scene, SceneSource, load_task_scene};
+
+use crate::config::{AugmentConfig, TABLE_GEOM};
+use crate::error::{AugmentError, sim_err};
+use crate::randomize::{CameraPool, TableLibrary, builtin_pool};
+
+/// A task's scene and what randomization needs of it, shared by every worker thread.
+pub(crate) struct TaskAssets {
+    pub(crate) scene: Scene,
+    pub(crate) pool: CameraPool,
+    pub(crate) table: TableLibrary,
+    pub(crate) nlight: usize,
+    pub(crate) key: String,
+}
+
+impl TaskAssets {
+    /// The scene ids of the fixed cameras a replay renders besides its third-person view.
+    pub(crate) fn fixed_cameras(
+        &self,
+        names: &[String],
+        episode: &str,
+    ) -> Result<Vec<usize>, AugmentError> {
+        names
+            .iter()
+            .map(|c| self.scene.camera_id(c).map_err(sim_err(episode)))
+            .collect()
+    }
+
+    /// The randomization of replay `r` of the episode `key` (`<task>/<episode>`).
+    pub(crate) fn sample(&self, seed: u64, key: &str, r: usize) -> crate::randomize::VisualSample {
+        crate::randomize::VisualSample::sample(
+            crate::randomize::replay_seed(seed, key, r),
+            &self.pool,
+            &self.table,
+            self.nlight,
+        )
+    }
+}
+
+fn pool_for(config: &AugmentConfig, spec: &TaskSpec) -> Result<CameraPool, AugmentError> {
+    if let Some(p) = &config.camera_pool {
+        return CameraPool::load(p);
+    }
+    if let SceneSource::Dir(dir) = &config.scene {
+        let file = match spec.setup {
+            dexjoco_core::ArmSetup::SingleArm => "replay_cameras.json",
+            dexjoco_core::ArmSetup::Bimanual => "replay_cameras_2.json",
+        };
+        // The reference pools sit beside its `xmls/` folder.
+        for cand in [dir.join(file), dir.join("..").join(file)] {
+            if cand.is_file() {
+                return CameraPool::load(&cand);
+            }
+        }
+    }
+    Ok(builtin_pool(spec.setup))
+}
+
+/// Loads a task's scene, camera pool and table looks.
+pub(crate) fn load_assets(
+    config: &AugmentConfig,
+    spec: &TaskSpec,
+) -> Result<TaskAssets, AugmentError> {
+    let scene = load_task_scene(&config.scene, spec).map_err(sim_err(&spec.id))?;
+    let table = TableLibrary::of_model(&scene.model, TABLE_GEOM)?;
+    let pool = pool_for(config, spec)?;
+    let nlight = scene.model.ffi().nlight as usize;
+    let key = format!("{}:{}", spec.id, scene.path.display());
+    Ok(TaskAssets {
+        scene,
+        pool,
+        table,
+        nlight,
+        key,
+    })
+}

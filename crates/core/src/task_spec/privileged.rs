@@ -1,0 +1,82 @@
+//! The privileged part of a task's state, column by column: each state object's pose (or
+//! position), then the table offset `dh`.
+
+use super::TaskSpec;
+use crate::layout::POSE_DIM;
+
+/// What a run of privileged state columns holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PrivilegedKind {
+    /// An object's reset-time pose: position xyz + quaternion wxyz (7 values).
+    Pose,
+    /// A position only: xyz (3 values).
+    Position,
+    /// The table height offset dh (1 value).
+    TableOffset,
+}
+
+impl PrivilegedKind {
+    /// Number of columns.
+    pub fn width(self) -> usize {
+        match self {
+            Self::Pose => POSE_DIM,
+            Self::Position => 3,
+            Self::TableOffset => 1,
+        }
+    }
+}
+
+/// One named run of privileged state columns of a task (after the proprioception).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PrivilegedField {
+    /// Name in the state layout, e.g. `mouse.pose` or `dh`.
+    pub name: String,
+    /// The state object it belongs to (`mouse`), or `dh`.
+    pub object: String,
+    /// What it holds.
+    pub kind: PrivilegedKind,
+    /// First column in `state`.
+    pub start: usize,
+}
+
+impl TaskSpec {
+    /// The privileged part of `state` in column order: each state object's pose (or
+    /// position), then the table offset `dh`. Names follow [`TaskSpec::state_layout`].
+    pub fn privileged(&self) -> Vec<PrivilegedField> {
+        let layout = self.state_layout();
+        let mut out: Vec<PrivilegedField> = self
+            .state
+            .objects
+            .iter()
+            .map(|o| {
+                let name = format!("{}.pose", o.name);
+                PrivilegedField {
+                    start: layout
+                        .get(&name)
+                        .expect("the layout names every object")
+                        .start,
+                    name,
+                    object: o.name.clone(),
+                    kind: if o.source.width() == POSE_DIM {
+                        PrivilegedKind::Pose
+                    } else {
+                        PrivilegedKind::Position
+                    },
+                }
+            })
+            .collect();
+        out.push(PrivilegedField {
+            name: "dh".into(),
+            object: "dh".into(),
+            kind: PrivilegedKind::TableOffset,
+            start: self.dh_column(),
+        });
+        out
+    }
+
+    /// Column of the table height offset dh in `state` (the last one).
+    pub fn dh_column(&self) -> usize {
+        self.state.width - 1
+    }
+}
