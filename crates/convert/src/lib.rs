@@ -1,8 +1,8 @@
 //! Conversion of DexJoCo episodes into datasets the training stacks read unchanged:
 //! LeRobot v3.0, LeRobot v2.1 and Diffusion Policy's Zarr replay buffer. The formats
 //! themselves (files, metadata, statistics as lerobot computes them) live in
-//! [`dexjoco_formats::dataset`], behind one trait ([`DatasetWriter`]); this crate chooses
-//! what goes into them:
+//! [`dexjoco_formats::dataset`], behind one trait ([`DatasetWriter`]); this crate
+//! chooses what goes into them:
 //!
 //! - [`Selection`]: what to take (action array, state slice, camera mapping, bad
 //!   episodes, static leading frames, instructions), read from TOML/YAML or the DexJoCo
@@ -12,8 +12,10 @@
 //! - [`merge`]: several tasks in one dataset (task table from the instructions);
 //!   one-arm episodes laid into the right-arm slots of the two-arm layout.
 //! - [`convert`]: the driver (parallel preparation in bounded batches, sequential
-//!   writing through the chosen [`DatasetWriter`], atomic finish); input is a stream of
-//!   [`InputEpisode`]s.
+//!   writing through the chosen [`DatasetWriter`], atomic finish); input is a stream
+//!   of [`InputEpisode`]s.
+//!
+//! [`DatasetWriter`]: dexjoco_formats::dataset::DatasetWriter
 //! - openpi's `norm_stats.json` (`--norm-stats`), through the one implementation in
 //!   [`dexjoco_formats::openpi`].
 
@@ -28,6 +30,6 @@ pub use convert::{
     CONVERT_MARKER, ConvertOptions, FailedEpisode, OutputFormat, Summary, check_output, convert,
 };
 // The dataset types of this crate's API (the writers' input and options).
-pub use dexjoco_formats::dataset::{DatasetWriter, PreparedEpisode, V3Options};
+pub use dexjoco_formats::dataset::{PreparedEpisode, V3Options};
 pub use error::ConvertError;
 pub use prepare::{InputEpisode, VideoCodec, VideoOptions, prepare};

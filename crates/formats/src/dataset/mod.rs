@@ -111,7 +111,7 @@ pub struct PreparedEpisode {
     pub action: FrameArray,
     /// Selected state columns, from the first kept frame.
     pub state: FrameArray,
-    /// Column names of action and state.
+    /// Column names of the action.
     pub action_names: Vec<String>,
     /// Column names of the state.
     pub state_names: Vec<String>,
