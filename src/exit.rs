@@ -41,6 +41,26 @@ impl fmt::Display for CliError {
 
 impl std::error::Error for CliError {}
 
+/// The error's message and its causes, each once: a cause whose text its parent's
+/// message already holds (`#[error("...: {source}")]`) is left out.
+pub fn messages(err: &anyhow::Error) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    let mut parent = String::new();
+    for e in err.chain() {
+        let text = e.to_string();
+        if lines.is_empty() || !parent.contains(&text) {
+            lines.push(text.clone());
+        }
+        parent = text;
+    }
+    lines
+}
+
+/// The error and its causes (each once) on one line, joined by `: `.
+pub fn one_line(err: &anyhow::Error) -> String {
+    messages(err).join(": ")
+}
+
 /// Whether an error (or one of its causes) is a folder locked by another run.
 pub fn is_locked(err: &anyhow::Error) -> bool {
     use dexjoco_formats::FormatError;
@@ -58,5 +78,38 @@ pub fn is_locked(err: &anyhow::Error) -> bool {
                     FormatError::Locked { .. }
                 ))
             )
+            || matches!(
+                e.downcast_ref(),
+                Some(dexjoco_augment::AugmentError::Format(
+                    FormatError::Locked { .. }
+                ))
+            )
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cause_the_message_embeds_is_printed_once() {
+        let io = std::io::Error::other("disk full");
+        let err = anyhow::Error::new(dexjoco_formats::FormatError::Io {
+            op: "write",
+            path: "out/x".into(),
+            source: io,
+        })
+        .context("augmenting into out");
+        assert_eq!(
+            messages(&err),
+            ["augmenting into out", "write 'out/x': disk full"]
+        );
+        assert_eq!(
+            one_line(&err),
+            "augmenting into out: write 'out/x': disk full"
+        );
+        // A cause with text of its own stays.
+        let err = anyhow::anyhow!("low").context("high");
+        assert_eq!(messages(&err), ["high", "low"]);
+    }
 }

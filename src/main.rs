@@ -23,8 +23,11 @@ fn main() -> ExitCode {
     dexjoco_sim::route_mujoco_warnings();
     init_worker_pool(cli.global.jobs);
     let result = match cli.command {
-        Command::Doctor(args) => commands::doctor::run(&cli.global, &args),
-        Command::Render(args) => commands::render::run(&cli.global, &args),
+        Command::Doctor(args) => {
+            commands::doctor::run(settings::DoctorSettings::resolve(&args, &cli.global))
+        }
+        Command::Render(args) => settings::RenderCommandSettings::resolve(&args, &cli.global)
+            .and_then(|s| commands::render::run(&s)),
         Command::Bench(cmd) => commands::bench::run(&cli.global, &cmd),
         Command::Ingest(args) => commands::ingest::run(&cli.global, args),
         Command::Export(args) => commands::export::run(&cli.global, args),
@@ -33,7 +36,8 @@ fn main() -> ExitCode {
         Command::Cameras(args) => commands::cameras::run(&cli.global, args),
         Command::Convert(args) => commands::convert::run(&cli.global, args),
         Command::Stats(args) => commands::stats::run(&cli.global, args),
-        Command::Scripted(args) => commands::scripted::run(&cli.global, &args),
+        Command::Scripted(args) => settings::ScriptedSettings::resolve(&args, &cli.global)
+            .and_then(commands::scripted::run),
     };
     match result {
         Ok(status) => status.into(),
@@ -58,7 +62,7 @@ fn init_worker_pool(jobs: Option<usize>) {
 fn report(err: &anyhow::Error) -> ExitStatus {
     let cli_error = err.chain().find_map(|e| e.downcast_ref::<CliError>());
     errln!("error: {err}");
-    let causes: Vec<String> = err.chain().skip(1).map(ToString::to_string).collect();
+    let causes: Vec<String> = exit::messages(err).into_iter().skip(1).collect();
     if !causes.is_empty() {
         errln!("Caused by:");
         for c in causes {

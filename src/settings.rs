@@ -16,8 +16,9 @@ use dexjoco_ingest::{IngestOptions, ValidationOptions};
 use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
 
 use crate::cli::{
-    AugmentArgs, CamerasArgs, ConvertArgs, ConvertFormatArg, ExportArgs, ExportFormat, GlobalArgs,
-    IngestArgs, JsBaseArg, QualityArg, ScriptedArgs, StatsArgs, VideoCodecArg,
+    AugmentArgs, BenchAugmentArgs, BenchIngestArgs, BenchRenderArgs, CamerasArgs, ConvertArgs,
+    ConvertFormatArg, DoctorArgs, ExportArgs, ExportFormat, GlobalArgs, IngestArgs, JsBaseArg,
+    QualityArg, RenderArgs, ScriptedArgs, StatsArgs, TasksDirArgs, VideoCodecArg,
 };
 use crate::exit::{CliError, ExitStatus};
 
@@ -31,13 +32,42 @@ pub fn usage(message: String, hint: impl Into<String>) -> anyhow::Error {
     .into()
 }
 
-/// The spec of a known task, or a usage error naming the known ones.
+/// The spec of a known task, or a usage error naming the known ones and `--tasks-dir`.
 pub fn known_task<'a>(tasks: &'a TaskSet, id: &str) -> anyhow::Result<&'a TaskSpec> {
     tasks.get(id).ok_or_else(|| {
         usage(
             format!("unknown task '{id}'"),
-            format!("known tasks: {}", tasks.ids().join(", ")),
+            format!(
+                "known tasks: {}; a task of your own: put its spec, {id}.toml, in a folder \
+                 and pass it with --tasks-dir",
+                tasks.ids().join(", ")
+            ),
         )
+    })
+}
+
+/// The known tasks (`--tasks-dir`): the built-in specs with those of the folder replacing
+/// the ones of the same id or adding tasks; a missing folder or a spec that does not
+/// parse is a failure naming it.
+pub fn task_set(args: &TasksDirArgs) -> anyhow::Result<TaskSet> {
+    let dir = args.tasks_dir.as_deref();
+    if let Some(d) = dir {
+        must_exist(
+            d,
+            "give --tasks-dir a folder of task specs (<task_id>.toml, as in schemas/tasks/)",
+        )?;
+    }
+    TaskSet::with_dir(dir).map_err(|e| {
+        CliError {
+            message: format!("--tasks-dir: {e}"),
+            hint: Some(
+                "each <task_id>.toml has the fields of schemas/task-spec.schema.json; \
+                 copy one of schemas/tasks/ to start from"
+                    .into(),
+            ),
+            status: ExitStatus::Failure,
+        }
+        .into()
     })
 }
 
@@ -72,11 +102,12 @@ impl IngestSettings {
             out,
             overwrite,
             task,
+            tasks,
             quat_tolerance,
             timestep_tolerance,
             json,
         } = args;
-        let tasks = TaskSet::builtin().clone();
+        let tasks = task_set(&tasks)?;
         if let Some(t) = &task {
             known_task(&tasks, t)?;
         }
@@ -122,6 +153,8 @@ pub struct ExportSettings {
     pub container: &'static dyn EpisodeContainer,
     /// Replace files already in `out`.
     pub overwrite: bool,
+    /// The known tasks.
+    pub tasks: TaskSet,
 }
 
 impl ExportSettings {
@@ -132,6 +165,7 @@ impl ExportSettings {
             inputs,
             out,
             overwrite,
+            tasks,
         } = args;
         let inputs = if inputs.is_empty() {
             vec![global.work_dir.join("ingest")]
@@ -151,33 +185,305 @@ impl ExportSettings {
                 ExportFormat::Mcap => &McapLog,
             },
             overwrite,
+            tasks: task_set(&tasks)?,
         })
+    }
+}
+
+/// `render`.
+pub struct RenderCommandSettings {
+    /// The scene file (None: the built-in tabletop scene).
+    pub scene: Option<PathBuf>,
+    /// A task id or `all` (`--task`): its scene at its reset instead of `scene`.
+    pub task: Option<String>,
+    /// The known tasks (`--tasks-dir` with `--task`).
+    pub tasks: TaskSet,
+    /// A scene pack folder for `task`.
+    pub scene_dir: Option<PathBuf>,
+    /// Cameras to render (empty: the scene's or the task's).
+    pub cameras: Vec<String>,
+    /// Size, quality, depth and meshes of the renderer.
+    pub render: RenderSettings,
+    /// Physics steps simulated before the stills (the clip's length with `--video`).
+    pub steps: usize,
+    /// With `--video`: the clips' frames per second.
+    pub video_fps: Option<u32>,
+    /// Output folder.
+    pub out: PathBuf,
+    /// Replace files of the same names in `out`.
+    pub overwrite: bool,
+    /// No progress bars.
+    pub quiet: bool,
+}
+
+/// Frames per second of `render --video` without `--fps`.
+const DEFAULT_VIDEO_FPS: u32 = 30;
+
+impl RenderCommandSettings {
+    /// Resolves `render`'s arguments.
+    pub fn resolve(args: &RenderArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let RenderArgs {
+            scene,
+            cameras,
+            size,
+            width,
+            height,
+            quality,
+            geometry,
+            depth,
+            steps,
+            video,
+            fps,
+            out,
+            overwrite,
+            task,
+            scene_dir,
+            tasks,
+        } = args;
+        if task.is_none() && tasks.tasks_dir.is_some() {
+            return Err(usage(
+                "--tasks-dir applies to --task only".into(),
+                "add --task <id> to render a task of the folder, or leave --tasks-dir out",
+            ));
+        }
+        Ok(Self {
+            scene: scene.clone(),
+            task: task.clone(),
+            tasks: task_set(tasks)?,
+            scene_dir: scene_dir.clone(),
+            cameras: cameras.clone(),
+            render: RenderSettings {
+                width: width.unwrap_or(*size),
+                height: height.unwrap_or(*size),
+                depth: *depth,
+                geometry: geometry.geometry(),
+                ..render_settings(*size, *quality)
+            },
+            steps: *steps,
+            video_fps: video.then(|| fps.unwrap_or(DEFAULT_VIDEO_FPS)),
+            out: out
+                .clone()
+                .unwrap_or_else(|| global.work_dir.join("render")),
+            overwrite: *overwrite,
+            quiet: global.quiet,
+        })
+    }
+}
+
+/// `bench render`.
+pub struct BenchRenderSettings {
+    /// Scenes given (empty: the built-in one and, when found, a reference scene).
+    pub scenes: Vec<PathBuf>,
+    /// Timed frames per row.
+    pub frames: usize,
+    /// Square sizes.
+    pub sizes: Vec<u32>,
+    /// Presets (every one when none was given).
+    pub presets: Vec<QualityArg>,
+    /// Camera (None: `front` when the scene has it, else the first).
+    pub camera: Option<String>,
+    /// The renderer's meshes.
+    pub geometries: Vec<dexjoco_sim::Geometry>,
+    /// Folder of the JSON results.
+    pub out: PathBuf,
+    /// No progress bar.
+    pub quiet: bool,
+}
+
+impl BenchRenderSettings {
+    /// Resolves `bench render`'s arguments.
+    pub fn resolve(args: &BenchRenderArgs, global: &GlobalArgs) -> Self {
+        let BenchRenderArgs {
+            scenes,
+            frames,
+            sizes,
+            presets,
+            camera,
+            geometry,
+        } = args;
+        let presets = if presets.is_empty() {
+            vec![
+                QualityArg::Paper,
+                QualityArg::NoMsaa,
+                QualityArg::NoMsaaNoShadows,
+                QualityArg::Fast,
+            ]
+        } else {
+            presets.clone()
+        };
+        Self {
+            scenes: scenes.clone(),
+            frames: *frames,
+            sizes: sizes.clone(),
+            presets,
+            camera: camera.clone(),
+            geometries: geometry.iter().map(|g| g.geometry()).collect(),
+            out: global.work_dir.join("bench"),
+            quiet: global.quiet,
+        }
+    }
+}
+
+/// `bench augment`.
+pub struct BenchAugmentSettings {
+    /// Episodes to replay (the sample demos when none were given).
+    pub inputs: Vec<PathBuf>,
+    /// Scene pack folder.
+    pub scene_dir: Option<PathBuf>,
+    /// Replays per episode.
+    pub replays: usize,
+    /// Only the first N frames of each episode (0: whole episodes).
+    pub max_frames: usize,
+    /// Square sizes.
+    pub sizes: Vec<u32>,
+    /// Quality presets.
+    pub qualities: Vec<QualityArg>,
+    /// The renderer's meshes.
+    pub geometry: Vec<crate::cli::GeometryArg>,
+    /// Skip the reference approach.
+    pub no_reference: bool,
+    /// Frames per process of the render-only limit (0 skips it).
+    pub limit_frames: usize,
+    /// Worker counts of our runs, ascending: those given, or 1 and `augment`'s default.
+    pub workers: Vec<usize>,
+    /// Threads of one process instead of worker processes.
+    pub threads: bool,
+    /// A worker's deadline for its first frame.
+    pub first_frame_timeout: std::time::Duration,
+    /// Seed of every run (`--seed`).
+    pub seed: u64,
+    /// No progress bar.
+    pub quiet: bool,
+    /// Folder of the JSON results.
+    pub out: PathBuf,
+}
+
+impl BenchAugmentSettings {
+    /// Resolves `bench augment`'s arguments; `sample_data` gives the default input.
+    pub fn resolve(
+        args: &BenchAugmentArgs,
+        global: &GlobalArgs,
+        sample_data: impl FnOnce() -> anyhow::Result<PathBuf>,
+    ) -> anyhow::Result<Self> {
+        let BenchAugmentArgs {
+            inputs,
+            scene_dir,
+            replays,
+            max_frames,
+            sizes,
+            qualities,
+            no_reference,
+            limit_frames,
+            workers,
+            geometry,
+            threads,
+            deadline,
+        } = args;
+        let mut workers = if workers.is_empty() {
+            vec![1, render_workers(global.jobs, Vec::new()).0]
+        } else {
+            workers.clone()
+        };
+        workers.sort_unstable();
+        workers.dedup();
+        Ok(Self {
+            inputs: if inputs.is_empty() {
+                vec![sample_data()?]
+            } else {
+                inputs.clone()
+            },
+            scene_dir: scene_dir.clone(),
+            replays: *replays,
+            max_frames: *max_frames,
+            sizes: sizes.clone(),
+            qualities: qualities.clone(),
+            geometry: geometry.clone(),
+            no_reference: *no_reference,
+            limit_frames: *limit_frames,
+            workers,
+            threads: *threads,
+            first_frame_timeout: deadline.duration(),
+            seed: global.seed,
+            quiet: global.quiet,
+            out: global.work_dir.join("bench"),
+        })
+    }
+}
+
+/// `bench ingest`.
+pub struct BenchIngestSettings {
+    /// Generated episodes per input format.
+    pub episodes: usize,
+    /// Frames per episode.
+    pub frames: usize,
+    /// Threads of the worker pool (`-j`, default all cores).
+    pub threads: usize,
+    /// Folder of the JSON results.
+    pub out: PathBuf,
+    /// No progress bars.
+    pub quiet: bool,
+}
+
+impl BenchIngestSettings {
+    /// Resolves `bench ingest`'s arguments.
+    pub fn resolve(args: &BenchIngestArgs, global: &GlobalArgs) -> Self {
+        let BenchIngestArgs { episodes, frames } = args;
+        Self {
+            episodes: *episodes,
+            frames: *frames,
+            threads: global.jobs.unwrap_or_else(dexjoco_core::available_cores),
+            out: global.work_dir.join("bench"),
+            quiet: global.quiet,
+        }
+    }
+}
+
+/// `doctor`.
+pub struct DoctorSettings {
+    /// The report as JSON on stdout.
+    pub json: bool,
+}
+
+impl DoctorSettings {
+    /// Resolves `doctor`'s arguments (no global option changes what it checks).
+    pub fn resolve(args: &DoctorArgs, _global: &GlobalArgs) -> Self {
+        let DoctorArgs { json } = args;
+        Self { json: *json }
     }
 }
 
 /// `scripted`.
 pub struct ScriptedSettings {
     /// The task (one with a scripted planner).
-    pub task: &'static TaskSpec,
+    pub task: TaskSpec,
     /// Random resets to plan from.
     pub episodes: usize,
     /// Where the scene comes from.
     pub scene: SceneSource,
     /// The folder episodes are written to: `<out>/<task>`.
     pub task_dir: PathBuf,
+    /// Replace `task_dir` when an earlier run wrote it.
+    pub overwrite: bool,
+    /// Seed of the random resets (`--seed`).
+    pub seed: u64,
+    /// No per-reset lines and no progress bar (`--quiet`).
+    pub quiet: bool,
 }
 
 impl ScriptedSettings {
     /// Resolves `scripted`'s arguments.
-    pub fn resolve(args: &ScriptedArgs) -> anyhow::Result<Self> {
+    pub fn resolve(args: &ScriptedArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
         let ScriptedArgs {
             task,
             episodes,
             scene_dir,
             out,
+            overwrite,
+            tasks,
         } = args;
         // An unknown task is a usage error (exit 2), as in every command.
-        let spec = known_task(TaskSet::builtin(), task)?;
+        let tasks = task_set(tasks)?;
+        let spec = known_task(&tasks, task)?.clone();
         if !dexjoco_sim::scripted::PLANNED_TASKS.contains(&spec.id.as_str()) {
             return Err(CliError {
                 message: format!("no scripted planner for '{}'", spec.id),
@@ -190,10 +496,13 @@ impl ScriptedSettings {
             .into());
         }
         Ok(Self {
+            task_dir: out.join(&spec.id),
             task: spec,
             episodes: *episodes,
             scene: SceneSource::from_option(scene_dir.clone()),
-            task_dir: out.join(&spec.id),
+            overwrite: *overwrite,
+            seed: global.seed,
+            quiet: global.quiet,
         })
     }
 }
@@ -229,7 +538,7 @@ impl AugmentSettings {
             quality,
             geometry,
             keep_failed,
-            tasks_dir,
+            tasks,
             depth,
             dynamics,
             max_frames,
@@ -253,6 +562,9 @@ impl AugmentSettings {
                 "use 640 (the reference) or 224",
             ));
         }
+        // Read here so that a bad spec fails before any work; the worker processes read
+        // the folder themselves.
+        task_set(&tasks)?;
         let inputs = if inputs.is_empty() {
             vec![sample_data()?]
         } else {
@@ -277,6 +589,7 @@ impl AugmentSettings {
                 "remove the output folder (or run `dexjoco-data augment --overwrite` once, unsharded) before starting the shards",
             ));
         }
+        check_egl_choice(&egl_devices)?;
         let (workers, egl_devices) = render_workers(global.jobs, egl_devices);
         Ok(Self {
             workers,
@@ -287,7 +600,7 @@ impl AugmentSettings {
                 inputs,
                 out: out.unwrap_or_else(|| global.work_dir.join("augment")),
                 replays,
-                tasks_dir,
+                tasks_dir: tasks.tasks_dir,
                 seed: global.seed,
                 scene: SceneSource::from_option(scene_dir),
                 camera_pool,
@@ -297,7 +610,8 @@ impl AugmentSettings {
                     ..render_settings(size, quality)
                 },
                 keep_failed,
-                max_frames,
+                // 0 means whole episodes, as in `bench augment`.
+                max_frames: max_frames.filter(|&m| m > 0),
                 resimulate_per_replay: false,
                 contact_sheet: true,
                 depth,
@@ -320,9 +634,7 @@ pub const WORKERS_PER_GPU: usize = 8;
 pub fn render_workers(jobs: Option<usize>, egl_devices: Vec<usize>) -> (usize, Vec<usize>) {
     let cores = dexjoco_core::available_cores();
     let gpus = dexjoco_sim::gpu_devices().unwrap_or_default();
-    let requested: Option<usize> = std::env::var(dexjoco_sim::EGL_DEVICE_ENV)
-        .ok()
-        .and_then(|v| v.trim().parse().ok());
+    let requested: Option<usize> = dexjoco_sim::requested_egl_device().ok().flatten();
     // The GPUs the workers will draw on.
     let used = if !egl_devices.is_empty() {
         egl_devices
@@ -350,10 +662,54 @@ pub fn render_workers(jobs: Option<usize>, egl_devices: Vec<usize>) -> (usize, V
     (workers, egl_devices)
 }
 
+/// Checks the EGL devices asked for (`--egl-devices`, `DEXJOCO_EGL_DEVICE`) against the
+/// ones EGL lists here: a value that is not an index, or an index this machine does not
+/// have, is a usage error. When EGL lists nothing, the renderer's probe says so later.
+pub fn check_egl_choice(egl_devices: &[usize]) -> anyhow::Result<()> {
+    let env = dexjoco_sim::EGL_DEVICE_ENV;
+    let requested = dexjoco_sim::requested_egl_device().map_err(|e| {
+        let message = match e {
+            dexjoco_sim::SimError::Egl(why) => why,
+            e => e.to_string(),
+        };
+        usage(
+            message,
+            format!("unset {env}, or set it to an index that `dexjoco-data doctor` lists"),
+        )
+    })?;
+    let Some(listed) = dexjoco_sim::list_egl_devices()
+        .ok()
+        .filter(|l| !l.is_empty())
+    else {
+        return Ok(());
+    };
+    let asked = egl_devices
+        .iter()
+        .map(|&d| (d, format!("--egl-devices {d}")))
+        .chain(requested.map(|d| (d, format!("{env}={d}"))));
+    for (device, what) in asked {
+        if device >= listed.len() {
+            let names: Vec<String> = listed
+                .iter()
+                .map(|d| format!("{} ({})", d.index, d.description))
+                .collect();
+            return Err(usage(
+                format!(
+                    "{what}: there is no EGL device {device} on this machine (EGL lists {}: {})",
+                    listed.len(),
+                    names.join(", ")
+                ),
+                "give device indices that `dexjoco-data doctor` lists",
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// `cameras`.
 pub struct CamerasSettings {
-    /// Task id.
-    pub task: String,
+    /// The task's spec.
+    pub task: TaskSpec,
     /// Where the scene comes from.
     pub scene: SceneSource,
     /// Pool options.
@@ -362,6 +718,8 @@ pub struct CamerasSettings {
     pub out: PathBuf,
     /// Also a preview sheet.
     pub preview: bool,
+    /// Replace the pool file (and preview) an earlier run wrote.
+    pub overwrite: bool,
 }
 
 impl CamerasSettings {
@@ -377,8 +735,10 @@ impl CamerasSettings {
             azimuth,
             out,
             preview,
+            overwrite,
+            tasks,
         } = args;
-        let spec = known_task(TaskSet::builtin(), &task)?;
+        let spec = known_task(&task_set(&tasks)?, &task)?.clone();
         if candidates < count {
             return Err(usage(
                 format!("--candidates {candidates} is fewer than --count {count}"),
@@ -407,10 +767,11 @@ impl CamerasSettings {
         Ok(Self {
             out: out
                 .unwrap_or_else(|| global.work_dir.join("cameras").join(format!("{task}.json"))),
-            task,
+            task: spec,
             scene: SceneSource::from_option(scene_dir),
             options,
             preview,
+            overwrite,
         })
     }
 }
@@ -423,6 +784,8 @@ pub struct ConvertSettings {
     pub out: PathBuf,
     /// Library options.
     pub options: ConvertOptions,
+    /// The known tasks.
+    pub tasks: TaskSet,
 }
 
 impl ConvertSettings {
@@ -445,7 +808,9 @@ impl ConvertSettings {
             videos,
             norm_stats,
             norm_stats_horizon,
+            tasks,
         } = args;
+        let tasks = task_set(&tasks)?;
         let mut inputs = inputs;
         inputs.extend(input_flag);
         if inputs.is_empty() {
@@ -524,6 +889,7 @@ impl ConvertSettings {
                 ..ConvertOptions::default()
             },
             inputs,
+            tasks,
         })
     }
 }
@@ -542,6 +908,8 @@ pub struct StatsSettings {
     pub language: dexjoco_stats::LanguageOptions,
     /// JSON on stdout.
     pub json: bool,
+    /// The known tasks (of `--dataset`'s episodes).
+    pub tasks: TaskSet,
 }
 
 impl StatsSettings {
@@ -558,7 +926,9 @@ impl StatsSettings {
             alpha,
             nmi_weak,
             json,
+            tasks,
         } = args;
+        let tasks = task_set(&tasks)?;
         if language_eval.is_none() && success_table.is_none() && dataset.is_none() {
             return Err(usage(
                 "nothing to do: say which statistics to make".into(),
@@ -634,6 +1004,7 @@ impl StatsSettings {
                 },
             },
             json,
+            tasks,
         })
     }
 }
@@ -649,4 +1020,125 @@ pub fn must_exist(path: &Path, hint: &str) -> anyhow::Result<()> {
         .into());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod small_fix_tests {
+    use clap::Parser;
+
+    use crate::cli::{Cli, Command};
+
+    /// The global options and the subcommand of a command line.
+    pub(super) fn parse(argv: &[&str]) -> Cli {
+        Cli::parse_from(std::iter::once("dexjoco-data").chain(argv.iter().copied()))
+    }
+
+    #[test]
+    fn augment_max_frames_0_means_whole_episodes_as_in_bench() {
+        for (argv, expected) in [
+            (&["augment", "ep", "--max-frames", "0"][..], None),
+            (&["augment", "ep"][..], None),
+            (&["augment", "ep", "--max-frames", "5"][..], Some(5)),
+        ] {
+            let cli = parse(argv);
+            let Command::Augment(args) = cli.command else {
+                panic!("parsed another command");
+            };
+            let settings = super::AugmentSettings::resolve(args, &cli.global, || unreachable!())
+                .expect("resolves");
+            assert_eq!(settings.config.max_frames, expected, "{argv:?}");
+        }
+    }
+
+    #[test]
+    fn render_bench_scripted_and_doctor_resolve_their_settings() {
+        let cli = parse(&[
+            "-q",
+            "--work-dir",
+            "w",
+            "render",
+            "--size",
+            "32",
+            "--width",
+            "64",
+        ]);
+        let Command::Render(args) = &cli.command else {
+            panic!("parsed another command");
+        };
+        let render = super::RenderCommandSettings::resolve(args, &cli.global).unwrap();
+        assert_eq!((render.render.width, render.render.height), (64, 32));
+        assert_eq!(render.out, std::path::Path::new("w/render"));
+        assert!(render.quiet && render.video_fps.is_none());
+        let cli = parse(&["render", "--video"]);
+        let Command::Render(args) = &cli.command else {
+            panic!("parsed another command");
+        };
+        let video = super::RenderCommandSettings::resolve(args, &cli.global).unwrap();
+        assert_eq!(video.video_fps, Some(30));
+        let cli = parse(&["render", "--tasks-dir", "specs"]);
+        let Command::Render(args) = &cli.command else {
+            panic!("parsed another command");
+        };
+        let err = super::RenderCommandSettings::resolve(args, &cli.global)
+            .err()
+            .unwrap();
+        assert!(
+            err.to_string()
+                .contains("--tasks-dir applies to --task only")
+        );
+
+        let cli = parse(&["-j", "3", "bench", "ingest", "--episodes", "2"]);
+        let Command::Bench(crate::cli::BenchCommand::Ingest(args)) = &cli.command else {
+            panic!("parsed another command");
+        };
+        let ingest = super::BenchIngestSettings::resolve(args, &cli.global);
+        assert_eq!((ingest.episodes, ingest.threads), (2, 3));
+        let cli = parse(&["bench", "render"]);
+        let Command::Bench(crate::cli::BenchCommand::Render(args)) = &cli.command else {
+            panic!("parsed another command");
+        };
+        assert_eq!(
+            super::BenchRenderSettings::resolve(args, &cli.global)
+                .presets
+                .len(),
+            4
+        );
+
+        let cli = parse(&[
+            "--seed",
+            "9",
+            "scripted",
+            "--task",
+            "click_mouse",
+            "--out",
+            "o",
+        ]);
+        let Command::Scripted(args) = &cli.command else {
+            panic!("parsed another command");
+        };
+        let scripted = super::ScriptedSettings::resolve(args, &cli.global).unwrap();
+        assert_eq!(scripted.seed, 9);
+
+        let cli = parse(&[
+            "--seed",
+            "4",
+            "bench",
+            "augment",
+            "ep",
+            "--workers",
+            "4,1,4",
+        ]);
+        let Command::Bench(crate::cli::BenchCommand::Augment(args)) = &cli.command else {
+            panic!("parsed another command");
+        };
+        let bench =
+            super::BenchAugmentSettings::resolve(args, &cli.global, || unreachable!()).unwrap();
+        assert_eq!((bench.workers, bench.seed), (vec![1, 4], 4));
+
+        let cli = parse(&["doctor", "--json"]);
+        let Command::Doctor(args) = &cli.command else {
+            panic!("parsed another command");
+        };
+        assert!(super::DoctorSettings::resolve(args, &cli.global).json);
+    }
 }

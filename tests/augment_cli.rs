@@ -35,6 +35,16 @@ fn finished(out: &Path) -> Vec<PathBuf> {
     v
 }
 
+/// The `stats --dataset` summary of the augment output: its 6 replays, made in one place
+/// (so with no warning).
+fn assert_stats_summary(stdout: &str) {
+    assert!(stdout.contains("6 episodes"), "{stdout}");
+    assert!(
+        stdout.contains("## Where the replays were made") && !stdout.contains("**Warning:**"),
+        "{stdout}"
+    );
+}
+
 #[test]
 fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
     let tmp = tempfile::tempdir().unwrap();
@@ -140,7 +150,7 @@ fn an_augment_killed_midway_resumes_without_duplicates_or_partial_replays() {
         out.status,
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(stdout.contains("6 episodes"), "{stdout}");
+    assert_stats_summary(&stdout);
     assert!(
         stdout.contains("| click_mouse | 1 | 1 (100 %) | 6 | 6 | 6 | 0 | 100 % | 0e0 |"),
         "{stdout}"

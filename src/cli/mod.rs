@@ -157,6 +157,16 @@ impl FirstFrameArgs {
     }
 }
 
+/// The tasks a command knows, the same option for every command that reads tasks.
+#[derive(Debug, Clone, Default, Args)]
+pub struct TasksDirArgs {
+    /// A folder of task specs (`<task_id>.toml`, as in schemas/tasks/) that replace the
+    /// built-in ones of the same id or add tasks; give it to every command that reads
+    /// episodes of those tasks.
+    #[arg(long, value_name = "DIR")]
+    pub tasks_dir: Option<PathBuf>,
+}
+
 /// A positive, finite number of seconds.
 fn positive_seconds(s: &str) -> Result<f64, String> {
     s.parse::<f64>()

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
 
-use super::{FirstFrameArgs, GeometryArg, QualityArg};
+use super::{FirstFrameArgs, GeometryArg, QualityArg, TasksDirArgs};
 
 /// `ingest` options.
 #[derive(Debug, Args)]
@@ -40,6 +40,9 @@ pub struct IngestArgs {
     /// Task of raw folders whose path does not name one (<task>/episode_N or <task>_demo_...).
     #[arg(long)]
     pub task: Option<String>,
+    /// The known tasks.
+    #[command(flatten)]
+    pub tasks: TasksDirArgs,
     /// Allowed deviation of a quaternion's norm from 1.
     #[arg(long, default_value_t = 1e-3)]
     pub quat_tolerance: f64,
@@ -69,7 +72,9 @@ Examples:
 Each episode becomes <out>/<task>_<folder>.mcap; two episodes that would get the same
 name (stores with the same folder names) get -2, -3... in input order. A file already
 in <out> is never replaced without --overwrite. Files are written whole (temporary file,
-then rename).")]
+then rename). An episode that cannot be read is left out and named, the others are
+written, and the exit code is 3; so are MCAP logs among the inputs (they are MCAP
+already).")]
 pub struct ExportArgs {
     /// Output container.
     #[arg(long, value_enum)]
@@ -83,6 +88,9 @@ pub struct ExportArgs {
     /// Replace files already in the output folder.
     #[arg(long)]
     pub overwrite: bool,
+    /// The known tasks.
+    #[command(flatten)]
+    pub tasks: TasksDirArgs,
 }
 
 /// `scripted` options.
@@ -90,7 +98,9 @@ pub struct ExportArgs {
 #[command(after_help = "\
 Writes OUT/<task>/episode_NNNNNN (action, state, timestamps; no videos), numbered in the
 order the successful plans were made. The same --seed, task and scene give identical
-files. Exit code 3: some plans did not succeed (not written); 1: none did.")]
+files. OUT/<task> is written beside and renamed into place whole; one an earlier run wrote
+is replaced only with --overwrite. Exit code 3: some plans did not succeed (not written);
+1: none did.")]
 pub struct ScriptedArgs {
     /// Task id, e.g. pinch_tongs.
     #[arg(long)]
@@ -104,6 +114,13 @@ pub struct ScriptedArgs {
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace OUT/<task> written by an earlier run, whole (no episode of a bigger
+    /// earlier run stays).
+    #[arg(long)]
+    pub overwrite: bool,
+    /// The known tasks.
+    #[command(flatten)]
+    pub tasks: TasksDirArgs,
 }
 
 /// Dataset formats `convert` writes.
@@ -219,6 +236,9 @@ pub struct ConvertArgs {
     #[arg(long, default_value_t = 50, value_name = "FRAMES",
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub norm_stats_horizon: usize,
+    /// The known tasks.
+    #[command(flatten)]
+    pub tasks: TasksDirArgs,
 }
 
 /// `augment` options.
@@ -288,10 +308,9 @@ pub struct AugmentArgs {
     /// Keep replays whose task failed (flagged in the report).
     #[arg(long)]
     pub keep_failed: bool,
-    /// A folder of task specs (`<task_id>.toml`) replacing the built-in ones of the same
-    /// id, e.g. other --dynamics ranges or success thresholds.
-    #[arg(long)]
-    pub tasks_dir: Option<PathBuf>,
+    /// The known tasks.
+    #[command(flatten)]
+    pub tasks: TasksDirArgs,
     /// Also write each camera's depth as videos/<camera>_depth.npz (key "depth", float32
     /// (T, H, W), metres, as numpy.savez_compressed writes it). Large: 1.6 MB per
     /// 640x640 frame before compression.
@@ -302,7 +321,8 @@ pub struct AugmentArgs {
     /// simulated on its own and kept only if the task still succeeds.
     #[arg(long)]
     pub dynamics: bool,
-    /// Only the first N frames of each episode (a quick look; success needs the whole).
+    /// Only the first N frames of each episode (a quick look; success needs the whole;
+    /// 0: whole episodes, as without the flag).
     #[arg(long)]
     pub max_frames: Option<usize>,
     /// Output folder (default: <work-dir>/augment).
@@ -402,6 +422,12 @@ pub struct CamerasArgs {
     /// Also write a contact sheet of 16 kept views (<out>_preview.png).
     #[arg(long)]
     pub preview: bool,
+    /// Replace the pool file (and preview) written by an earlier run.
+    #[arg(long)]
+    pub overwrite: bool,
+    /// The known tasks.
+    #[command(flatten)]
+    pub tasks: TasksDirArgs,
 }
 /// Log base of the Jensen-Shannon divergence.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -481,4 +507,7 @@ pub struct StatsArgs {
     /// Print the reports as JSON on stdout instead of the Markdown summaries.
     #[arg(long)]
     pub json: bool,
+    /// The known tasks.
+    #[command(flatten)]
+    pub tasks: TasksDirArgs,
 }

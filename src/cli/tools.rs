@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
-use super::{FirstFrameArgs, GeometryArg, QualityArg};
+use super::{FirstFrameArgs, GeometryArg, QualityArg, TasksDirArgs};
 
 /// `doctor` options.
 #[derive(Debug, Args)]
@@ -57,14 +57,17 @@ pub struct RenderArgs {
     pub steps: usize,
     /// Write an H.264 video per camera (through ffmpeg) of the simulation over --steps,
     /// instead of still images.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "task")]
     pub video: bool,
-    /// Frames per second of --video (one frame per 1/fps of simulated time).
-    #[arg(long, default_value_t = 30, value_parser = positive_u32())]
-    pub fps: u32,
+    /// Frames per second of --video (one frame per 1/fps of simulated time; default 30).
+    #[arg(long, value_parser = positive_u32(), requires = "video", conflicts_with = "task")]
+    pub fps: Option<u32>,
     /// Output folder (default: <work-dir>/render).
     #[arg(short, long)]
     pub out: Option<PathBuf>,
+    /// Replace files of the same names already in the output folder.
+    #[arg(long)]
+    pub overwrite: bool,
     /// Render a task's scene at its reset (robot at home) from the task's cameras; `all`:
     /// every task, its built-in scene next to the reference scene (when found) from the
     /// same camera, on one contact sheet (a task that fails to render is a marked tile,
@@ -76,10 +79,9 @@ pub struct RenderArgs {
     /// (default: ../shared/dexjoco-upstream/xmls when present).
     #[arg(long, requires = "task")]
     pub scene_dir: Option<PathBuf>,
-    /// With --task: a folder of task specs (`<task_id>.toml`) that replace the built-in
-    /// ones of the same id or add tasks.
-    #[arg(long, requires = "task")]
-    pub tasks_dir: Option<PathBuf>,
+    /// The known tasks (with --task).
+    #[command(flatten)]
+    pub tasks: TasksDirArgs,
 }
 
 /// `bench` subcommands.

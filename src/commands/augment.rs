@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use dexjoco_augment::{AugmentConfig, Executor, WorkerProcesses, augment_with};
+use dexjoco_augment::{AugmentConfig, AugmentError, Executor, WorkerProcesses, augment_with};
 
 use crate::cli::{AugmentArgs, GlobalArgs};
 use crate::exit::{CliError, ExitStatus};
@@ -56,6 +56,7 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
     let bar = Bar::new("augment", global.quiet);
     let started = std::time::Instant::now();
     let report = augment_with(&config, &executor, &bar)
+        .map_err(early_error)
         .with_context(|| format!("augmenting into {}", out.display()))?;
     bar.finish();
     let seconds = started.elapsed().as_secs_f64();
@@ -125,6 +126,30 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
     } else {
         ExitStatus::Success
     })
+}
+
+/// The errors augment finds before spending any work, with their exit status and hint: a
+/// `--camera` a scene lacks (usage), a renderer that does not open (failure).
+fn early_error(e: AugmentError) -> anyhow::Error {
+    match e {
+        AugmentError::Usage(message) => CliError {
+            message,
+            hint: Some("name cameras the task's scene has; nothing was written".into()),
+            status: ExitStatus::Usage,
+        }
+        .into(),
+        AugmentError::RenderingUnavailable { .. } => CliError {
+            message: e.to_string(),
+            hint: Some(
+                "`dexjoco-data doctor` lists the EGL devices and whether each renders; \
+                 --egl-devices (or DEXJOCO_EGL_DEVICE) picks one. Nothing was written"
+                    .into(),
+            ),
+            status: ExitStatus::Failure,
+        }
+        .into(),
+        e => e.into(),
+    }
 }
 
 /// The arguments that start this binary as an augment worker, with the same logging.

@@ -8,16 +8,21 @@ use dexjoco_sim::mujoco_rs::wrappers::mj_model::traits::ModelType;
 use dexjoco_sim::{CameraView, RenderQuality, RenderSettings, Renderer};
 use serde::Serialize;
 
-use crate::cli::{BenchCommand, BenchIngestArgs, BenchRenderArgs, GlobalArgs, QualityArg};
+use crate::cli::{BenchCommand, GlobalArgs};
 use crate::exit::ExitStatus;
+use crate::settings::{BenchAugmentSettings, BenchIngestSettings, BenchRenderSettings};
 
 /// Runs a `bench` subcommand.
 pub fn run(global: &GlobalArgs, cmd: &BenchCommand) -> anyhow::Result<ExitStatus> {
     match cmd {
-        BenchCommand::Render(args) => render(global, args),
-        BenchCommand::Ingest(args) => ingest(global, args),
+        BenchCommand::Render(args) => render(&BenchRenderSettings::resolve(args, global)),
+        BenchCommand::Ingest(args) => ingest(&BenchIngestSettings::resolve(args, global)),
         BenchCommand::Convert(args) => super::bench_convert::run(global, args),
-        BenchCommand::Augment(args) => super::bench_augment::run(global, args),
+        BenchCommand::Augment(args) => super::bench_augment::run(&BenchAugmentSettings::resolve(
+            args,
+            global,
+            super::augment::sample_data,
+        )?),
         BenchCommand::RenderLimit(args) => super::bench_augment::render_limit(global, args),
     }
 }
@@ -34,20 +39,11 @@ struct Row {
 }
 
 /// Times offscreen rendering of each scene at each size, preset and geometry.
-fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitStatus> {
-    let scenes = render_scenes(args);
-    let presets: Vec<QualityArg> = if args.presets.is_empty() {
-        vec![
-            QualityArg::Paper,
-            QualityArg::NoMsaa,
-            QualityArg::NoMsaaNoShadows,
-            QualityArg::Fast,
-        ]
-    } else {
-        args.presets.clone()
-    };
-    let total = (scenes.len() * args.sizes.len() * presets.len() * args.geometry.len()) as u64;
-    let pb = crate::progress::bar(total, "bench", global.quiet);
+fn render(args: &BenchRenderSettings) -> anyhow::Result<ExitStatus> {
+    let scenes = render_scenes(&args.scenes);
+    let presets = &args.presets;
+    let total = (scenes.len() * args.sizes.len() * presets.len() * args.geometries.len()) as u64;
+    let pb = crate::progress::bar(total, "bench", args.quiet);
     let mut rows = Vec::new();
     let mut device = String::new();
     for scene_path in &scenes {
@@ -66,7 +62,7 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
         for &size in &args.sizes {
             for (&preset, geometry) in presets
                 .iter()
-                .flat_map(|p| args.geometry.iter().map(move |g| (p, g.geometry())))
+                .flat_map(|p| args.geometries.iter().map(move |&g| (p, g)))
             {
                 pb.set_message(format!(
                     "{label} {size}px {} {}",
@@ -98,9 +94,8 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
     }
     pb.finish_and_clear();
     print_render_rows(&rows, &device);
-    let out = global.work_dir.join("bench");
-    fs_err::create_dir_all(&out)?;
-    let json = out.join("render.json");
+    fs_err::create_dir_all(&args.out)?;
+    let json = args.out.join("render.json");
     fs_err::write(
         &json,
         serde_json::to_string_pretty(&serde_json::json!({ "device": device, "rows": rows }))?,
@@ -111,8 +106,8 @@ fn render(global: &GlobalArgs, args: &BenchRenderArgs) -> anyhow::Result<ExitSta
 
 /// The scenes to measure: those given, or the built-in one and (when found) a DexJoCo
 /// reference scene.
-fn render_scenes(args: &BenchRenderArgs) -> Vec<Option<PathBuf>> {
-    let mut scenes: Vec<Option<PathBuf>> = args.scenes.iter().cloned().map(Some).collect();
+fn render_scenes(given: &[PathBuf]) -> Vec<Option<PathBuf>> {
+    let mut scenes: Vec<Option<PathBuf>> = given.iter().cloned().map(Some).collect();
     if scenes.is_empty() {
         scenes.push(None);
         match super::reference_scene_dir() {
@@ -177,7 +172,7 @@ struct IngestRow {
 
 /// Generates `episodes` valid episodes (tasks cycling through all 11) as DexJoCo raw
 /// folders and as MCAP files, then times `ingest` of each set into an empty store.
-fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitStatus> {
+fn ingest(args: &BenchIngestSettings) -> anyhow::Result<ExitStatus> {
     use dexjoco_core::{TaskSet, synth};
     use dexjoco_formats::{discover, mcap, raw};
     use dexjoco_ingest::{IngestOptions, Outcome, Store};
@@ -185,7 +180,7 @@ fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitSta
     let tmp = tempfile::tempdir()?;
     let raw_in = tmp.path().join("raw");
     let mcap_in = tmp.path().join("mcap");
-    let pb = crate::progress::bar(args.episodes as u64, "generate", global.quiet);
+    let pb = crate::progress::bar(args.episodes as u64, "generate", args.quiet);
     for i in 0..args.episodes {
         let tasks = TaskSet::builtin();
         let task = tasks.iter().nth(i % tasks.len()).expect("in range");
@@ -210,7 +205,7 @@ fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitSta
         let store_dir = tmp.path().join(format!("store-{}", rows.len()));
         let mut store = Store::open(&store_dir)?;
         let sources = discover(std::slice::from_ref(input), Some(&store_dir))?;
-        let bar = crate::progress::Bar::new("ingest", global.quiet);
+        let bar = crate::progress::Bar::new("ingest", args.quiet);
         let summary = store.ingest(&sources, &IngestOptions::default(), &bar)?;
         bar.finish();
         let landed = summary.count(Outcome::Landed);
@@ -230,7 +225,7 @@ fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitSta
             mb_per_s: megabytes / summary.seconds,
         });
     }
-    let threads = global.jobs.unwrap_or_else(dexjoco_core::available_cores);
+    let threads = args.threads;
     outln!(
         "Ingest (read, hash, validate, write Zarr, commit) of {} generated episodes x {} frames, {threads} thread(s)",
         args.episodes,
@@ -250,9 +245,8 @@ fn ingest(global: &GlobalArgs, args: &BenchIngestArgs) -> anyhow::Result<ExitSta
             r.mb_per_s
         );
     }
-    let out = global.work_dir.join("bench");
-    fs_err::create_dir_all(&out)?;
-    let json = out.join("ingest.json");
+    fs_err::create_dir_all(&args.out)?;
+    let json = args.out.join("ingest.json");
     fs_err::write(
         &json,
         serde_json::to_string_pretty(&serde_json::json!({ "threads": threads, "rows": rows }))?,

@@ -5,7 +5,7 @@
 //! same episodes, seed and settings.
 
 use std::io::{BufRead, BufReader, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
@@ -18,9 +18,9 @@ use dexjoco_sim::RenderSettings;
 use dexjoco_sim::SceneSource;
 use serde::Serialize;
 
-use crate::cli::{BenchAugmentArgs, BenchRenderLimitArgs, GeometryArg, GlobalArgs, QualityArg};
+use crate::cli::{BenchRenderLimitArgs, GeometryArg, GlobalArgs, QualityArg};
 use crate::exit::ExitStatus;
-use crate::settings::render_settings;
+use crate::settings::{BenchAugmentSettings, render_settings};
 
 /// One timed run.
 #[derive(Debug, Serialize)]
@@ -44,7 +44,7 @@ struct Run {
 }
 
 fn config(
-    args: &BenchAugmentArgs,
+    args: &BenchAugmentSettings,
     inputs: &[PathBuf],
     out: PathBuf,
     look: Look,
@@ -115,30 +115,48 @@ fn timed(config: &AugmentConfig, executor: &Executor) -> anyhow::Result<(Augment
     Ok((report, seconds))
 }
 
+/// The command line of one render-limit process: this run's look, episode, replays,
+/// frames and seed (the views it draws are sampled from the seed).
+fn render_limit_command(
+    exe: &Path,
+    args: &BenchAugmentSettings,
+    input: &Path,
+    Look(size, quality, geometry): Look,
+) -> Command {
+    let mut c = Command::new(exe);
+    c.args([
+        "-q",
+        "--seed",
+        &args.seed.to_string(),
+        "bench",
+        "render-limit",
+    ])
+    .arg(input)
+    .args(["--size", &size.to_string(), "--quality", quality.name()])
+    .args(["--geometry", geometry.geometry().name()])
+    .args(["--frames", &args.limit_frames.to_string()])
+    .args(["--replays", &args.replays.to_string()])
+    .args(["--max-frames", &args.max_frames.to_string()]);
+    if let Some(d) = &args.scene_dir {
+        c.arg("--scene-dir").arg(d);
+    }
+    c
+}
+
 /// The render-only limit: `n` processes started together (a barrier after loading and
 /// warm-up), their frames/s summed.
 fn render_limit_of(
-    args: &BenchAugmentArgs,
-    input: &std::path::Path,
-    Look(size, quality, geometry): Look,
+    args: &BenchAugmentSettings,
+    input: &Path,
+    look: Look,
     n: usize,
 ) -> anyhow::Result<f64> {
     let exe = std::env::current_exe()?;
     let mut children = Vec::new();
     for _ in 0..n {
-        let mut c = Command::new(&exe);
-        c.args(["-q", "bench", "render-limit"])
-            .arg(input)
-            .args(["--size", &size.to_string(), "--quality", quality.name()])
-            .args(["--geometry", geometry.geometry().name()])
-            .args(["--frames", &args.limit_frames.to_string()])
-            .args(["--replays", &args.replays.to_string()])
-            .args(["--max-frames", &args.max_frames.to_string()]);
+        let mut c = render_limit_command(&exe, args, input, look);
         // The same share of llvmpipe's raster threads as augment's worker processes get.
         dexjoco_augment::share_llvmpipe_threads(&mut c, n);
-        if let Some(d) = &args.scene_dir {
-            c.arg("--scene-dir").arg(d);
-        }
         children.push(
             c.stdin(Stdio::piped())
                 .stdout(Stdio::piped())
@@ -177,7 +195,7 @@ pub fn render_limit(
     global: &GlobalArgs,
     args: &BenchRenderLimitArgs,
 ) -> anyhow::Result<ExitStatus> {
-    let bench = BenchAugmentArgs {
+    let bench = BenchAugmentSettings {
         inputs: vec![args.input.clone()],
         scene_dir: args.scene_dir.clone(),
         replays: args.replays,
@@ -188,10 +206,11 @@ pub fn render_limit(
         limit_frames: args.frames,
         workers: Vec::new(),
         threads: false,
-        deadline: crate::cli::FirstFrameArgs {
-            first_frame_timeout: dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT.as_secs_f64(),
-        },
+        first_frame_timeout: dexjoco_augment::DEFAULT_FIRST_FRAME_TIMEOUT,
         geometry: vec![args.geometry],
+        seed: global.seed,
+        quiet: global.quiet,
+        out: PathBuf::new(),
     };
     let c = config(
         &bench,
@@ -300,9 +319,9 @@ const OURS_THREADS: &str = "ours, threads of one process";
 const LIMIT: &str = "render-only limit (trajectory states, no stepping, no encoding)";
 
 /// `count` worker processes of this binary, dealt over the node's GPUs as `augment` does.
-fn processes(args: &BenchAugmentArgs, count: usize) -> anyhow::Result<Executor> {
+fn processes(args: &BenchAugmentSettings, count: usize) -> anyhow::Result<Executor> {
     Ok(Executor::Processes(WorkerProcesses {
-        first_frame_timeout: args.deadline.duration(),
+        first_frame_timeout: args.first_frame_timeout,
         egl_devices: crate::settings::render_workers(Some(count), Vec::new()).1,
         ..WorkerProcesses::new(
             std::env::current_exe()?,
@@ -314,7 +333,7 @@ fn processes(args: &BenchAugmentArgs, count: usize) -> anyhow::Result<Executor> 
 
 /// What every configuration shares.
 struct BenchContext<'a> {
-    args: &'a BenchAugmentArgs,
+    args: &'a BenchAugmentSettings,
     inputs: Vec<PathBuf>,
     first_input: PathBuf,
     out: PathBuf,
@@ -324,18 +343,18 @@ struct BenchContext<'a> {
 }
 
 /// Runs `bench augment`.
-pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitStatus> {
-    let (inputs, first_input) = bench_inputs(args)?;
+pub fn run(args: &BenchAugmentSettings) -> anyhow::Result<ExitStatus> {
+    let inputs = args.inputs.clone();
+    let first_input = first_episode(&inputs)?;
     let cores = dexjoco_core::available_cores();
-    let workers = worker_counts(global, args);
     let tmp = tempfile::tempdir()?;
     let ctx = BenchContext {
         args,
         inputs,
         first_input,
         out: tmp.path().join("out"),
-        seed: global.seed,
-        workers,
+        seed: args.seed,
+        workers: args.workers.clone(),
     };
     let per_config =
         ctx.workers.len() + usize::from(!args.no_reference) + usize::from(args.limit_frames > 0);
@@ -348,7 +367,7 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
     let bar = crate::progress::bar(
         (looks.len() * per_config) as u64,
         "bench augment",
-        global.quiet,
+        args.quiet,
     );
     let mut runs: Vec<Run> = Vec::new();
     for &look in &looks {
@@ -359,38 +378,17 @@ pub fn run(global: &GlobalArgs, args: &BenchAugmentArgs) -> anyhow::Result<ExitS
     let device = render_device(args)?;
     print_runs(&ctx, &runs, &device, cores);
     print_differences(&runs, &differences);
-    write_results(global, args, &device, cores, &runs, &differences)?;
+    write_results(args, &device, cores, &runs, &differences)?;
     Ok(ExitStatus::Success)
 }
 
-/// The inputs (the sample data when none are given) and the first episode in them.
-fn bench_inputs(args: &BenchAugmentArgs) -> anyhow::Result<(Vec<PathBuf>, PathBuf)> {
-    let inputs = if args.inputs.is_empty() {
-        vec![super::augment::sample_data()?]
-    } else {
-        args.inputs.clone()
-    };
-    let first_input = dexjoco_formats::discover(&inputs, None)?
+/// The first episode in the inputs.
+fn first_episode(inputs: &[PathBuf]) -> anyhow::Result<PathBuf> {
+    Ok(dexjoco_formats::discover(inputs, None)?
         .into_iter()
         .next()
         .context("no episode in the inputs")?
-        .path;
-    Ok((inputs, first_input))
-}
-
-/// The worker counts of our runs, ascending: those given, or 1 and `augment`'s default.
-fn worker_counts(global: &GlobalArgs, args: &BenchAugmentArgs) -> Vec<usize> {
-    let mut workers = if args.workers.is_empty() {
-        vec![
-            1,
-            crate::settings::render_workers(global.jobs, Vec::new()).0,
-        ]
-    } else {
-        args.workers.clone()
-    };
-    workers.sort_unstable();
-    workers.dedup();
-    workers
+        .path)
 }
 
 /// With both geometries measured, the image difference of the light geometry to the
@@ -413,7 +411,7 @@ fn light_differences(
 }
 
 /// The rendering device at the first look's settings (empty when none opens).
-fn render_device(args: &BenchAugmentArgs) -> anyhow::Result<String> {
+fn render_device(args: &BenchAugmentSettings) -> anyhow::Result<String> {
     let settings = render_settings(args.sizes[0], args.qualities[0]);
     Ok(dexjoco_sim::Renderer::new(
         &dexjoco_sim::Scene::from_xml_str(super::TABLETOP_XML, "probe")?.model,
@@ -425,16 +423,14 @@ fn render_device(args: &BenchAugmentArgs) -> anyhow::Result<String> {
 
 /// Writes the runs and image differences to `<work dir>/bench/augment.json`.
 fn write_results(
-    global: &GlobalArgs,
-    args: &BenchAugmentArgs,
+    args: &BenchAugmentSettings,
     device: &str,
     cores: usize,
     runs: &[Run],
     differences: &[(Look, GeometryDifference)],
 ) -> anyhow::Result<()> {
-    let out = global.work_dir.join("bench");
-    fs_err::create_dir_all(&out)?;
-    let json = out.join("augment.json");
+    fs_err::create_dir_all(&args.out)?;
+    let json = args.out.join("augment.json");
     dexjoco_formats::write_atomic(
         &json,
         serde_json::to_string_pretty(&serde_json::json!({
@@ -577,5 +573,37 @@ fn print_differences(runs: &[Run], differences: &[(Look, GeometryDifference)]) {
             d.ssim_mean,
             d.ssim_min
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+    use crate::cli::{BenchCommand, Cli, Command as Sub};
+
+    #[test]
+    fn render_limit_processes_get_the_global_seed() {
+        let cli = Cli::parse_from(["dexjoco-data", "--seed", "7", "bench", "augment"]);
+        let Sub::Bench(BenchCommand::Augment(args)) = cli.command else {
+            panic!("parsed another command");
+        };
+        let args = BenchAugmentSettings::resolve(&args, &cli.global, || Ok("demos".into()))
+            .expect("resolves");
+        let look = Look(32, QualityArg::Fast, GeometryArg::Full);
+        let c = render_limit_command(Path::new("exe"), &args, Path::new("ep"), look);
+        let argv: Vec<_> = c
+            .get_args()
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect();
+        let at = argv
+            .iter()
+            .position(|a| a == "--seed")
+            .expect("--seed passed on");
+        assert_eq!(argv[at + 1], "7", "{argv:?}");
+        // Parsed back by the child as its global seed.
+        let child = Cli::parse_from(std::iter::once("exe".to_owned()).chain(argv));
+        assert_eq!(child.global.seed, 7);
     }
 }

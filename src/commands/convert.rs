@@ -35,6 +35,7 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
         inputs,
         out,
         options,
+        tasks,
     } = ConvertSettings::resolve(args, global)?;
     // Checked again under the output's lock when writing; this fails before any work.
     dexjoco_convert::check_output(&out, &options).map_err(output_error)?;
@@ -61,8 +62,7 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
     );
     let bar = Bar::new("convert", global.quiet);
     bar.0.set_length(sources.len() as u64);
-    let tasks = TaskSet::builtin();
-    let inputs = sources.iter().map(|s| read_episode(s, tasks));
+    let inputs = sources.iter().map(|s| read_episode(s, &tasks));
     let summary = dexjoco_convert::convert(inputs, &out, &options, &bar)
         .map_err(output_error)
         .with_context(|| format!("converting {shown} into {}", out.display()))?;

@@ -5,9 +5,9 @@ use std::process::Command;
 
 use serde::Serialize;
 
-use crate::cli::{DoctorArgs, GlobalArgs};
 use crate::exit::ExitStatus;
 use crate::locate::Located;
+use crate::settings::DoctorSettings;
 
 /// MuJoCo version the project is built for.
 const EXPECTED_MUJOCO: &str = "3.17.0";
@@ -123,8 +123,22 @@ fn python_report() -> Option<PythonReport> {
     })
 }
 
-/// Runs `doctor`; fails (exit 1) when MuJoCo or offscreen rendering is unusable.
-pub fn run(_global: &GlobalArgs, args: &DoctorArgs) -> anyhow::Result<ExitStatus> {
+/// The encoder every command that writes videos needs.
+const REQUIRED_ENCODER: &str = "libx264";
+
+/// Whether ffmpeg was found and has [`REQUIRED_ENCODER`].
+fn ffmpeg_ok(ffmpeg: Option<&FfmpegReport>) -> bool {
+    ffmpeg.is_some_and(|f| {
+        f.encoders
+            .iter()
+            .any(|(e, ok)| *ok && e == REQUIRED_ENCODER)
+    })
+}
+
+/// Runs `doctor`; fails (exit 1) when MuJoCo or offscreen rendering is unusable, or
+/// ffmpeg with libx264 is missing.
+pub fn run(settings: DoctorSettings) -> anyhow::Result<ExitStatus> {
+    let DoctorSettings { json } = settings;
     let report = Report {
         dexjoco_data: env!("CARGO_PKG_VERSION"),
         mujoco: MujocoReport {
@@ -140,12 +154,13 @@ pub fn run(_global: &GlobalArgs, args: &DoctorArgs) -> anyhow::Result<ExitStatus
     };
     let mujoco_ok = report.mujoco.version == EXPECTED_MUJOCO;
     let egl_ok = report.egl.as_ref().is_ok_and(|p| p.selected.is_some());
-    if args.json {
+    if json {
         outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print_human(&report, mujoco_ok);
     }
-    Ok(if mujoco_ok && egl_ok {
+    let ffmpeg_ok = ffmpeg_ok(report.ffmpeg.as_ref());
+    Ok(if mujoco_ok && egl_ok && ffmpeg_ok {
         ExitStatus::Success
     } else {
         ExitStatus::Failure
@@ -237,7 +252,17 @@ fn print_ffmpeg(ffmpeg: Option<&FfmpegReport>) {
         Some(f) => {
             outln!("  [ok  ] {} ({})", f.path.display(), f.version);
             for (e, ok) in &f.encoders {
-                outln!("  [{}] encoder {e}", if *ok { "ok  " } else { " -  " });
+                let mark = match (*ok, e == REQUIRED_ENCODER) {
+                    (true, _) => "ok  ",
+                    (false, true) => "MISSING",
+                    (false, false) => " -  ",
+                };
+                outln!("  [{mark}] encoder {e}");
+            }
+            if !ffmpeg_ok(Some(f)) {
+                outln!(
+                    "  hint: augment and render --video need {REQUIRED_ENCODER}: install Debian's ffmpeg package"
+                );
             }
         }
     }

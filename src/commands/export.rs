@@ -19,48 +19,77 @@ pub fn run(global: &GlobalArgs, args: ExportArgs) -> anyhow::Result<ExitStatus> 
         out,
         container,
         overwrite,
+        tasks,
     } = ExportSettings::resolve(args, global)?;
-    let sources = stored_episodes(&inputs)?;
-    let tasks = TaskSet::builtin();
-    let planned = plan_files(&sources, &out, container, tasks)?;
+    let tasks = &tasks;
+    let (sources, mut left_out) = stored_episodes(&inputs)?;
+    let planned = plan_files(&sources, &out, container, tasks, &mut left_out);
     if !overwrite {
         refuse_existing(&planned)?;
     }
     let pb = crate::progress::bar(planned.len() as u64, "export", global.quiet);
+    let mut written = 0;
     for (source, file) in &planned {
-        let ep = source
+        // A bad episode is left out and named; the others are written.
+        let read = source
             .read(tasks)
-            .with_context(|| format!("reading the episode '{}'", source.path.display()))?
-            .episode;
-        let task = tasks.get(&ep.task).context("the episode's task")?;
-        let meta = EpisodeMeta {
-            source: Some(source.path.display().to_string()),
-            ..EpisodeMeta::default()
-        };
-        container.write(file, &ep, task, &meta)?;
-        outln!("{}", file.display());
+            .map_err(anyhow::Error::from)
+            .and_then(|r| {
+                let task = tasks.get(&r.episode.task).with_context(|| {
+                    format!("unknown task '{}' (--tasks-dir adds tasks)", r.episode.task)
+                })?;
+                Ok((r.episode, task))
+            });
+        match read {
+            Ok((ep, task)) => {
+                let meta = EpisodeMeta {
+                    source: Some(source.path.display().to_string()),
+                    ..EpisodeMeta::default()
+                };
+                container.write(file, &ep, task, &meta)?;
+                outln!("{}", file.display());
+                written += 1;
+            }
+            Err(e) => left_out.push((source.path.clone(), crate::exit::one_line(&e))),
+        }
         pb.inc(1);
     }
     pb.finish_and_clear();
     errln!(
-        "wrote {} {} file(s) to {}",
-        planned.len(),
+        "wrote {written} {} file(s) to {}",
         container.name(),
         out.display()
     );
-    Ok(ExitStatus::Success)
+    for (path, why) in &left_out {
+        errln!("  SKIPPED: {}: {why}", path.display());
+    }
+    Ok(if left_out.is_empty() {
+        ExitStatus::Success
+    } else if written == 0 {
+        ExitStatus::Failure
+    } else {
+        ExitStatus::Partial
+    })
 }
 
-/// The episode folders under every input (a failure when an input holds none).
-fn stored_episodes(inputs: &[PathBuf]) -> anyhow::Result<Vec<Source>> {
+/// An input left out, and why.
+type LeftOut = Vec<(PathBuf, String)>;
+
+/// The episode folders under every input (a failure when an input holds none), and the
+/// MCAP logs among them, left out: they are in the format export writes already.
+fn stored_episodes(inputs: &[PathBuf]) -> anyhow::Result<(Vec<Source>, LeftOut)> {
     let mut sources = Vec::new();
+    let mut left_out = Vec::new();
     for input in inputs {
         let found = dexjoco_formats::discover_input(input, None)
             .with_context(|| format!("finding episodes in '{}'", input.display()))?;
-        let raw: Vec<_> = found
-            .into_iter()
-            .filter(|s| s.kind == SourceKind::Raw)
-            .collect();
+        let (raw, mcap): (Vec<_>, Vec<_>) =
+            found.into_iter().partition(|s| s.kind == SourceKind::Raw);
+        left_out.extend(mcap.into_iter().map(|s| {
+            let why = "an MCAP log already (export writes stored episode folders; \
+                       `dexjoco-data ingest` stores it)";
+            (s.path, why.to_owned())
+        }));
         if raw.is_empty() {
             return Err(CliError {
                 message: format!("'{}' holds no episode folder", input.display()),
@@ -71,24 +100,30 @@ fn stored_episodes(inputs: &[PathBuf]) -> anyhow::Result<Vec<Source>> {
         }
         sources.extend(raw);
     }
-    Ok(sources)
+    Ok((sources, left_out))
 }
 
-/// Every file name first: two episodes never share one.
+/// Every file name first: two episodes never share one. An episode whose task cannot be
+/// told joins `left_out`.
 fn plan_files<'s>(
     sources: &'s [Source],
     out: &Path,
     container: &dyn EpisodeContainer,
     tasks: &TaskSet,
-) -> anyhow::Result<Vec<(&'s Source, PathBuf)>> {
+    left_out: &mut LeftOut,
+) -> Vec<(&'s Source, PathBuf)> {
     let mut planned = Vec::with_capacity(sources.len());
     let mut taken = HashSet::new();
     for source in sources {
-        let task = task_of(source, tasks)?;
-        let file = unique_name(&mut taken, out, &task, source, container.extension());
-        planned.push((source, file));
+        match task_of(source, tasks) {
+            Ok(task) => {
+                let file = unique_name(&mut taken, out, &task, source, container.extension());
+                planned.push((source, file));
+            }
+            Err(e) => left_out.push((source.path.clone(), crate::exit::one_line(&e))),
+        }
     }
-    Ok(planned)
+    planned
 }
 
 /// Nothing already there is replaced without --overwrite.

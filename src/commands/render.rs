@@ -1,39 +1,41 @@
 //! `dexjoco-data render`: PNGs of a scene's cameras and a contact sheet.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::Context;
-use dexjoco_core::{TaskSet, TaskSpec};
+use dexjoco_core::TaskSpec;
+use dexjoco_formats::fs::StagedFiles;
 use dexjoco_sim::mujoco_rs::prelude::MjData;
 use dexjoco_sim::{
-    CameraView, EnvOptions, Frame, RenderQuality, RenderSettings, Renderer, SceneSource, TaskEnv,
-    load_task_scene,
+    CameraView, EnvOptions, Frame, RenderSettings, Renderer, SceneSource, TaskEnv, load_task_scene,
 };
 use dexjoco_video::{Codec, VideoSpec, VideoWriter};
 
-use crate::cli::{GlobalArgs, RenderArgs};
 use crate::exit::ExitStatus;
+use crate::settings::RenderCommandSettings;
 
 /// Runs `render`.
-pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus> {
-    if let Some(task) = &args.task {
-        return run_task(global, args, task);
+pub fn run(command: &RenderCommandSettings) -> anyhow::Result<ExitStatus> {
+    if let Some(task) = &command.task {
+        return run_task(command, task);
     }
-    let scene = super::load_scene(args.scene.as_deref())?;
-    let stem = args.scene.as_deref().and_then(Path::file_stem).map_or_else(
-        || "tabletop".to_owned(),
-        |s| s.to_string_lossy().into_owned(),
-    );
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| global.work_dir.join("render"));
-    fs_err::create_dir_all(&out)?;
+    let scene = super::load_scene(command.scene.as_deref())?;
+    let stem = command
+        .scene
+        .as_deref()
+        .and_then(Path::file_stem)
+        .map_or_else(
+            || "tabletop".to_owned(),
+            |s| s.to_string_lossy().into_owned(),
+        );
+    // Staged and renamed into place at the end; an earlier run's files of the same names
+    // are replaced only with --overwrite.
+    let mut files = StagedFiles::begin(&command.out, command.overwrite)?;
 
-    let names: Vec<String> = if args.cameras.is_empty() {
+    let names: Vec<String> = if command.cameras.is_empty() {
         scene.camera_names()
     } else {
-        args.cameras.clone()
+        command.cameras.clone()
     };
     let mut views = Vec::new();
     for n in &names {
@@ -53,14 +55,7 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
         ));
     }
 
-    let settings = RenderSettings {
-        width: args.width.unwrap_or(args.size),
-        height: args.height.unwrap_or(args.size),
-        quality: RenderQuality::from_name(args.quality.name())
-            .expect("every QualityArg is a preset"),
-        depth: args.depth,
-        geometry: args.geometry.geometry(),
-    };
+    let settings = command.render;
     let mut renderer = Renderer::new(&scene.model, settings)?;
     tracing::info!(
         "rendering {} camera(s) of {} at {}x{} ({}) on EGL device '{}'{}",
@@ -68,7 +63,7 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
         scene.path.display(),
         settings.width,
         settings.height,
-        args.quality.name(),
+        settings.quality.name(),
         renderer.device().description,
         renderer
             .device()
@@ -80,12 +75,17 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
 
     let mut data = MjData::new(&*scene.model);
     data.forward();
-    if args.video {
-        return video(global, args, &mut renderer, &mut data, &views, &out, &stem);
+    if let Some(fps) = command.video_fps {
+        let clip = Clip {
+            fps,
+            steps: command.steps,
+            quiet: command.quiet,
+        };
+        return video(clip, &mut renderer, &mut data, &views, files, &stem);
     }
-    if args.steps > 0 {
-        let pb = crate::progress::bar(args.steps as u64, "simulate", global.quiet);
-        for _ in 0..args.steps {
+    if command.steps > 0 {
+        let pb = crate::progress::bar(command.steps as u64, "simulate", command.quiet);
+        for _ in 0..command.steps {
             data.step();
             pb.inc(1);
         }
@@ -95,52 +95,57 @@ pub fn run(global: &GlobalArgs, args: &RenderArgs) -> anyhow::Result<ExitStatus>
     let mut frames = Vec::new();
     for (name, view) in &views {
         let frame = renderer.render(&mut data, *view)?;
-        let png = out.join(format!("{stem}_{name}.png"));
-        frame.save_png(&png)?;
-        outln!("{}", png.display());
-        if args.depth {
-            let dpng = out.join(format!("{stem}_{name}_depth.png"));
-            if let Some((lo, hi)) = frame.save_depth_png(&dpng)? {
-                outln!("{} (depth {lo:.3} m .. {hi:.3} m)", dpng.display());
-            }
-        }
+        save_still(
+            &frame,
+            &mut files,
+            &format!("{stem}_{name}"),
+            settings.depth,
+        )?;
         frames.push(frame);
     }
     if frames.len() > 1 {
-        let sheet = out.join(format!("{stem}_contact_sheet.png"));
-        contact_sheet(&frames, &sheet)?;
-        outln!("{}", sheet.display());
+        save_sheet(&frames, &mut files, &format!("{stem}_contact_sheet.png"))?;
     }
+    files.publish()?;
     Ok(ExitStatus::Success)
 }
 
-/// Simulates `--steps` steps and streams one frame per 1/fps of simulated time and
+/// What `--video` records.
+struct Clip {
+    /// Frames per second.
+    fps: u32,
+    /// Physics steps (0: 1000).
+    steps: usize,
+    /// No progress bar.
+    quiet: bool,
+}
+
+/// Simulates the clip's steps and streams one frame per 1/fps of simulated time and
 /// camera into an H.264 video per camera.
 fn video(
-    global: &GlobalArgs,
-    args: &RenderArgs,
+    Clip { fps, steps, quiet }: Clip,
     renderer: &mut Renderer,
     data: &mut MjData<&dexjoco_sim::mujoco_rs::prelude::MjModel>,
     views: &[(String, CameraView)],
-    out: &Path,
+    mut files: StagedFiles,
     stem: &str,
 ) -> anyhow::Result<ExitStatus> {
-    anyhow::ensure!(args.fps > 0, "--fps must be positive");
-    let steps = if args.steps == 0 { 1000 } else { args.steps };
+    let steps = if steps == 0 { 1000 } else { steps };
     let timestep = data.model().ffi().opt.timestep;
     let settings = renderer.settings();
     let spec = VideoSpec {
         width: settings.width,
         height: settings.height,
-        fps: args.fps,
+        fps,
         codec: Codec::DEXJOCO,
     };
     let mut writers = Vec::new();
     for (name, _) in views {
-        let path = out.join(format!("{stem}_{name}.mp4"));
-        writers.push((VideoWriter::create(&path, spec)?, path));
+        let name = format!("{stem}_{name}.mp4");
+        let staged = files.file(&name)?;
+        writers.push((VideoWriter::create(&staged, spec)?, files.target(&name)));
     }
-    let pb = crate::progress::bar(steps as u64, "video", global.quiet);
+    let pb = crate::progress::bar(steps as u64, "video", quiet);
     let mut next_frame = 0.0;
     for step in 0..=steps {
         let t = step as f64 * timestep;
@@ -148,7 +153,7 @@ fn video(
             for ((writer, _), (_, view)) in writers.iter_mut().zip(views) {
                 writer.write_frame(&renderer.render(data, *view)?.rgb)?;
             }
-            next_frame += 1.0 / f64::from(args.fps);
+            next_frame += 1.0 / f64::from(fps);
         }
         if step < steps {
             data.step();
@@ -158,17 +163,44 @@ fn video(
     pb.finish_and_clear();
     for (writer, path) in writers {
         let frames = writer.finish()?;
-        outln!(
-            "{} ({frames} frames, {} fps, H.264)",
-            path.display(),
-            args.fps
-        );
+        outln!("{} ({frames} frames, {fps} fps, H.264)", path.display());
     }
+    files.publish()?;
     Ok(ExitStatus::Success)
 }
 
+/// Writes `<name>.png` and, with `depth`, `<name>_depth.png`, each path on stdout (the
+/// depth one with its range in metres).
+fn save_still(
+    frame: &Frame,
+    files: &mut StagedFiles,
+    name: &str,
+    depth: bool,
+) -> anyhow::Result<()> {
+    let png = format!("{name}.png");
+    frame.save_png(&files.file(&png)?)?;
+    outln!("{}", files.target(&png).display());
+    if depth {
+        let dpng = format!("{name}_depth.png");
+        if let Some((lo, hi)) = frame.save_depth_png(&files.file(&dpng)?)? {
+            outln!(
+                "{} (depth {lo:.3} m .. {hi:.3} m)",
+                files.target(&dpng).display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Writes a contact sheet of `frames` as `name`, its path on stdout.
+fn save_sheet(frames: &[Frame], files: &mut StagedFiles, name: &str) -> anyhow::Result<()> {
+    contact_sheet(frames, &files.file(name)?)?;
+    outln!("{}", files.target(name).display());
+    Ok(())
+}
+
 /// Tiles frames of equal size into a grid (at most 4 per row) with a thin border.
-pub fn contact_sheet(frames: &[Frame], path: &PathBuf) -> anyhow::Result<()> {
+pub fn contact_sheet(frames: &[Frame], path: &Path) -> anyhow::Result<()> {
     let tiles = frames
         .iter()
         .map(|f| image::RgbImage::from_raw(f.width, f.height, f.rgb.clone()).context("frame size"))
@@ -186,39 +218,20 @@ pub fn contact_sheet(frames: &[Frame], path: &PathBuf) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The task specs: the built-in ones, with those in `--tasks-dir` replacing or adding.
-fn task_specs(args: &RenderArgs) -> anyhow::Result<Vec<TaskSpec>> {
-    let dir = args.tasks_dir.as_deref();
-    Ok(TaskSet::with_dir(dir)
-        .with_context(|| match dir {
-            Some(d) => format!("cannot read the task specs in '{}'", d.display()),
-            None => "the built-in task specs".into(),
-        })?
-        .iter()
-        .cloned()
-        .collect())
-}
-
-fn render_settings(args: &RenderArgs) -> RenderSettings {
-    RenderSettings {
-        width: args.width.unwrap_or(args.size),
-        height: args.height.unwrap_or(args.size),
-        quality: RenderQuality::from_name(args.quality.name())
-            .expect("every QualityArg is a preset"),
-        depth: args.depth,
-        geometry: args.geometry.geometry(),
-    }
-}
-
-/// Renders a task's scene at its reset state from the named cameras.
+/// Renders a task's scene at its reset state, after `steps` physics steps, from the
+/// named cameras.
 fn render_task_scene(
     source: &SceneSource,
     spec: &TaskSpec,
     cameras: &[String],
     settings: RenderSettings,
+    steps: usize,
 ) -> anyhow::Result<Vec<Frame>> {
     let scene = load_task_scene(source, spec)?;
     let mut env = TaskEnv::new(&scene, spec, EnvOptions::default())?;
+    for _ in 0..steps {
+        env.data_mut().step();
+    }
     let mut renderer = Renderer::new(&scene.model, settings)?;
     let mut frames = Vec::new();
     for c in cameras {
@@ -231,15 +244,40 @@ fn render_task_scene(
     Ok(frames)
 }
 
+/// `render --task T`: the task's cameras (or those asked for) and their sheet.
+fn render_one_task(
+    command: &RenderCommandSettings,
+    spec: &TaskSpec,
+    files: &mut StagedFiles,
+) -> anyhow::Result<()> {
+    let source = SceneSource::from_option(command.scene_dir.clone());
+    let cameras: Vec<String> = if command.cameras.is_empty() {
+        spec.cameras.iter().map(|c| c.camera.clone()).collect()
+    } else {
+        command.cameras.clone()
+    };
+    let settings = command.render;
+    let frames = render_task_scene(&source, spec, &cameras, settings, command.steps)?;
+    let kind = if command.scene_dir.is_some() {
+        "scene_dir"
+    } else {
+        "builtin"
+    };
+    let task = &spec.id;
+    for (c, f) in cameras.iter().zip(&frames) {
+        save_still(f, files, &format!("{task}_{kind}_{c}"), settings.depth)?;
+    }
+    if frames.len() > 1 {
+        save_sheet(&frames, files, &format!("{task}_{kind}_contact_sheet.png"))?;
+    }
+    Ok(())
+}
+
 /// `render --task T|all`.
-fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Result<ExitStatus> {
-    let specs = task_specs(args)?;
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| global.work_dir.join("render"));
-    fs_err::create_dir_all(&out)?;
-    let settings = render_settings(args);
+fn run_task(command: &RenderCommandSettings, task: &str) -> anyhow::Result<ExitStatus> {
+    let specs: Vec<&TaskSpec> = command.tasks.iter().collect();
+    let mut files = StagedFiles::begin(&command.out, command.overwrite)?;
+    let settings = command.render;
     if task != "all" {
         let Some(spec) = specs.iter().find(|s| s.id == task) else {
             let ids: Vec<_> = specs.iter().map(|s| s.id.as_str()).collect();
@@ -248,33 +286,16 @@ fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Resul
                 format!("known tasks: {}, or all", ids.join(", ")),
             ));
         };
-        let source = SceneSource::from_option(args.scene_dir.clone());
-        let cameras: Vec<String> = if args.cameras.is_empty() {
-            spec.cameras.iter().map(|c| c.camera.clone()).collect()
-        } else {
-            args.cameras.clone()
-        };
-        let frames = render_task_scene(&source, spec, &cameras, settings)?;
-        let kind = if args.scene_dir.is_some() {
-            "scene_dir"
-        } else {
-            "builtin"
-        };
-        for (c, f) in cameras.iter().zip(&frames) {
-            let png = out.join(format!("{task}_{kind}_{c}.png"));
-            f.save_png(&png)?;
-            outln!("{}", png.display());
-        }
-        if frames.len() > 1 {
-            let sheet = out.join(format!("{task}_{kind}_contact_sheet.png"));
-            contact_sheet(&frames, &sheet)?;
-            outln!("{}", sheet.display());
-        }
+        render_one_task(command, spec, &mut files)?;
+        files.publish()?;
         return Ok(ExitStatus::Success);
     }
 
     // Every task: built-in next to reference, same camera.
-    let reference = args.scene_dir.clone().or_else(super::reference_scene_dir);
+    let reference = command
+        .scene_dir
+        .clone()
+        .or_else(super::reference_scene_dir);
     if reference.is_none() {
         tracing::warn!("no reference scenes found: the sheet shows the built-in scenes only");
     }
@@ -287,9 +308,9 @@ fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Resul
     };
     let mut failures = Vec::new();
     let mut tiles = Vec::new();
-    let pb = crate::progress::bar(specs.len() as u64, "render", global.quiet);
+    let pb = crate::progress::bar(specs.len() as u64, "render", command.quiet);
     for spec in &specs {
-        let camera = args
+        let camera = command
             .cameras
             .first()
             .cloned()
@@ -303,16 +324,21 @@ fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Resul
         );
         for (kind, source) in sources {
             let source = source.expect("some");
-            match render_task_scene(&source, spec, &cams, settings) {
+            match render_task_scene(&source, spec, &cams, settings, command.steps) {
                 Ok(mut f) => {
                     let frame = f.remove(0);
-                    let png = out.join(format!("{}_{kind}_{camera}.png", spec.id));
-                    frame.save_png(&png)?;
+                    let png = format!("{}_{kind}_{camera}.png", spec.id);
+                    frame.save_png(&files.file(&png)?)?;
+                    if settings.depth {
+                        let dpng = format!("{}_{kind}_{camera}_depth.png", spec.id);
+                        frame.save_depth_png(&files.file(&dpng)?)?;
+                    }
                     pair.push(frame);
                 }
                 Err(e) => {
-                    tracing::debug!("{} ({kind}): {e:#}", spec.id);
-                    failures.push(format!("{} ({kind} scene): {e:#}", spec.id));
+                    let why = crate::exit::one_line(&e);
+                    tracing::debug!("{} ({kind}): {why}", spec.id);
+                    failures.push(format!("{} ({kind} scene): {why}", spec.id));
                     pair.push(failed_tile());
                 }
             }
@@ -321,9 +347,8 @@ fn run_task(global: &GlobalArgs, args: &RenderArgs, task: &str) -> anyhow::Resul
         pb.inc(1);
     }
     pb.finish_and_clear();
-    let sheet = out.join("tasks_contact_sheet.png");
-    contact_sheet(&tiles, &sheet)?;
-    outln!("{}", sheet.display());
+    save_sheet(&tiles, &mut files, "tasks_contact_sheet.png")?;
+    files.publish()?;
     if failures.is_empty() {
         return Ok(ExitStatus::Success);
     }

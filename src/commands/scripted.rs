@@ -3,43 +3,55 @@
 //! state, written in the DexJoCo raw layout; plans that do not succeed are counted and
 //! not written.
 
+use std::path::Path;
+
 use anyhow::Context;
+use dexjoco_formats::fs::StagedDir;
 use dexjoco_formats::raw::RawFolder;
-use dexjoco_formats::{EpisodeContainer, EpisodeMeta};
+use dexjoco_formats::{EpisodeContainer, EpisodeMeta, FormatError};
 use dexjoco_sim::scripted::{self, Variant};
 use dexjoco_sim::{TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
 
-use crate::cli::{GlobalArgs, ScriptedArgs};
-use crate::exit::ExitStatus;
+use crate::exit::{CliError, ExitStatus};
 use crate::settings::ScriptedSettings;
 
 /// Runs `scripted`.
-pub fn run(global: &GlobalArgs, args: &ScriptedArgs) -> anyhow::Result<ExitStatus> {
+pub fn run(settings: ScriptedSettings) -> anyhow::Result<ExitStatus> {
     let ScriptedSettings {
         task: spec,
         episodes,
         scene,
         task_dir,
-    } = ScriptedSettings::resolve(args)?;
+        overwrite,
+        seed,
+        quiet,
+    } = settings;
+    let spec = &spec;
+    check_replaceable(&task_dir, overwrite)?;
+    // Written beside, renamed into place whole when done.
+    let staged = StagedDir::begin(&task_dir)?;
     let scene = load_task_scene(&scene, spec)?;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(global.seed);
-    let pb = crate::progress::bar(episodes as u64, "scripted", global.quiet);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let pb = crate::progress::bar(episodes as u64, "scripted", quiet);
     let mut written = 0usize;
     for k in 0..episodes {
         let s0 = TaskEnv::sample_initial_state(&scene, spec, &mut || rng.random::<f64>())?;
-        let id = format!("{}_scripted_seed{}_{k}", spec.id, global.seed);
+        let id = format!("{}_scripted_seed{}_{k}", spec.id, seed);
         let plan = scripted::plan(&scene, spec, &s0, &id, Variant::Demo)?;
         let line = match plan.success_at {
             Some(step) => {
-                let dir = task_dir.join(format!("episode_{written:06}"));
-                if dir.exists() {
-                    fs_err::remove_dir_all(&dir)?;
-                }
+                let name = format!("episode_{written:06}");
                 RawFolder
-                    .write(&dir, &plan.episode, spec, &EpisodeMeta::default())
-                    .with_context(|| format!("writing '{}'", dir.display()))?;
+                    .write(
+                        &staged.path().join(&name),
+                        &plan.episode,
+                        spec,
+                        &EpisodeMeta::default(),
+                    )
+                    .with_context(|| format!("writing '{}'", task_dir.join(&name).display()))?;
                 written += 1;
+                let dir = task_dir.join(&name);
                 format!("reset {k}: success at step {step} -> {}", dir.display())
             }
             None => format!(
@@ -48,12 +60,17 @@ pub fn run(global: &GlobalArgs, args: &ScriptedArgs) -> anyhow::Result<ExitStatu
                 if plan.failed { ", task failed" } else { "" }
             ),
         };
-        if !global.quiet {
+        if !quiet {
             pb.suspend(|| errln!("{line}"));
         }
         pb.inc(1);
     }
     pb.finish_and_clear();
+    if written > 0 {
+        staged
+            .commit()
+            .with_context(|| format!("renaming '{}' into place", task_dir.display()))?;
+    }
     let pct = 100.0 * written as f64 / episodes.max(1) as f64;
     errln!(
         "{}: {written}/{episodes} plans succeeded ({pct:.0}%), written to {}",
@@ -67,4 +84,34 @@ pub fn run(global: &GlobalArgs, args: &ScriptedArgs) -> anyhow::Result<ExitStatu
     } else {
         ExitStatus::Failure
     })
+}
+
+/// An earlier run's `<out>/<task>` is replaced only with `--overwrite`, and only when it
+/// holds nothing but `episode_*` folders (what scripted writes).
+fn check_replaceable(task_dir: &Path, overwrite: bool) -> anyhow::Result<()> {
+    if !dexjoco_formats::fs::is_non_empty_dir(task_dir) {
+        return Ok(());
+    }
+    if !overwrite {
+        return Err(FormatError::WouldReplace {
+            path: task_dir.to_path_buf(),
+        }
+        .into());
+    }
+    let foreign = fs_err::read_dir(task_dir)?
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .find(|n| !n.starts_with("episode_"));
+    match foreign {
+        None => Ok(()),
+        Some(name) => Err(CliError {
+            message: format!(
+                "'{}' holds '{name}', which scripted does not write: it is not replaced",
+                task_dir.display()
+            ),
+            hint: Some("choose another --out".into()),
+            status: ExitStatus::Failure,
+        }
+        .into()),
+    }
 }

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use dexjoco_core::TaskSet;
 use dexjoco_formats::fs::StagedDir;
 use dexjoco_stats::{LanguageInput, LanguageOptions, LanguageReport, SuccessTable};
 
@@ -40,6 +41,7 @@ pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
         out,
         language,
         json: as_json,
+        tasks,
     } = StatsSettings::resolve(args, global)?;
     let mut json = serde_json::Map::new();
     let mut summaries = Vec::new();
@@ -52,7 +54,7 @@ pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
     }
     let mut status = ExitStatus::Success;
     if let Some(path) = &dataset {
-        status = write_dataset_stats(path, global.quiet, &out, &mut json, &mut summaries)?;
+        status = write_dataset_stats(path, &tasks, global.quiet, &out, &mut json, &mut summaries)?;
     }
 
     if as_json {
@@ -150,18 +152,19 @@ fn write_success_table(
     Ok(())
 }
 
-/// The statistics of the dataset at `path` (and its replays when it is an augment
-/// output): written under `out/dataset`, added to the JSON object and the summaries.
+/// The statistics of the dataset at `path`, whose tasks are among `tasks` (and its
+/// replays when it is an augment output): written under `out/dataset`, added to the JSON object and the summaries.
 /// Partial when episodes were left out.
 fn write_dataset_stats(
     path: &Path,
+    tasks: &TaskSet,
     quiet: bool,
     out: &Path,
     json: &mut serde_json::Map<String, serde_json::Value>,
     summaries: &mut Vec<String>,
 ) -> anyhow::Result<ExitStatus> {
     let mut status = ExitStatus::Success;
-    let (stats, left_out) = dataset_stats(path, quiet)?;
+    let (stats, left_out) = dataset_stats(path, tasks, quiet)?;
     if !left_out.is_empty() {
         status = ExitStatus::Partial;
         let list: Vec<serde_json::Value> = left_out
@@ -197,6 +200,17 @@ fn write_dataset_stats(
         path.display(),
         stats.to_markdown()
     ));
+    // Where its replays were made, with a warning when in more than one place.
+    if let Some(made_on) = dexjoco_stats::ReplayProvenance::read(path)? {
+        if let Some(w) = made_on.warning() {
+            tracing::warn!("{w}");
+        }
+        json.insert("made_on".into(), serde_json::to_value(&made_on)?);
+        summaries.push(format!(
+            "## Where the replays were made\n\n{}",
+            made_on.to_markdown()
+        ));
+    }
     if let Some(replays) = &replays {
         json.insert("replays".into(), serde_json::to_value(replays)?);
         summaries.push(format!(
@@ -235,6 +249,7 @@ where
 /// named and left out (the count is returned); it never stops the others.
 fn dataset_stats(
     path: &Path,
+    tasks: &TaskSet,
     quiet: bool,
 ) -> anyhow::Result<(dexjoco_stats::DatasetStats, Vec<(String, String)>)> {
     use rayon::prelude::*;
@@ -252,7 +267,6 @@ fn dataset_stats(
         .into());
     }
     let pb = crate::progress::bar(sources.len() as u64, "read", quiet);
-    let tasks = dexjoco_core::TaskSet::builtin();
     let read: Vec<_> = sources
         .par_iter()
         .map(|s| {
@@ -295,7 +309,7 @@ fn dataset_stats(
         }
         .into());
     }
-    let stats = dexjoco_stats::DatasetStats::compute(&episodes)
+    let stats = dexjoco_stats::DatasetStats::compute_with_tasks(&episodes, tasks)
         .with_context(|| format!("dataset statistics of {}", path.display()))?;
     Ok((stats, left_out))
 }

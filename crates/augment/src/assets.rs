@@ -30,6 +30,19 @@ impl TaskAssets {
             .collect()
     }
 
+    /// Checks that the scene has every camera `names` asks for (`--camera`): a usage
+    /// error naming the task, the camera and the cameras the scene has.
+    pub(crate) fn check_cameras(&self, names: &[String], task: &str) -> Result<(), AugmentError> {
+        match names.iter().find(|c| self.scene.camera_id(c).is_err()) {
+            None => Ok(()),
+            Some(c) => Err(AugmentError::Usage(format!(
+                "--camera '{c}': the scene of task '{task}' ({}) has no camera of that name; its cameras: {}",
+                self.scene.path.display(),
+                self.scene.camera_names().join(", ")
+            ))),
+        }
+    }
+
     /// The randomization of replay `r` of the episode `key` (`<task>/<episode>`).
     pub(crate) fn sample(&self, seed: u64, key: &str, r: usize) -> crate::randomize::VisualSample {
         crate::randomize::VisualSample::sample(

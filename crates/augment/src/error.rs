@@ -49,6 +49,19 @@ pub enum AugmentError {
         /// What differs, `setting: now (was before)`.
         differences: Vec<String>,
     },
+    /// A value of an option does not fit the inputs (a `--camera` a task's scene lacks):
+    /// a usage error, found before any work is spent.
+    #[error("{0}")]
+    Usage(String),
+    /// Offscreen rendering does not work on a device the run would render on, found by
+    /// a probe before any work is spent.
+    #[error("offscreen rendering is unavailable on {device}: {reason}")]
+    RenderingUnavailable {
+        /// The EGL device, in words.
+        device: String,
+        /// Why no context opened there.
+        reason: String,
+    },
     /// A camera pool file is malformed.
     #[error("camera pool '{}': {message}", path.display())]
     Pool {

@@ -1,23 +1,30 @@
 //! The settings that decide an augment output's bytes, written once into the output
 //! folder (`augment_settings.json`) and checked by every later run into it (a resume,
 //! a shard, the finalize): a run with other settings is refused, naming what differs
-//! (`--overwrite` starts clean instead). Each replay's record also carries the content
-//! hash of its source episode, so two datasets whose episodes share names never mix.
+//! (`--overwrite` starts clean instead). The settings cover each task's whole scene (every
+//! file it loads, by content) and the versions of the programs that decide the bytes.
+//! Each replay's record also carries the content hash of its source episode, so two
+//! datasets whose episodes share names never mix.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use dexjoco_core::{Episode, TaskSpec};
-use dexjoco_sim::{Geometry, RenderQuality, SceneSource};
+use dexjoco_sim::{Geometry, RenderQuality, RenderSettings, SceneSource};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::config::{AugmentConfig, SETTINGS_FILE};
 use crate::error::AugmentError;
+use crate::provenance::ToolVersions;
 use crate::randomize::CameraPool;
 
 /// Format name of the settings file.
 const FORMAT: &str = "dexjoco-data/augment-settings";
+
+/// The most differences named (a folder made before the scene's files were hashed differs
+/// in every one of them).
+const MAX_DIFFERENCES: usize = 12;
 
 /// What decides the bytes of every replay in an output folder.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -51,8 +58,13 @@ pub struct OutputSettings {
     /// Where scenes come from (`built-in` or the scene folder).
     pub scene: String,
     /// Per task: SHA-256 of its scene file (the composed built-in XML, or the scene pack's
-    /// file), of its camera pool's poses, and of its spec.
+    /// file) and of every other file the scene loads, of its camera pool's poses, and of
+    /// its spec.
     pub tasks: BTreeMap<String, TaskInputs>,
+    /// The programs that decide the bytes: this build, MuJoCo, ffmpeg and x264 (each "not
+    /// recorded" in folders made before they were).
+    #[serde(default)]
+    pub versions: ToolVersions,
 }
 
 /// The per-task inputs of an output's bytes, as content hashes.
@@ -60,6 +72,11 @@ pub struct OutputSettings {
 pub struct TaskInputs {
     /// The scene file.
     pub scene: String,
+    /// Every other file the scene loads (included MJCF files, meshes, height fields,
+    /// skins, textures), by path relative to the scene folder (`missing` for a name that
+    /// resolves to no file); none for a built-in scene, which is all in its XML.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub scene_files: BTreeMap<String, String>,
     /// The camera pool's poses (and where they came from).
     pub camera_pool: String,
     /// The task spec.
@@ -70,8 +87,24 @@ fn sha(bytes: &[u8]) -> String {
     format!("sha256:{:x}", Sha256::digest(bytes))
 }
 
-/// SHA-256 of a task's scene file as this run loads it.
-pub(crate) fn scene_hash(source: &SceneSource, spec: &TaskSpec) -> Result<String, AugmentError> {
+/// A task's scene as this run loads it, by content: its MJCF file and every file that
+/// loads.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct SceneHashes {
+    /// SHA-256 of the scene file (a built-in scene: its composed XML, which holds it all).
+    pub(crate) scene: String,
+    /// The other files, by path relative to the scene folder.
+    pub(crate) files: BTreeMap<String, String>,
+}
+
+/// What a file named by a scene but found nowhere hashes to.
+const MISSING: &str = "missing";
+
+/// The content hashes of a task's scene as this run loads it.
+pub(crate) fn scene_hash(
+    source: &SceneSource,
+    spec: &TaskSpec,
+) -> Result<SceneHashes, AugmentError> {
     match source {
         SceneSource::BuiltIn => {
             let xml =
@@ -79,12 +112,30 @@ pub(crate) fn scene_hash(source: &SceneSource, spec: &TaskSpec) -> Result<String
                     episode: spec.id.clone(),
                     source,
                 })?;
-            Ok(sha(xml.as_bytes()))
+            Ok(SceneHashes {
+                scene: sha(xml.as_bytes()),
+                files: BTreeMap::new(),
+            })
         }
         SceneSource::Dir(dir) => {
             let path = dir.join(&spec.scene);
             let bytes = fs_err::read(&path).map_err(crate::error::io_err("read", &path))?;
-            Ok(sha(&bytes))
+            let mut files = BTreeMap::new();
+            // Names relative to the folder however it is written (`xmls`, `./xmls`).
+            let dir = &crate::scene_files::tidy(dir);
+            for file in crate::scene_files::scene_files(&path)?.into_iter().skip(1) {
+                let hash = match fs_err::read(&file) {
+                    Ok(bytes) => sha(&bytes),
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => MISSING.into(),
+                    Err(e) => return Err(crate::error::io_err("read", &file)(e)),
+                };
+                let name = file.strip_prefix(dir).unwrap_or(&file);
+                files.insert(name.display().to_string(), hash);
+            }
+            Ok(SceneHashes {
+                scene: sha(&bytes),
+                files,
+            })
         }
     }
 }
@@ -109,26 +160,64 @@ pub(crate) fn episode_hash(ep: &Episode) -> String {
 }
 
 impl OutputSettings {
-    /// The settings of `config` with each task's inputs.
+    /// The settings of `config` with each task's inputs and this process's versions.
+    /// Every setting is named here, fingerprinted or not (and why not), so a new one does
+    /// not compile until it is decided.
     pub(crate) fn of<'a>(
         config: &AugmentConfig,
-        tasks: impl IntoIterator<Item = (String, String, &'a CameraPool, String)>,
+        tasks: impl IntoIterator<Item = (String, SceneHashes, &'a CameraPool, String)>,
     ) -> Self {
+        let AugmentConfig {
+            seed,
+            settings,
+            cameras,
+            depth,
+            max_frames,
+            extend_steps,
+            dynamics,
+            scene,
+            // By content instead: each replay records its source episode's hash.
+            inputs: _,
+            out: _,
+            // More replays add folders; the ones there keep their bytes.
+            replays: _,
+            // The specs it gives are hashed per task (`tasks.<task>.spec`).
+            tasks_dir: _,
+            // Its poses are hashed per task (`tasks.<task>.camera_pool`).
+            camera_pool: _,
+            // Keeps or drops whole replays; a kept one has the same bytes either way.
+            keep_failed: _,
+            // The reference approach, proven to give the same bytes.
+            resimulate_per_replay: _,
+            // A file beside the replays, made again by every unsharded run.
+            contact_sheet: _,
+            // The shards of a split write the bytes of one run.
+            shard: _,
+            overwrite: _,
+        } = config;
+        let RenderSettings {
+            width,
+            height,
+            quality,
+            geometry,
+            // Augment renders depth as `config.depth` says.
+            depth: _,
+        } = settings;
         Self {
             format: FORMAT.into(),
             version: 1,
-            seed: config.seed,
-            width: config.settings.width,
-            height: config.settings.height,
-            quality: config.settings.quality,
-            geometry: config.settings.geometry,
-            cameras: config.cameras.clone(),
-            depth: config.depth,
-            max_frames: config.max_frames,
-            extend_steps: config.extend_steps,
-            dynamics: config.dynamics,
+            seed: *seed,
+            width: *width,
+            height: *height,
+            quality: *quality,
+            geometry: *geometry,
+            cameras: cameras.clone(),
+            depth: *depth,
+            max_frames: *max_frames,
+            extend_steps: *extend_steps,
+            dynamics: *dynamics,
             // The folder as an absolute path, so `xmls` and `/abs/xmls` are one folder.
-            scene: match &config.scene {
+            scene: match scene {
                 SceneSource::BuiltIn => "built-in".into(),
                 SceneSource::Dir(d) => d
                     .canonicalize()
@@ -141,16 +230,16 @@ impl OutputSettings {
                 .map(|(task, scene, pool, spec)| {
                     let poses = serde_json::to_vec(&pool.poses).expect("poses serialize");
                     let camera_pool = format!("{} {}", pool.source, sha(&poses));
-                    (
-                        task,
-                        TaskInputs {
-                            scene,
-                            camera_pool,
-                            spec,
-                        },
-                    )
+                    let inputs = TaskInputs {
+                        scene: scene.scene,
+                        scene_files: scene.files,
+                        camera_pool,
+                        spec,
+                    };
+                    (task, inputs)
                 })
                 .collect(),
+            versions: ToolVersions::current().clone(),
         }
     }
 
@@ -159,12 +248,19 @@ impl OutputSettings {
         sha(&serde_json::to_vec(spec).expect("specs serialize"))
     }
 
-    /// What differs from `other` (the settings an output was made with), in words.
+    /// What differs from `other` (the settings an output was made with), in words:
+    /// `setting: now (was before)`, content hashes shortened, at most
+    /// 12 lines (the last says how many more).
     pub fn differences(&self, other: &Self) -> Vec<String> {
         let mut out = Vec::new();
         let a = serde_json::to_value(self).expect("serializes");
         let b = serde_json::to_value(other).expect("serializes");
         diff("", &a, &b, &mut out);
+        if out.len() > MAX_DIFFERENCES {
+            let more = out.len() - (MAX_DIFFERENCES - 1);
+            out.truncate(MAX_DIFFERENCES - 1);
+            out.push(format!("and {more} more"));
+        }
         out
     }
 
@@ -219,8 +315,16 @@ fn diff(prefix: &str, now: &serde_json::Value, was: &serde_json::Value, out: &mu
                 }
             }
         }
-        (a, b) if a != b => out.push(format!("{prefix}: {a} (was {b})")),
+        (a, b) if a != b => out.push(format!("{prefix}: {} (was {})", shown(a), shown(b))),
         _ => {}
+    }
+}
+
+/// A leaf as the differences show it: a content hash by its first 12 hex digits.
+fn shown(value: &serde_json::Value) -> String {
+    match value.as_str() {
+        Some(h) if h.starts_with("sha256:") && h.len() > 19 => format!("\"{}…\"", &h[..19]),
+        _ => value.to_string(),
     }
 }
 
@@ -257,10 +361,21 @@ mod tests {
         }
     }
 
+    /// Scene hashes: the scene file's `scene`, and `files` with one hash each.
+    fn hashes(scene: &str, files: &[(&str, &str)]) -> SceneHashes {
+        SceneHashes {
+            scene: scene.into(),
+            files: files
+                .iter()
+                .map(|(f, h)| ((*f).to_owned(), (*h).to_owned()))
+                .collect(),
+        }
+    }
+
     #[test]
     fn differences_name_the_setting_and_both_values() {
         let pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
-        let task = || [("t".to_owned(), "s".to_owned(), &pool, "x".to_owned())];
+        let task = || [("t".to_owned(), hashes("s", &[]), &pool, "x".to_owned())];
         let a = OutputSettings::of(&config(64), task());
         let b = OutputSettings::of(&config(224), task());
         assert!(a.differences(&a).is_empty());
@@ -277,16 +392,18 @@ mod tests {
         c
     }
 
-    /// Every setting that changes a replay's bytes is part of the fingerprint: a resume
-    /// that changes any one of them is refused, naming it.
+    /// Each fingerprinted setting (`of` names every setting and decides which are) is
+    /// named when it changes, as are each task's inputs and the versions: a resume that
+    /// changes any one of them is refused, naming it.
     #[test]
     fn every_byte_changing_setting_is_named() {
         let pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
         let other_pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::Bimanual);
         let scenes = tempfile::tempdir().unwrap();
         let base = config(64);
+        let files = [("robot.xml", "sha256:1"), ("mesh.stl", "sha256:2")];
         let task = |scene: &str, pool, spec: &str| {
-            [("t".to_owned(), scene.to_owned(), pool, spec.to_owned())]
+            [("t".to_owned(), hashes(scene, &files), pool, spec.to_owned())]
         };
         let was = OutputSettings::of(&base, task("s", &pool, "x"));
         let configs: Vec<(&str, AugmentConfig)> = vec![
@@ -329,6 +446,28 @@ mod tests {
                 "tasks.t.spec",
                 OutputSettings::of(&base, task("s", &pool, "other spec")),
             ),
+            (
+                "tasks.t.scene_files.robot.xml",
+                OutputSettings::of(
+                    &base,
+                    [(
+                        "t".to_owned(),
+                        hashes("s", &[("robot.xml", "sha256:3"), files[1]]),
+                        &pool,
+                        "x".to_owned(),
+                    )],
+                ),
+            ),
+            (
+                "versions.ffmpeg",
+                OutputSettings {
+                    versions: ToolVersions {
+                        ffmpeg: "7.1".into(),
+                        ..was.versions.clone()
+                    },
+                    ..was.clone()
+                },
+            ),
         ]);
         for (key, now) in changed {
             let d = now.differences(&was);
@@ -344,7 +483,7 @@ mod tests {
         let pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
         let dir = tempfile::tempdir().unwrap();
         fs_err::create_dir(dir.path().join("xmls")).unwrap();
-        let task = || [("t".to_owned(), "s".to_owned(), &pool, "x".to_owned())];
+        let task = || [("t".to_owned(), hashes("s", &[]), &pool, "x".to_owned())];
         let direct = AugmentConfig {
             scene: SceneSource::Dir(dir.path().join("xmls")),
             ..config(64)

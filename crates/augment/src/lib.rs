@@ -29,10 +29,12 @@ mod inputs;
 mod physics;
 mod plan;
 mod profile;
+mod provenance;
 mod randomize;
 mod render;
 mod report;
 mod run;
+mod scene_files;
 mod staging;
 mod worker;
 
@@ -48,11 +50,12 @@ pub use error::AugmentError;
 pub use fingerprint::{OutputSettings, TaskInputs};
 pub use inputs::SkippedInput;
 pub use profile::StageTimes;
+pub use provenance::{Provenance, ToolVersions};
 pub use randomize::{
     CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,
     replay_seed,
 };
-pub use report::{AugmentReport, EpisodeOutcome, FailedUnit, ReplayRecord};
+pub use report::{AugmentReport, EpisodeOutcome, FailedUnit, MadeOn, ReplayRecord};
 pub use run::{augment, augment_with};
 pub use worker::{
     DEFAULT_FIRST_FRAME_TIMEOUT, Executor, FAULT_ENV, STALL_ENV, WorkerProcesses, serve_worker,

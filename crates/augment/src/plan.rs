@@ -57,13 +57,54 @@ fn shard_of(before: u64, cost: u64, total: u64, count: usize) -> usize {
     (k as usize).min(count - 1)
 }
 
+/// Complete replay folders of an output, by (task id, episode id), then replay index,
+/// with their records.
+pub(crate) type ReplaysOnDisk = BTreeMap<(String, String), BTreeMap<usize, ReplayRecord>>;
+
+/// The replays of `sources`' tasks already in the output, read once (none with
+/// `--overwrite`, which starts clean).
+pub(crate) fn replays_on_disk(config: &AugmentConfig, sources: &[Source]) -> ReplaysOnDisk {
+    if config.overwrite {
+        return ReplaysOnDisk::new();
+    }
+    let task_ids: BTreeSet<&str> = sources.iter().map(|s| s.spec.id.as_str()).collect();
+    existing_replays(&config.out, &task_ids)
+}
+
+/// How many `owned` replays have no folder `on_disk` (nor, under `--dynamics` without
+/// `--keep-failed`, the record of a dropped draw): the most this run can render, known
+/// before the physics pass (which may still leave failed episodes out). 0 for a finalize
+/// after the shards, or a resume of a complete run.
+pub(crate) fn replays_to_render(
+    config: &AugmentConfig,
+    sources: &[Source],
+    owned: &[Vec<usize>],
+    on_disk: &ReplaysOnDisk,
+) -> usize {
+    let dropped_counts = config.dynamics && !config.keep_failed && !config.overwrite;
+    sources
+        .iter()
+        .zip(owned)
+        .map(|(s, owned)| {
+            let disk = on_disk.get(&(s.spec.id.clone(), s.episode.id.clone()));
+            owned
+                .iter()
+                .filter(|&&r| {
+                    let done = disk.is_some_and(|d| d.contains_key(&r));
+                    let name = replay_name(&s.episode.id, r);
+                    let dropped =
+                        dropped_counts && dropped_path(&config.out, &s.spec.id, &name).is_file();
+                    !done && !dropped
+                })
+                .count()
+        })
+        .sum()
+}
+
 /// Replay folders already in `<out>/<task>/`, by (episode id, replay index), with their
 /// records (only complete folders have one).
-pub(crate) fn existing_replays(
-    out: &Path,
-    tasks: &BTreeSet<&str>,
-) -> BTreeMap<(String, String), BTreeMap<usize, ReplayRecord>> {
-    let mut found: BTreeMap<(String, String), BTreeMap<usize, ReplayRecord>> = BTreeMap::new();
+pub(crate) fn existing_replays(out: &Path, tasks: &BTreeSet<&str>) -> ReplaysOnDisk {
+    let mut found = ReplaysOnDisk::new();
     for task in tasks {
         let Ok(rd) = fs_err::read_dir(out.join(task)) else {
             continue;

@@ -451,6 +451,7 @@ fn commit_replays(
             out,
             &p.staging,
             &ep,
+            &src.spec,
             &record,
             p.preview.as_ref(),
             &mut || frames_done(0),
@@ -485,5 +486,6 @@ fn record_of(
         depth: Vec::new(),
         dynamics,
         source_hash: job.source_hash.clone(),
+        made_on: Some(crate::provenance::Provenance::here().clone()),
     }
 }

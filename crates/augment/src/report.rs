@@ -12,6 +12,7 @@ use crate::config::{PREVIEWS, REPORT_JSON, REPORT_MD};
 use crate::dynamics::DynamicsValue;
 use crate::error::{AugmentError, io_err};
 use crate::inputs::SkippedInput;
+use crate::provenance::Provenance;
 use crate::randomize::VisualSample;
 
 /// One replay in the report.
@@ -54,6 +55,10 @@ pub struct ReplayRecord {
     /// Content hash of the source episode it was made from.
     #[serde(default)]
     pub source_hash: String,
+    /// Where it was made: the CPU and the programs' versions (absent in replays made
+    /// before it was recorded, and in the report, which lists each once in `made_on`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub made_on: Option<Provenance>,
 }
 
 /// The result of replaying one source episode (physics only).
@@ -113,6 +118,11 @@ pub struct AugmentReport {
     pub camera_pools: BTreeMap<String, String>,
     /// Table looks per task (names).
     pub table_library: BTreeMap<String, Vec<String>>,
+    /// The language instructions of the replayed episodes per task, sorted: each
+    /// episode's own, else its task's prompt; the replays keep them, and `convert` writes
+    /// them unless its config names another.
+    #[serde(default)]
+    pub instructions: BTreeMap<String, Vec<String>>,
     /// Per source episode.
     pub episodes: Vec<EpisodeOutcome>,
     /// Per replay, sorted by folder.
@@ -129,6 +139,11 @@ pub struct AugmentReport {
     /// their replays are not there and a later run redoes them.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub failed_units: Vec<FailedUnit>,
+    /// Where the replays (kept and dropped) were made: each distinct CPU and set of
+    /// versions, with its count. More than one: the dataset mixes machines or builds,
+    /// whose bytes differ for the same inputs.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub made_on: Vec<MadeOn>,
     /// Replays rendered by this run (the rest were already there). Not written into the
     /// report files, so a resumed or sharded run writes the same report as one that was
     /// never interrupted.
@@ -138,6 +153,41 @@ pub struct AugmentReport {
     /// validation pass counted as physics). Not written, like `rendered_now`.
     #[serde(skip)]
     pub times: crate::profile::StageTimes,
+}
+
+/// One place replays were made, and how many.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MadeOn {
+    /// The CPU and versions.
+    #[serde(flatten)]
+    pub provenance: Provenance,
+    /// Replays made there.
+    pub replays: usize,
+}
+
+/// Takes each record's provenance out (the report lists each once): the distinct ones
+/// with their counts, sorted; replays made before it was recorded count as "not
+/// recorded".
+pub(crate) fn take_made_on(
+    replays: &mut [ReplayRecord],
+    dropped: &mut [ReplayRecord],
+) -> Vec<MadeOn> {
+    let mut counts: BTreeMap<Provenance, usize> = BTreeMap::new();
+    for r in replays.iter_mut().chain(dropped.iter_mut()) {
+        let p = r.made_on.take().unwrap_or_else(|| Provenance {
+            cpu_model: "not recorded".into(),
+            cpu_flags: "not recorded".into(),
+            versions: crate::provenance::ToolVersions::default(),
+        });
+        *counts.entry(p).or_default() += 1;
+    }
+    counts
+        .into_iter()
+        .map(|(provenance, replays)| MadeOn {
+            provenance,
+            replays,
+        })
+        .collect()
 }
 
 /// A unit of work that failed on its retry too.
@@ -172,9 +222,11 @@ pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), Aug
     let mut md = String::new();
     push_settings(&mut md, report);
     push_episodes(&mut md, report);
+    push_instructions(&mut md, report);
     push_failed_and_skipped(&mut md, report);
     push_replays(&mut md, report);
     push_dynamics(&mut md, report);
+    push_made_on(&mut md, report);
     dexjoco_formats::write_atomic(&out.join(REPORT_MD), md.as_bytes())?;
     Ok(())
 }
@@ -221,6 +273,17 @@ fn push_episodes(md: &mut String, report: &AugmentReport) {
              the last action was repeated (`--extend-steps`) and the extra frames are written \
              like the others.\n"
         ));
+    }
+}
+
+/// The instructions per task (one table row each; `|` escaped, lines joined).
+fn push_instructions(md: &mut String, report: &AugmentReport) {
+    md.push_str("\n| task | instruction |\n|---|---|\n");
+    for (task, instructions) in &report.instructions {
+        for i in instructions {
+            let cell = i.replace('|', "\\|").replace('\n', " ");
+            md.push_str(&format!("| {task} | {cell} |\n"));
+        }
     }
 }
 
@@ -314,6 +377,31 @@ fn push_dynamics(md: &mut String, report: &AugmentReport) {
                 cells.join("; ")
             ));
         }
+    }
+}
+
+/// Where the replays were made, and a warning when in more than one place.
+fn push_made_on(md: &mut String, report: &AugmentReport) {
+    if report.made_on.is_empty() {
+        return;
+    }
+    md.push_str("\n## Where the replays were made\n\n| CPU | dexjoco-data | MuJoCo | ffmpeg | x264 | replays |\n|---|---|---|---|---|---:|\n");
+    for m in &report.made_on {
+        let (p, v) = (&m.provenance, &m.provenance.versions);
+        md.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} |\n",
+            p.cpu_model, v.dexjoco_data, v.mujoco, v.ffmpeg, v.x264, m.replays
+        ));
+    }
+    if report.made_on.len() > 1 {
+        let warning = format!(
+            "the replays were made in {} different places (CPU model and flags, or program versions; \
+             see augment_report.json's made_on): MuJoCo's floating point depends on the CPU and \
+             the bytes on the versions, so this dataset is not what one machine would make",
+            report.made_on.len()
+        );
+        tracing::warn!("{warning}");
+        md.push_str(&format!("\n**Warning:** {warning}.\n"));
     }
 }
 

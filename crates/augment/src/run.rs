@@ -16,7 +16,10 @@ use crate::error::{AugmentError, io_err};
 use crate::fingerprint::{OutputSettings, scene_hash};
 use crate::inputs::{SkippedInput, Source, read_sources};
 use crate::physics::{PhysicsSummary, simulate};
-use crate::plan::{existing_replays, owned_replays, replays_per_unit, source_state};
+use crate::plan::{
+    ReplaysOnDisk, owned_replays, replays_on_disk, replays_per_unit, replays_to_render,
+    source_state,
+};
 use crate::render::UnitJob;
 use crate::report::{AugmentReport, EpisodeOutcome, FailedUnit, contact_sheet, write_report};
 use crate::staging::Outcome;
@@ -38,19 +41,26 @@ pub fn augment_with(
     progress: &dyn Progress,
 ) -> Result<AugmentReport, AugmentError> {
     let (mut sources, mut skipped) = read_replayable(config)?;
+    // One scene per task, shared by the workers, each `--camera` checked against it
+    // before anything is written or simulated; the settings that decide the output's
+    // bytes, checked below against what the folder was made with.
+    let (assets, settings) = load_assets_and_settings(config, &sources)?;
     let out = &config.out;
     fs_err::create_dir_all(out).map_err(io_err("create", out))?;
     let _lock = crate::staging::lock_output(out, config.shard)?;
 
-    // This run's share; worker processes start now and load the scenes of its tasks while
-    // this process loads and simulates.
+    // This run's share and what of it is on disk already (resume). When anything is left
+    // to render, the renderer is probed (a machine that cannot render fails now, not after
+    // the physics pass) and the worker processes start: they warm their renderers up while
+    // this process simulates. A finalize with nothing left starts none.
     let cameras = 1 + config.cameras.len();
     let owned = owned_replays(&sources, config, cameras);
-    let pool = start_workers(executor, config, &sources, &owned)?;
-
-    // One scene per task, shared by the workers; the settings that decide the output's
-    // bytes, checked against what the folder was made with.
-    let (assets, settings) = load_assets_and_settings(config, &sources)?;
+    let on_disk = replays_on_disk(config, &sources);
+    let to_render = replays_to_render(config, &sources, &owned, &on_disk);
+    if to_render > 0 {
+        executor.check_renderer()?;
+    }
+    let pool = start_workers(executor, config, &sources, &owned, to_render)?;
     let staging = prepare_output(config, &settings)?;
 
     // This run's share, and the physics of every episode it touches (the unsharded run,
@@ -65,8 +75,8 @@ pub fn augment_with(
         progress,
     );
 
-    // What is on disk already (resume), read once, and the units still to render.
-    let (mut outcomes, todo) = plan_replays(config, &sources, &owned, &physics, &assets)?;
+    // The units still to render, after what is on disk already (resume).
+    let (mut outcomes, todo) = plan_replays(config, &sources, &owned, &physics, &assets, &on_disk)?;
     let jobs = unit_jobs(executor, config, &sources, &physics, &todo);
     let local = LocalInputs {
         sources: &sources,
@@ -121,13 +131,14 @@ fn read_replayable(
     Ok((sources, skipped))
 }
 
-/// Starts the worker processes (none on threads), preloading the tasks this run owns
-/// replays of.
+/// Starts the worker processes (none on threads, none with nothing `to_render`, no more
+/// than replays `to_render`), preloading the tasks this run owns replays of.
 fn start_workers(
     executor: &Executor,
     config: &AugmentConfig,
     sources: &[Source],
     owned: &[Vec<usize>],
+    to_render: usize,
 ) -> Result<WorkerPool, AugmentError> {
     let preload: BTreeSet<String> = sources
         .iter()
@@ -135,9 +146,8 @@ fn start_workers(
         .filter(|(_, o)| !o.is_empty())
         .map(|(s, _)| s.spec.id.clone())
         .collect();
-    let max_units = owned.iter().map(Vec::len).sum();
     let preload: Vec<String> = preload.into_iter().collect();
-    WorkerPool::start(executor, config, &preload, max_units)
+    WorkerPool::start(executor, config, &preload, to_render)
 }
 
 /// Loads each task's assets once, and the settings that decide the output's bytes.
@@ -152,6 +162,7 @@ fn load_assets_and_settings(
             continue;
         }
         let a = load_assets(config, &s.spec)?;
+        a.check_cameras(&config.cameras, &s.spec.id)?;
         inputs.push((
             s.spec.id.clone(),
             scene_hash(&config.scene, &s.spec)?,
@@ -255,16 +266,15 @@ fn simulate_episodes(
 /// `--keep-failed`).
 type ReplayPlan = (BTreeMap<(usize, usize), Outcome>, Vec<(usize, Vec<usize>)>);
 
-/// Reads what is on disk already, once, and plans the replays still to render.
+/// Plans the replays still to render from what is `on_disk` already.
 fn plan_replays(
     config: &AugmentConfig,
     sources: &[Source],
     owned: &[Vec<usize>],
     physics: &[Option<PhysicsSummary>],
     assets: &BTreeMap<String, Arc<TaskAssets>>,
+    on_disk: &ReplaysOnDisk,
 ) -> Result<ReplayPlan, AugmentError> {
-    let task_ids: BTreeSet<&str> = sources.iter().map(|s| s.spec.id.as_str()).collect();
-    let on_disk = existing_replays(&config.out, &task_ids);
     let mut outcomes: BTreeMap<(usize, usize), Outcome> = BTreeMap::new();
     let mut todo: Vec<(usize, Vec<usize>)> = Vec::new();
     for (i, s) in sources.iter().enumerate() {
@@ -381,6 +391,24 @@ fn remove_staging(staging: &std::path::Path) -> Result<(), AugmentError> {
     }
 }
 
+/// The distinct instructions of the replayed episodes per task, sorted.
+fn instructions_by_task(
+    sources: &[Source],
+    physics: &[Option<PhysicsSummary>],
+) -> BTreeMap<String, Vec<String>> {
+    let mut by_task: BTreeMap<String, std::collections::BTreeSet<String>> = BTreeMap::new();
+    for (s, _) in sources.iter().zip(physics).filter(|(_, p)| p.is_some()) {
+        by_task
+            .entry(s.spec.id.clone())
+            .or_default()
+            .insert(s.episode.prompt.clone());
+    }
+    by_task
+        .into_iter()
+        .map(|(task, set)| (task, set.into_iter().collect()))
+        .collect()
+}
+
 /// The report: every replay of these episodes on disk, in (episode, replay) order.
 #[allow(clippy::too_many_arguments)]
 fn build_report(
@@ -405,6 +433,7 @@ fn build_report(
             Outcome::Dropped(rec) => dropped.push(rec),
         }
     }
+    let made_on = crate::report::take_made_on(&mut replays, &mut dropped);
     let episodes = sources
         .iter()
         .zip(physics)
@@ -443,11 +472,13 @@ fn build_report(
                 )
             })
             .collect(),
+        instructions: instructions_by_task(sources, physics),
         episodes,
         replays,
         dropped,
         skipped,
         failed_units,
+        made_on,
         rendered_now,
         times: crate::profile::StageTimes::default(),
     }

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use dexjoco_core::{CameraStream, Episode, FrameArray};
+use dexjoco_core::{CameraStream, Episode, FrameArray, TaskSpec};
 use dexjoco_formats::fs::sync_tree;
 use dexjoco_formats::raw;
 use dexjoco_formats::{DirLock, FormatError, LOCK_FILE};
@@ -125,18 +125,19 @@ pub(crate) fn replay_episode(
 }
 
 /// Completes a staged replay (its videos already finished in `staging/videos/`): writes
-/// `replay.zarr`, the preview and the record, syncs, asks `still_wanted` (a worker whose
+/// `replay.zarr` (with the source's own instruction, as a raw folder keeps it), the preview and the record, syncs, asks `still_wanted` (a worker whose
 /// run has ended stops there), and renames the folder into `<out>/<task>/<name>`.
 pub(crate) fn commit_replay(
     out: &Path,
     staging: &Path,
     ep: &Episode,
+    spec: &TaskSpec,
     record: &ReplayRecord,
     preview: Option<&dexjoco_sim::Frame>,
     still_wanted: &mut dyn FnMut() -> Result<(), AugmentError>,
 ) -> Result<(), AugmentError> {
     let (task, name) = (&record.task, &record.name);
-    raw::write_replay_zarr(staging, ep)?;
+    raw::write_raw_episode(staging, ep, spec)?;
     if let Some(frame) = preview {
         let dir = out.join(PREVIEWS);
         fs_err::create_dir_all(&dir).map_err(io_err("create", &dir))?;
@@ -148,12 +149,13 @@ pub(crate) fn commit_replay(
     let json = serde_json::to_vec_pretty(record).expect("serializable");
     let rec_path = staging.join(RECORD);
     fs_err::write(&rec_path, json).map_err(io_err("write", &rec_path))?;
-    sync_tree(staging);
+    sync_tree(staging)?;
     let final_dir = out.join(task).join(name);
     let parent = final_dir.parent().expect("has parent");
     fs_err::create_dir_all(parent).map_err(io_err("create", parent))?;
     still_wanted()?;
     fs_err::rename(staging, &final_dir).map_err(io_err("rename", staging))?;
+    dexjoco_formats::fs::sync_dir(parent)?;
     // A replay dropped by an earlier run without --keep-failed is now kept.
     let _ = fs_err::remove_file(dropped_path(out, task, name));
     tracing::debug!(replay = %final_dir.display(), "replay written");

@@ -72,8 +72,8 @@ pub struct Selection {
     /// Per task id.
     #[serde(default)]
     pub tasks: BTreeMap<String, TaskSelection>,
-    /// Task id -> language instruction (overrides the built-in DexJoCo instructions and
-    /// the episode's own prompt).
+    /// Task id -> language instruction (overrides the episode's own instruction and the
+    /// task spec's prompt).
     #[serde(default)]
     pub instructions: BTreeMap<String, String>,
     /// Episode ids to leave out.
@@ -111,21 +111,19 @@ impl Selection {
         self.tasks.get(task).unwrap_or(&self.default)
     }
 
-    /// The instruction of a task: the config's, else the prompt of the task's built-in
-    /// spec (`schemas/tasks/`, the reference converter's `language_instructions.yaml`
-    /// text), else the episode's prompt, else the task id.
+    /// The instruction of an episode of `task` whose prompt is `prompt`: the config's
+    /// for the task, else the episode's prompt (its own instruction; the episode readers
+    /// give an episode without one its task spec's prompt), else, when that is empty, the
+    /// prompt of the task's built-in spec (`schemas/tasks/`, the reference converter's
+    /// `language_instructions.yaml` text), else the task id.
     pub fn instruction(&self, task: &str, prompt: &str) -> String {
         if let Some(s) = self.instructions.get(task) {
             return s.clone();
         }
-        if let Some(spec) = dexjoco_core::TaskSpec::builtin(task) {
-            return spec.prompt.clone();
+        if !prompt.trim().is_empty() {
+            return prompt.to_owned();
         }
-        if prompt.trim().is_empty() {
-            task.to_owned()
-        } else {
-            prompt.to_owned()
-        }
+        dexjoco_core::TaskSpec::builtin(task).map_or_else(|| task.to_owned(), |s| s.prompt.clone())
     }
 
     /// Reads a selection config: TOML (`.toml`) or YAML (anything else), with the fields
@@ -262,6 +260,29 @@ mod tests {
         assert!(
             sel.instruction("water_plant", "")
                 .starts_with("Grasp the watering can")
+        );
+        // The reference config names every task: its text wins over the episode's.
+        assert!(
+            sel.instruction("water_plant", "water it")
+                .starts_with("Grasp the watering can")
+        );
+    }
+
+    #[test]
+    fn the_config_then_the_episode_then_the_spec_instructs() {
+        let mut sel = Selection::default();
+        let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
+        assert_eq!(
+            sel.instruction("click_mouse", "password two"),
+            "password two"
+        );
+        assert_eq!(sel.instruction("click_mouse", " "), spec.prompt);
+        assert_eq!(sel.instruction("my_task", ""), "my_task");
+        sel.instructions
+            .insert("click_mouse".into(), "result of 1+1".into());
+        assert_eq!(
+            sel.instruction("click_mouse", "password two"),
+            "result of 1+1"
         );
     }
 

@@ -7,9 +7,9 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use dexjoco_core::{Episode, TaskSet, TaskSpec};
+use dexjoco_core::{Episode, Location, TaskSet, TaskSpec};
 
-use crate::error::Result;
+use crate::error::{FormatError, ProblemCode, Result};
 use crate::manifest::SourceKind;
 
 /// A container of one episode on disk.
@@ -41,6 +41,21 @@ pub trait EpisodeContainer: Sync {
     ) -> Result<()>;
 }
 
+/// The error of an episode whose task `id` is not one of `tasks`: it names the known ones
+/// and how a task of one's own becomes known (`--tasks-dir`, which every command that
+/// reads episodes takes).
+pub(crate) fn unknown_task(at: &Location, id: &str, tasks: &TaskSet) -> FormatError {
+    FormatError::input(
+        ProblemCode::UnknownTask,
+        at,
+        format!(
+            "unknown task '{id}' (known: {}); for a task of your own, pass the folder \
+             holding its spec, {id}.toml, with --tasks-dir",
+            tasks.ids().join(", ")
+        ),
+    )
+}
+
 /// An episode read from a container, with what reading it noted.
 #[derive(Debug, Clone)]
 pub struct ReadEpisode {
@@ -61,8 +76,8 @@ pub struct ReadOptions<'a> {
     pub bytes: Option<&'a [u8]>,
 }
 
-/// Episode metadata beyond the arrays (MCAP keeps it in its `dexjoco.episode` record;
-/// the raw layout has no place for it).
+/// Episode metadata beyond the arrays and the instruction (MCAP keeps it in its
+/// `dexjoco.episode` record; the raw layout has no place for it).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct EpisodeMeta {
     /// Operator, when known.

@@ -21,7 +21,9 @@
 //! order: the caller's override, the episode folder's store entry
 //! (`.dexjoco-ingest.json`), its path ([`crate::raw::task_from_path`]); an MCAP log
 //! names its task in its metadata. Its id is the store entry's id, else the folder name;
-//! for MCAP, the recorded id, else the file stem.
+//! for MCAP, the recorded id, else the file stem. Its prompt is its own instruction (a
+//! raw folder's `replay.zarr/.zattrs` attribute `instruction`, an MCAP log's `prompt`),
+//! else its task's.
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};

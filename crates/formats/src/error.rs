@@ -188,6 +188,16 @@ pub enum FormatError {
         /// The host it runs on.
         host: String,
     },
+    /// A file or folder an earlier run wrote would be replaced, and the command was not
+    /// given `--overwrite`.
+    #[error(
+        "'{}' already exists: pass --overwrite to replace it, or choose another --out",
+        path.display()
+    )]
+    WouldReplace {
+        /// The file or folder.
+        path: PathBuf,
+    },
     /// An episode breaks the core data model.
     #[error(transparent)]
     Core(#[from] CoreError),

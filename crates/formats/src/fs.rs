@@ -1,5 +1,6 @@
 //! File-system primitives every writer uses: atomic file writes (temporary file in the
-//! same folder, synced, renamed), whole-folder replacement, tree copies and syncs.
+//! same folder, synced, renamed, the folder synced), whole-folder replacement, tree copies
+//! and syncs.
 //!
 //! A reader never sees half a file or half a folder written through these: a file
 //! appears complete under its name or not at all, and a replaced folder is either the
@@ -77,7 +78,7 @@ pub fn persist_synced(tmp: tempfile::NamedTempFile, path: &Path) -> Result<()> {
         path: path.to_owned(),
         source: e.error,
     })?;
-    Ok(())
+    sync_dir(parent_of(path))
 }
 
 /// The name a replaced folder is moved aside to while its replacement is renamed in:
@@ -109,10 +110,12 @@ pub fn replace_dir(staged: &Path, to: &Path) -> Result<()> {
     if fs_err::symlink_metadata(to).is_ok() {
         fs_err::rename(to, &aside).map_err(io_err("rename", to))?;
         fs_err::rename(staged, to).map_err(io_err("rename", staged))?;
+        sync_dir(parent_of(to))?;
         // The replacement is done; a left-over old copy is removed by the next replace.
         let _ = remove_any(&aside);
     } else {
         fs_err::rename(staged, to).map_err(io_err("rename", staged))?;
+        sync_dir(parent_of(to))?;
     }
     Ok(())
 }
@@ -236,9 +239,10 @@ impl StagedDir {
         &self.to
     }
 
-    /// Syncs the staging folder and renames it to the target, replacing what is there.
+    /// Syncs the staging folder and renames it to the target, replacing what is there
+    /// (the rename synced too).
     pub fn commit(mut self) -> Result<()> {
-        sync_tree(&self.staged);
+        sync_tree(&self.staged)?;
         replace_dir(&self.staged, &self.to)?;
         self.committed = true;
         Ok(())
@@ -250,6 +254,69 @@ impl Drop for StagedDir {
         if !self.committed {
             let _ = fs_err::remove_dir_all(&self.staged);
         }
+    }
+}
+
+/// Files a command writes into a folder it shares with other runs and commands (render's
+/// images, a camera pool), staged: each is written under its own name into a hidden
+/// staging folder inside that folder (`.NAME.partial-<random>`), and
+/// [`StagedFiles::publish`] renames them all into place and syncs the folder. A name that
+/// already exists there is refused, unless `overwrite`, when it is asked for: before
+/// anything of the run is published. Dropped unpublished, the staging folder is removed.
+#[derive(Debug)]
+pub struct StagedFiles {
+    dir: PathBuf,
+    staging: tempfile::TempDir,
+    overwrite: bool,
+    names: Vec<String>,
+}
+
+impl StagedFiles {
+    /// Starts staging files for `dir` (created if needed); `overwrite`: they may replace
+    /// files of the same names.
+    pub fn begin(dir: &Path, overwrite: bool) -> Result<Self> {
+        fs_err::create_dir_all(dir).map_err(io_err("create", dir))?;
+        let staging = tempfile::Builder::new()
+            .prefix(".staged-files.partial-")
+            .tempdir_in(dir)
+            .map_err(io_err("create a staging folder in", dir))?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            staging,
+            overwrite,
+            names: Vec::new(),
+        })
+    }
+
+    /// Where to write the file `name` now (in the staging folder); fails with
+    /// [`FormatError::WouldReplace`] when `dir/name` exists and overwriting is not allowed.
+    pub fn file(&mut self, name: &str) -> Result<PathBuf> {
+        let target = self.dir.join(name);
+        if !self.overwrite && fs_err::symlink_metadata(&target).is_ok() {
+            return Err(FormatError::WouldReplace { path: target });
+        }
+        self.names.push(name.to_owned());
+        Ok(self.staging.path().join(name))
+    }
+
+    /// Where `name` will be once published.
+    pub fn target(&self, name: &str) -> PathBuf {
+        self.dir.join(name)
+    }
+
+    /// Syncs the staged files and renames each into place (replacing a file of the same
+    /// name), then syncs the folder. Names asked for but not written are left out.
+    pub fn publish(self) -> Result<()> {
+        sync_tree(self.staging.path())?;
+        for name in &self.names {
+            let staged = self.staging.path().join(name);
+            if fs_err::symlink_metadata(&staged).is_err() {
+                continue;
+            }
+            let target = self.dir.join(name);
+            fs_err::rename(&staged, &target).map_err(io_err("rename", &staged))?;
+        }
+        sync_dir(&self.dir)
     }
 }
 
@@ -341,18 +408,41 @@ pub fn copy_tree(from: &Path, to: &Path) -> Result<()> {
     }
 }
 
-/// Flushes every file of a folder tree to disk (best effort), before the folder is
-/// renamed into place.
-pub fn sync_tree(dir: &Path) {
-    if dir.is_dir() {
-        if let Ok(rd) = fs_err::read_dir(dir) {
-            for e in rd.flatten() {
-                sync_tree(&e.path());
-            }
+/// Flushes every file and folder of a tree to disk, before the tree is renamed into
+/// place; a file that cannot be read or synced is an error (links are left alone).
+pub fn sync_tree(path: &Path) -> Result<()> {
+    let meta = fs_err::symlink_metadata(path).map_err(io_err("read", path))?;
+    if meta.is_dir() {
+        for e in fs_err::read_dir(path).map_err(io_err("list", path))? {
+            let e = e.map_err(io_err("list", path))?;
+            sync_tree(&e.path())?;
         }
-    } else if let Ok(f) = fs_err::File::open(dir) {
-        let _ = f.sync_all();
+        sync_dir(path)
+    } else if meta.is_file() {
+        fs_err::File::open(path)
+            .and_then(|f| f.sync_all())
+            .map_err(io_err("sync", path))
+    } else {
+        Ok(())
     }
+}
+
+/// Flushes a folder's entries (names created, renamed or removed in it) to disk, so that
+/// a rename into it survives a power loss. A file system that cannot sync folders at all
+/// (`EINVAL`) is let be; any other failure is an error.
+pub fn sync_dir(dir: &Path) -> Result<()> {
+    let synced = fs_err::File::open(dir).and_then(|f| f.sync_all());
+    match synced {
+        Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => Ok(()),
+        r => r.map_err(io_err("sync", dir)),
+    }
+}
+
+/// The folder `path` is in (`.` for a bare name).
+fn parent_of(path: &Path) -> &Path {
+    path.parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
 }
 
 /// True when `dir` exists and has any entry.
@@ -363,6 +453,54 @@ pub fn is_non_empty_dir(dir: &Path) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sync_tree_syncs_files_and_folders_and_a_failure_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let tree = dir.path().join("tree");
+        fs_err::create_dir_all(tree.join("a/b")).unwrap();
+        fs_err::write(tree.join("a/b/c.bin"), b"1").unwrap();
+        sync_tree(&tree).unwrap();
+        sync_dir(dir.path()).unwrap();
+        // What cannot be read is an error, not skipped.
+        let missing = tree.join("gone");
+        match sync_tree(&missing) {
+            Err(FormatError::Io { path, .. }) => assert_eq!(path, missing),
+            other => panic!("{other:?}"),
+        }
+        assert!(sync_dir(&missing).is_err());
+    }
+
+    #[test]
+    fn staged_files_refuse_to_replace_without_overwrite_and_publish_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        fs_err::write(dir.path().join("old.png"), b"old").unwrap();
+        let mut files = StagedFiles::begin(dir.path(), false).unwrap();
+        fs_err::write(files.file("new.png").unwrap(), b"new").unwrap();
+        // Nothing is visible before publish.
+        assert!(!dir.path().join("new.png").exists());
+        match files.file("old.png") {
+            Err(FormatError::WouldReplace { path }) => assert_eq!(path, dir.path().join("old.png")),
+            other => panic!("{other:?}"),
+        }
+        // Refused: dropped, nothing is published and no staging is left.
+        drop(files);
+        let names = |d: &Path| -> Vec<String> {
+            let mut v: Vec<String> = fs_err::read_dir(d)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            v.sort();
+            v
+        };
+        assert_eq!(names(dir.path()), ["old.png"]);
+        let mut files = StagedFiles::begin(dir.path(), true).unwrap();
+        fs_err::write(files.file("old.png").unwrap(), b"again").unwrap();
+        fs_err::write(files.file("new.png").unwrap(), b"new").unwrap();
+        files.publish().unwrap();
+        assert_eq!(names(dir.path()), ["new.png", "old.png"]);
+        assert_eq!(fs_err::read(dir.path().join("old.png")).unwrap(), b"again");
+    }
 
     #[test]
     fn a_killed_atomic_write_leaves_a_temporary_that_the_next_writer_removes() {

@@ -14,7 +14,7 @@ use dexjoco_core::{ArmSetup, Episode, FrameArray, HAND_DOF, Location, TaskSet, T
 use mcap::records::{MessageHeader, Metadata, Record};
 use serde_json::{Value, json};
 
-use crate::container::{EpisodeContainer, ReadEpisode, ReadOptions};
+use crate::container::{EpisodeContainer, ReadEpisode, ReadOptions, unknown_task};
 use crate::error::{FormatError, ProblemCode, Result, io_err};
 use crate::manifest::SourceKind;
 
@@ -380,7 +380,11 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<T
     let mut episode = Episode {
         id: get("episode_id").unwrap_or_default().to_owned(),
         task: task.id.clone(),
-        prompt: get("prompt").unwrap_or(&task.prompt).to_owned(),
+        // An empty prompt is no instruction of its own: the task's applies.
+        prompt: get("prompt")
+            .filter(|p| !p.trim().is_empty())
+            .unwrap_or(&task.prompt)
+            .to_owned(),
         fps,
         arrays,
         cameras: Vec::new(),
@@ -474,13 +478,9 @@ fn episode_header<'t>(
         ));
     }
     let task_id = get("task").unwrap_or_default();
-    let task = tasks.get(task_id).ok_or_else(|| {
-        FormatError::input(
-            ProblemCode::UnknownTask,
-            &md_at.clone().field("task"),
-            format!("unknown task '{task_id}'"),
-        )
-    })?;
+    let task = tasks
+        .get(task_id)
+        .ok_or_else(|| unknown_task(&md_at.clone().field("task"), task_id, tasks))?;
     if let Some(setup) = get("setup") {
         let expected = match task.setup {
             ArmSetup::SingleArm => "single_arm",

@@ -10,8 +10,10 @@ use dexjoco_core::{CameraStream, Episode, FrameArray, Location, TaskSet, TaskSpe
 use serde_json::Value;
 use zarrs::array::{Array, ArrayMetadataOptions, CodecOptions};
 use zarrs::filesystem::FilesystemStore;
+use zarrs::group::{Group, GroupMetadata};
+use zarrs::metadata::v2::GroupMetadataV2;
 
-use crate::container::{EpisodeContainer, EpisodeMeta, ReadEpisode, ReadOptions};
+use crate::container::{EpisodeContainer, EpisodeMeta, ReadEpisode, ReadOptions, unknown_task};
 use crate::error::{FormatError, ProblemCode, Result, io_err};
 use crate::manifest::{ManifestEntry, SourceKind};
 use crate::zarr_v2::{self, Blosc};
@@ -20,6 +22,10 @@ use crate::zarr_v2::{self, Blosc};
 pub const REPLAY_ZARR: &str = "replay.zarr";
 /// Name of the video folder inside an episode folder.
 pub const VIDEOS: &str = "videos";
+/// The attribute of `replay.zarr/.zattrs` (the root group's attributes, which the
+/// DexJoCo tools and zarr-python 2 read past) holding the episode's own language
+/// instruction. Absent when the episode has none of its own: its task's prompt applies.
+pub const INSTRUCTION_ATTRIBUTE: &str = "instruction";
 /// Largest chunk the recorder makes, in bytes (`2e6 // bytes_per_step` frames).
 pub const CHUNK_BYTES: usize = 2_000_000;
 /// Most values one array of an episode may hold (2^25, 256 MiB of float64: a hundred
@@ -273,6 +279,7 @@ pub fn task_from_path(dir: &Path, tasks: &TaskSet) -> Option<String> {
 }
 
 /// Reads a raw episode folder (holding `replay.zarr`, optionally `videos/`) of `task`.
+/// Its prompt is its own instruction ([`INSTRUCTION_ATTRIBUTE`]), else the task's.
 ///
 /// Applies the documented normalisations: float32 `state` is widened to float64; the
 /// older pick_bucket object order (food before bucket) is put in the current order;
@@ -301,11 +308,12 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
         arrays.insert(name.clone(), fa);
     }
     check_episode_ends(&store, &zarr, &arrays, &base)?;
+    let instruction = read_instruction(&zarr, &base)?;
 
     let mut episode = Episode {
         id: String::new(),
         task: task.id.clone(),
-        prompt: task.prompt.clone(),
+        prompt: instruction.unwrap_or_else(|| task.prompt.clone()),
         fps: dexjoco_core::DEXJOCO_FPS,
         arrays,
         cameras: Vec::new(),
@@ -319,6 +327,27 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
         videos,
         notes,
     })
+}
+
+/// The episode's own instruction: the [`INSTRUCTION_ATTRIBUTE`] of `replay.zarr/.zattrs`
+/// (`None` when the file, the attribute or its text is absent); an error naming the file
+/// and attribute when it is unreadable or not a string.
+fn read_instruction(zarr: &Path, base: &Location) -> Result<Option<String>> {
+    let path = zarr.join(ATTRIBUTES_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let at = base.clone().path(&path).field(INSTRUCTION_ATTRIBUTE);
+    match read_json(&path, &at)?.get(INSTRUCTION_ATTRIBUTE) {
+        None | Some(Value::Null) => Ok(None),
+        Some(Value::String(s)) if s.trim().is_empty() => Ok(None),
+        Some(Value::String(s)) => Ok(Some(s.clone())),
+        Some(other) => Err(FormatError::input(
+            ProblemCode::WrongDtype,
+            &at,
+            format!("the instruction is {other}, not a text"),
+        )),
+    }
 }
 
 /// The arrays of `data/` to read: the standard ones, then any other array (carried
@@ -565,9 +594,47 @@ fn zarr_write_err(at: &Location) -> impl Fn(String) -> FormatError + '_ {
     }
 }
 
+/// The root group's attribute file of a Zarr v2 store.
+const ATTRIBUTES_FILE: &str = ".zattrs";
+
+/// The instruction an episode of `task` has of its own, to be stored with it: its
+/// prompt unless that is empty or the task's prompt (which applies anyway when none is
+/// stored, so recordings of the task's prompt write what the recorder writes).
+pub fn own_instruction<'e>(episode: &'e Episode, task: &TaskSpec) -> Option<&'e str> {
+    let prompt = episode.prompt.as_str();
+    (!prompt.trim().is_empty() && prompt != task.prompt).then_some(prompt)
+}
+
+/// Writes an episode of `task` as a raw folder under `dir`: `replay.zarr`
+/// ([`write_replay_zarr`]) and, when it has one, its own instruction
+/// ([`own_instruction`]) as the [`INSTRUCTION_ATTRIBUTE`] of `replay.zarr/.zattrs`.
+pub fn write_raw_episode(dir: &Path, episode: &Episode, task: &TaskSpec) -> Result<()> {
+    write_replay_zarr(dir, episode)?;
+    let Some(instruction) = own_instruction(episode, task) else {
+        return Ok(());
+    };
+    let zarr = dir.join(REPLAY_ZARR);
+    let at = Location::episode(&episode.id)
+        .path(zarr.join(ATTRIBUTES_FILE))
+        .field(INSTRUCTION_ATTRIBUTE);
+    let err = zarr_write_err(&at);
+    let store = Arc::new(FilesystemStore::new(&zarr).map_err(|e| err(e.to_string()))?);
+    let mut attributes = serde_json::Map::new();
+    attributes.insert(INSTRUCTION_ATTRIBUTE.to_owned(), instruction.into());
+    Group::new_with_metadata(
+        store,
+        "/",
+        GroupMetadata::V2(GroupMetadataV2::new().with_attributes(attributes)),
+    )
+    .map_err(|e| err(e.to_string()))?
+    .store_metadata()
+    .map_err(|e| err(e.to_string()))
+}
+
 /// Writes `replay.zarr` of one episode under `dir` (created), as the recorder does:
 /// float64 arrays, Blosc zstd clevel 5 bitshuffle, one chunk per episode up to 2 MB,
-/// `meta/episode_ends` int64 uncompressed in chunks of 1024, no `.zattrs`.
+/// `meta/episode_ends` int64 uncompressed in chunks of 1024, no `.zattrs` (the arrays
+/// only: [`write_raw_episode`] also keeps the episode's own instruction).
 pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
     let zarr = dir.join(REPLAY_ZARR);
     let at = Location::episode(&ep.id).path(&zarr);
@@ -646,20 +713,17 @@ impl EpisodeContainer for RawFolder {
             .or_else(|| task_from_path(dir, tasks));
         let at = Location::default().path(dir);
         let task = match name.as_deref() {
-            Some(n) => tasks.get(n).ok_or_else(|| {
-                FormatError::input(
-                    ProblemCode::UnknownTask,
-                    &at,
-                    format!("unknown task '{n}' (known: {})", tasks.ids().join(", ")),
-                )
-            })?,
+            Some(n) => tasks.get(n).ok_or_else(|| unknown_task(&at, n, tasks))?,
             None => {
                 return Err(FormatError::input(
                     ProblemCode::UnknownTask,
                     &at,
                     format!(
-                        "cannot tell the task of '{}': the path names none \
-                         (<task>/episode_N or <task>_demo_...); pass --task",
+                        "cannot tell the task of '{}': its path names no known task \
+                         (<task>/episode_N, <task>_demo_..., or any folder under a folder \
+                         named after a known task); for a task of your own, pass the \
+                         folder holding its spec with --tasks-dir; a folder laid out \
+                         otherwise can be stored with `dexjoco-data ingest --task <task>`",
                         dir.display()
                     ),
                 ));
@@ -681,15 +745,15 @@ impl EpisodeContainer for RawFolder {
         })
     }
 
-    /// Writes `replay.zarr` under `dir` ([`write_replay_zarr`]); the raw layout has no
-    /// place for `meta`.
+    /// Writes `replay.zarr` under `dir` with the episode's own instruction
+    /// ([`write_raw_episode`]); the raw layout has no place for `meta`.
     fn write(
         &self,
         dir: &Path,
         episode: &Episode,
-        _task: &TaskSpec,
+        task: &TaskSpec,
         _meta: &EpisodeMeta,
     ) -> Result<()> {
-        write_replay_zarr(dir, episode)
+        write_raw_episode(dir, episode, task)
     }
 }

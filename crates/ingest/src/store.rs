@@ -465,7 +465,7 @@ impl Store {
                 .map_err(io_err("remove", &dir))
                 .map_err(store_failure)?;
         }
-        raw::write_replay_zarr(&dir, &ep).map_err(store_failure)?;
+        raw::write_raw_episode(&dir, &ep, task).map_err(store_failure)?;
         for v in &videos {
             let to = dir.join(v);
             if let Some(parent) = to.parent() {

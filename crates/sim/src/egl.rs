@@ -98,10 +98,22 @@ fn devices() -> Result<Vec<Device>, SimError> {
         .map_err(|e| SimError::Egl(format!("cannot list EGL devices ({e}); is libEGL installed (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri)?")))
 }
 
-fn requested_device() -> Option<usize> {
-    std::env::var(EGL_DEVICE_ENV)
-        .ok()
-        .and_then(|v| v.trim().parse().ok())
+/// The device index [`EGL_DEVICE_ENV`] asks for (`None` when it is unset or empty); a
+/// value that is not an index is an error, not a silent default.
+pub fn requested_egl_device() -> Result<Option<usize>, SimError> {
+    let Some(value) = std::env::var_os(EGL_DEVICE_ENV) else {
+        return Ok(None);
+    };
+    let value = value.to_string_lossy();
+    let value = value.trim();
+    if value.is_empty() {
+        return Ok(None);
+    }
+    value.parse().map(Some).map_err(|_| {
+        SimError::Egl(format!(
+            "{EGL_DEVICE_ENV}='{value}' is not an EGL device index: give a number from the list of `dexjoco-data doctor`"
+        ))
+    })
 }
 
 /// Device indices in the order they are tried: hardware (GPU) devices first, in EGL's
@@ -136,16 +148,23 @@ impl EglContext {
     /// named by [`EGL_DEVICE_ENV`], else the first GPU that opens one, else the first
     /// software device.
     pub(crate) fn new(width: u32, height: u32) -> Result<Self, SimError> {
+        Self::open(requested_egl_device()?, width, height)
+    }
+
+    /// Opens a context on device `requested`, or with `None` on the first GPU that opens
+    /// one, else the first software device.
+    fn open(requested: Option<usize>, width: u32, height: u32) -> Result<Self, SimError> {
         let devices = devices()?;
         if devices.is_empty() {
             return Err(SimError::Egl("EGL lists no device".into()));
         }
-        let order: Vec<usize> = match requested_device() {
+        let order: Vec<usize> = match requested {
             Some(i) if i < devices.len() => vec![i],
             Some(i) => {
                 return Err(SimError::Egl(format!(
-                    "{EGL_DEVICE_ENV}={i} but EGL lists {} devices",
-                    devices.len()
+                    "EGL device {i} does not exist: EGL lists {} device(s) ({})",
+                    devices.len(),
+                    listed(&devices)
                 )));
             }
             None => preferred_order(&devices),
@@ -253,6 +272,49 @@ impl EglContext {
     }
 }
 
+/// `0 (software), 1 (/dev/dri/renderD128)`: the devices as EGL lists them.
+fn listed(devices: &[Device]) -> String {
+    devices
+        .iter()
+        .enumerate()
+        .map(|(i, d)| format!("{i} ({})", describe(d).0))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The EGL devices as EGL lists them (index, description, software or not), from EGL's
+/// list alone: no context is opened, so this is cheap.
+pub fn list_egl_devices() -> Result<Vec<EglDevice>, SimError> {
+    Ok(devices()?
+        .iter()
+        .enumerate()
+        .map(|(index, d)| {
+            let (description, software) = describe(d);
+            EglDevice {
+                index,
+                description,
+                software,
+                vendor: d.vendor().map(str::to_owned),
+                gl_renderer: None,
+                gl_version: None,
+                error: None,
+            }
+        })
+        .collect())
+}
+
+/// Opens an offscreen context on device `device` (with `None`, the one the renderer
+/// would choose: [`EGL_DEVICE_ENV`], else the first GPU that works, else the first
+/// software device) and closes it again: whether this process can render there, before
+/// any work is spent. Returns the device, with its GL strings.
+pub fn probe_renderer(device: Option<usize>) -> Result<EglDevice, SimError> {
+    let device = match device {
+        Some(i) => Some(i),
+        None => requested_egl_device()?,
+    };
+    EglContext::open(device, 16, 16).map(|c| c.device.clone())
+}
+
 /// Indices of the EGL devices that are GPUs (not a software rasterizer), from EGL's list
 /// alone: no context is opened, so this is cheap.
 pub fn gpu_devices() -> Result<Vec<usize>, SimError> {
@@ -285,7 +347,7 @@ pub fn probe_egl() -> Result<EglProbe, SimError> {
             }
         }
     }
-    let selected = match requested_device() {
+    let selected = match requested_egl_device()? {
         Some(i) => out.get(i).filter(|d| d.error.is_none()).map(|d| d.index),
         None => preferred_order(&list)
             .into_iter()

@@ -30,7 +30,10 @@ pub use checker::{SuccessChecker, Verdict, name_id, unresolved_names};
 pub use control::{
     ARM_DOF, ARM_HOME, Arm, HOLD_EPS, OscGains, Robot, SUBSTEPS, mat_to_quat, orientation_error,
 };
-pub use egl::{EGL_DEVICE_ENV, EglDevice, EglProbe, gpu_devices, probe_egl};
+pub use egl::{
+    EGL_DEVICE_ENV, EglDevice, EglProbe, gpu_devices, list_egl_devices, probe_egl, probe_renderer,
+    requested_egl_device,
+};
 pub use env::{EnvOptions, Rollout, SceneSource, TaskEnv, load_task_scene};
 pub use error::SimError;
 pub use feedback::Feedback;

@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 
-use dexjoco_core::{ArmSetup, ArrayLayout, Episode, TaskSpec};
+use dexjoco_core::{ArmSetup, ArrayLayout, Episode, TaskSet, TaskSpec};
 use serde::{Deserialize, Serialize};
 
 use dexjoco_formats::openpi::{RunningStats, norm_stats_document};
@@ -221,6 +221,10 @@ pub struct TaskStats {
     pub lengths: LengthStats,
     /// Per-dimension statistics per array (every array but `timestamp`).
     pub arrays: BTreeMap<String, ArrayStats>,
+    /// Each language instruction of the task's episodes (an episode's own, else its
+    /// task's prompt) with its number of episodes.
+    #[serde(default)]
+    pub instructions: BTreeMap<String, usize>,
     /// openpi's `norm_stats.json` document of the same arrays (written beside, not into,
     /// `dataset_stats.json`).
     #[serde(skip)]
@@ -312,9 +316,16 @@ pub fn width_outliers(episodes: &[Episode]) -> Vec<(usize, StatsError)> {
 }
 
 impl DatasetStats {
-    /// Computes the statistics. Fails when there are no episodes, or when an array's
-    /// width differs between episodes of one task.
+    /// Computes the statistics of episodes of the built-in tasks
+    /// ([`Self::compute_with_tasks`]).
     pub fn compute(episodes: &[Episode]) -> Result<Self, StatsError> {
+        Self::compute_with_tasks(episodes, TaskSet::builtin())
+    }
+
+    /// Computes the statistics, naming each task's state columns after its spec in
+    /// `specs` (generic names for a task not there). Fails when there are no episodes,
+    /// or when an array's width differs between episodes of one task.
+    pub fn compute_with_tasks(episodes: &[Episode], specs: &TaskSet) -> Result<Self, StatsError> {
         let Some(lengths) = LengthStats::from_lengths(episodes.iter().map(Episode::len).collect())
         else {
             return Err(StatsError::Empty {
@@ -363,7 +374,7 @@ impl DatasetStats {
                 }
             }
             let setup = setup_of(eps);
-            let layout = TaskSpec::builtin(task).map(TaskSpec::state_layout);
+            let layout = specs.get(task).map(TaskSpec::state_layout);
             tasks.push(TaskStats {
                 task: (*task).to_string(),
                 episodes: eps.len(),
@@ -377,6 +388,10 @@ impl DatasetStats {
                         Some(((*name).to_string(), s))
                     })
                     .collect(),
+                instructions: eps.iter().fold(BTreeMap::new(), |mut m, e| {
+                    *m.entry(e.prompt.clone()).or_default() += 1;
+                    m
+                }),
                 norm_stats: norm_stats(eps, task_widths.keys().copied()),
             });
         }
@@ -410,7 +425,8 @@ impl DatasetStats {
         })
     }
 
-    /// A short Markdown summary: totals, per-task counts and lengths.
+    /// A short Markdown summary: totals, per-task counts and lengths, the instructions
+    /// per task.
     pub fn to_markdown(&self) -> String {
         use std::fmt::Write as _;
         let fmt_std = |s: Option<f64>| s.map_or_else(|| "n/a".into(), |s| format!("{s:.1}"));
@@ -443,6 +459,13 @@ impl DatasetStats {
                 t.lengths.min,
                 t.lengths.max
             );
+        }
+        s.push_str("\n| Task | Instruction | Episodes |\n|---|---|---:|\n");
+        for t in &self.tasks {
+            for (instruction, n) in &t.instructions {
+                let cell = instruction.replace('|', "\\|").replace('\n', " ");
+                let _ = writeln!(s, "| {} | {cell} | {n} |", t.task);
+            }
         }
         s
     }

@@ -103,8 +103,9 @@ impl RunName {
 /// The marker file `success_rate_<n>_<episodes>.txt`.
 ///
 /// `<n>` is read as the number of successful episodes when it is a whole number (it must
-/// then be at most `<episodes>`), and as a rate when it has a decimal point: a fraction
-/// when at most 1, else a percentage.
+/// then be at most `<episodes>`), and as the fraction of successful episodes, in [0, 1],
+/// when it has a decimal point (`1.0` is every episode; a decimal above 1 is refused
+/// rather than guessed to be a percentage).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Marker {
     /// Success rate in [0, 1].
@@ -134,10 +135,12 @@ impl Marker {
                 Ok(v) => v,
                 Err(_) => return bad(&format!("'{n}' is not a number")),
             };
-            if !(0.0..=100.0).contains(&v) {
-                return bad(&format!("success rate {v} outside [0, 100]"));
+            if !(0.0..=1.0).contains(&v) {
+                return bad(&format!(
+                    "success rate {n} is not a fraction in [0, 1] (a decimal is the fraction of successful episodes, e.g. 0.82; a whole number their count, e.g. 41)"
+                ));
             }
-            if v <= 1.0 { v } else { v / 100.0 }
+            v
         } else {
             let k: u32 = match n.parse() {
                 Ok(k) => k,
@@ -339,10 +342,18 @@ mod tests {
             .unwrap()
             .unwrap();
         assert!((m.rate - 0.82).abs() < 1e-15);
-        let m = Marker::parse("success_rate_82.0_50.txt", p)
+        // One rule for decimals: a fraction in [0, 1], never a percentage.
+        let m = Marker::parse("success_rate_1.0_50.txt", p)
             .unwrap()
             .unwrap();
-        assert!((m.rate - 0.82).abs() < 1e-15);
+        assert!((m.rate - 1.0).abs() < 1e-15);
+        for above_one in ["1.5", "82.0"] {
+            let err = Marker::parse(&format!("success_rate_{above_one}_50.txt"), p)
+                .unwrap()
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("not a fraction in [0, 1]"), "{err}");
+        }
         assert!(Marker::parse("success_rate_51_50.txt", p).unwrap().is_err());
         assert!(Marker::parse("notes.txt", p).is_none());
     }

@@ -11,6 +11,8 @@
 //! - [`DatasetStats`] summarizes episodes: counts, lengths, per-dimension distributions
 //!   and openpi-style normalization statistics.
 //! - [`ReplayStats`] reads an augment report: replay success rates per task.
+//! - [`ReplayProvenance`] reads where a dataset's replays were made (CPU and program
+//!   versions, from each `replay.json`) and warns when it mixes places.
 //!
 //! The measures in [`measures`] follow SciPy and scikit-learn; the tests compare them.
 //! Standard deviations over seeds are sample standard deviations (divisor n - 1), as
@@ -23,6 +25,7 @@ mod language;
 pub mod measures;
 mod output;
 pub mod plot;
+mod provenance;
 mod replays;
 mod success;
 
@@ -37,5 +40,6 @@ pub use language::{
 };
 pub use measures::{ChiSquare, LogBase, MeanStd};
 pub use output::{SOURCE_NORM_STATS, SOURCE_NORM_STATS_DIR};
+pub use provenance::{MadeOn, ReplayProvenance};
 pub use replays::{AUGMENT_REPORT, ReplayStats, TaskReplays};
 pub use success::{AverageCell, SuccessCell, SuccessTable, latex_escape, regime_name, task_name};

@@ -9,12 +9,16 @@
 //! [`probe`] and [`decode_rgb`] read videos back, for checks and tests; [`VideoReader`]
 //! streams decoded frames one at a time; [`concat_copy`] joins videos of the same codec
 //! and size into one file by stream copy (no re-encode), with continuous timestamps.
+//! [`encoder_versions`] names the ffmpeg and x264 that decide the bytes.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, Stdio};
 
 use serde::{Deserialize, Serialize};
+
+mod versions;
+pub use versions::{EncoderVersions, encoder_versions};
 
 /// Errors of video encoding and decoding; each names the file.
 #[derive(Debug, thiserror::Error)]

@@ -75,6 +75,7 @@ impl Worker {
                 w.program.display()
             ))
         })?;
+        tracing::debug!(slot, pid = child.id(), "started worker process {slot}");
         let stdin = child.stdin.take();
         let stdout = BufReader::new(child.stdout.take().expect("piped"));
         let (tx, lines) = std::sync::mpsc::channel();
@@ -253,8 +254,8 @@ pub(crate) struct WorkerPool {
 
 impl WorkerPool {
     /// Starts `w.count` workers (no more than `max_units`, the most units the run can
-    /// have) that preload the scenes of `tasks`, each with its share of the cores; none
-    /// for the thread executor.
+    /// have: none when it is 0) that preload the scenes of `tasks`, each with its share of
+    /// the cores; none for the thread executor.
     pub(crate) fn start(
         executor: &Executor,
         config: &AugmentConfig,
@@ -265,7 +266,10 @@ impl WorkerPool {
             workers: Vec::new(),
         };
         if let Executor::Processes(w) = executor {
-            let count = w.count.min(max_units).max(1);
+            let count = w.count.min(max_units);
+            if count == 0 {
+                tracing::debug!("nothing to render: no worker process started");
+            }
             for slot in 0..count {
                 pool.workers
                     .push(Worker::spawn(w, slot, count, config, tasks)?);
