@@ -2,9 +2,10 @@
 # Runs a small sample pipeline with one binary and prints the SHA-256 of every output file,
 # so that a restructuring can be checked to leave output bytes unchanged:
 #   scripts/output-digest.sh target/debug/dexjoco-data > after.txt && diff before.txt after.txt
-# Covers ingest (raw + MCAP), export to MCAP, scripted, augment (224 px, fast), convert to
+# Covers ingest (raw + MCAP), export to MCAP, scripted, augment (96 px, fast), convert to
 # LeRobot v3.0 / v2.1 / Diffusion Policy with norm stats, and stats --dataset. Timestamps and
-# durations in reports are filtered out (they change run to run by design).
+# durations in reports, and the build identity (version + git commit, recorded since #24),
+# are filtered out: they change run to run, or commit to commit, by design.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BIN="$(realpath "${1:-$ROOT/target/debug/dexjoco-data}")"
@@ -29,7 +30,7 @@ find . -type f ! -name last.log -print0 | LC_ALL=C sort -z | while IFS= read -r 
   case "$f" in
     *.json|*.md|*.txt|*.jsonl)
       # reports carry wall-clock times and durations; strip those lines
-      printf '%s  %s\n' "$(grep -vE '"(started|finished|created|elapsed|seconds|duration|wall|time)[a-z_]*"|[0-9.]+ ?s\b|[0-9]+:[0-9]{2}' "$f" | sha256sum | cut -c1-16)" "$f (filtered)" ;;
+      printf '%s  %s\n' "$(grep -vE '"(started|finished|created|elapsed|seconds|duration|wall|time)[a-z_]*"|"dexjoco_data"|git [0-9a-f]{7,}|[0-9.]+ ?s\b|[0-9]+:[0-9]{2}' "$f" | sha256sum | cut -c1-16)" "$f (filtered)" ;;
     *) printf '%s  %s\n' "$(sha256sum < "$f" | cut -c1-16)" "$f" ;;
   esac
 done
