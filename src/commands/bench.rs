@@ -191,7 +191,7 @@ fn ingest(args: &BenchIngestSettings) -> anyhow::Result<ExitStatus> {
             &mcap_in.join(format!("{}_{i:06}.mcap", task.id)),
             &ep,
             task,
-            &mcap::EpisodeMeta::default(),
+            &dexjoco_formats::EpisodeMeta::default(),
         )?;
         pb.inc(1);
     }

@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 
 use dexjoco_core::{Episode, TaskSet};
 
-pub use crate::container::{EpisodeContainer, ReadEpisode, ReadOptions};
+use crate::container::{EpisodeContainer, ReadEpisode, ReadOptions};
 use crate::error::{Result, io_err};
 use crate::manifest::{MANIFEST, Manifest, SourceKind};
 use crate::mcap::McapLog;

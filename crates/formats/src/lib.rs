@@ -38,8 +38,8 @@ pub mod openpi;
 pub mod raw;
 pub mod zarr_v2;
 
-pub use container::{EpisodeContainer, EpisodeMeta};
-pub use episodes::{ReadEpisode, ReadOptions, Source, discover, discover_input, read_episode};
+pub use container::{EpisodeContainer, EpisodeMeta, ReadEpisode, ReadOptions};
+pub use episodes::{Source, discover, discover_input, read_episode};
 pub use error::{DatasetError, FormatError, Problem, ProblemCode, Result};
 pub use fs::write_atomic;
 pub use lock::{DirLock, LOCK_FILE, LockOwner};

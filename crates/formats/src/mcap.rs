@@ -14,11 +14,9 @@ use dexjoco_core::{ArmSetup, Episode, FrameArray, HAND_DOF, Location, TaskSet, T
 use mcap::records::{MessageHeader, Metadata, Record};
 use serde_json::{Value, json};
 
-use crate::container::{EpisodeContainer, ReadEpisode, ReadOptions, unknown_task};
+use crate::container::{EpisodeContainer, EpisodeMeta, ReadEpisode, ReadOptions, unknown_task};
 use crate::error::{FormatError, ProblemCode, Result, io_err};
 use crate::manifest::SourceKind;
-
-pub use crate::container::EpisodeMeta;
 
 /// Version of the schema this crate writes and reads.
 pub const SCHEMA_VERSION: &str = "1";

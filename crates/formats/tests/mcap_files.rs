@@ -1,7 +1,8 @@
 //! MCAP teleop logs round trip bit for bit, and damaged files are named.
 
 use dexjoco_core::{Episode, TaskSet, TaskSpec, synth};
-use dexjoco_formats::mcap::{EpisodeMeta, read_episode_mcap, write_episode_mcap};
+use dexjoco_formats::EpisodeMeta;
+use dexjoco_formats::mcap::{read_episode_mcap, write_episode_mcap};
 use dexjoco_formats::{FormatError, ProblemCode};
 
 #[test]

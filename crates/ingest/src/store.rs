@@ -23,11 +23,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use dexjoco_core::{Location, Progress, TaskSet};
-use dexjoco_formats::episodes::{ReadOptions, Source};
 use dexjoco_formats::error::io_err;
 use dexjoco_formats::fs::{self as fs_replace, copy_tree, replace_dir, write_atomic};
 use dexjoco_formats::manifest::{ENTRY_FILE, MANIFEST, Manifest, ManifestEntry, Status};
 use dexjoco_formats::{DirLock, FormatError, Problem, ProblemCode, raw};
+use dexjoco_formats::{ReadOptions, Source};
 use rayon::prelude::*;
 use serde::Serialize;
 use sha2::{Digest, Sha256};

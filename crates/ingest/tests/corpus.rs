@@ -13,8 +13,9 @@ fn task_info(id: &str) -> Option<&'static TaskSpec> {
 fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<Episode> {
     dexjoco_formats::read_episode(dir, TaskSet::builtin())
 }
+use dexjoco_formats::EpisodeMeta;
 use dexjoco_formats::ProblemCode;
-use dexjoco_formats::mcap::{EpisodeMeta, write_episode_mcap};
+use dexjoco_formats::mcap::write_episode_mcap;
 use dexjoco_ingest::{IngestOptions, Outcome, QUARANTINE, REASON_FILE, Store};
 
 fn write_raw(dir: &Path, ep: &Episode) {

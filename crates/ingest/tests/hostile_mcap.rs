@@ -10,7 +10,8 @@ use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use dexjoco_core::{TaskSet, TaskSpec, synth};
-use dexjoco_formats::mcap::{EpisodeMeta, write_episode_mcap};
+use dexjoco_formats::EpisodeMeta;
+use dexjoco_formats::mcap::write_episode_mcap;
 use dexjoco_formats::{ReadOptions, Source, SourceKind};
 use dexjoco_ingest::{ValidationOptions, validate};
 use dexjoco_testkit::hostile::{

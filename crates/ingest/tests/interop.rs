@@ -13,7 +13,8 @@ fn task_info(id: &str) -> Option<&'static TaskSpec> {
 fn read_stored_episode(dir: &Path) -> dexjoco_formats::Result<Episode> {
     dexjoco_formats::read_episode(dir, TaskSet::builtin())
 }
-use dexjoco_formats::mcap::{EpisodeMeta, read_episode_mcap, write_episode_mcap};
+use dexjoco_formats::EpisodeMeta;
+use dexjoco_formats::mcap::{read_episode_mcap, write_episode_mcap};
 use dexjoco_ingest::{IngestOptions, Outcome, Store};
 use dexjoco_testkit::{run_python, run_python_json};
 use serde_json::Value;
