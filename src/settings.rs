@@ -222,6 +222,7 @@ const DEFAULT_VIDEO_FPS: u32 = 30;
 impl RenderCommandSettings {
     /// Resolves `render`'s arguments.
     pub fn resolve(args: &RenderArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        check_egl_choice(&[])?;
         let RenderArgs {
             scene,
             cameras,
@@ -292,7 +293,8 @@ pub struct BenchRenderSettings {
 
 impl BenchRenderSettings {
     /// Resolves `bench render`'s arguments.
-    pub fn resolve(args: &BenchRenderArgs, global: &GlobalArgs) -> Self {
+    pub fn resolve(args: &BenchRenderArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        check_egl_choice(&[])?;
         let BenchRenderArgs {
             scenes,
             frames,
@@ -311,7 +313,7 @@ impl BenchRenderSettings {
         } else {
             presets.clone()
         };
-        Self {
+        Ok(Self {
             scenes: scenes.clone(),
             frames: *frames,
             sizes: sizes.clone(),
@@ -320,7 +322,7 @@ impl BenchRenderSettings {
             geometries: geometry.iter().map(|g| g.geometry()).collect(),
             out: global.work_dir.join("bench"),
             quiet: global.quiet,
-        }
+        })
     }
 }
 
@@ -365,6 +367,7 @@ impl BenchAugmentSettings {
         global: &GlobalArgs,
         sample_data: impl FnOnce() -> anyhow::Result<PathBuf>,
     ) -> anyhow::Result<Self> {
+        check_egl_choice(&[])?;
         let BenchAugmentArgs {
             inputs,
             scene_dir,
@@ -725,6 +728,7 @@ pub struct CamerasSettings {
 impl CamerasSettings {
     /// Resolves `cameras`' arguments.
     pub fn resolve(args: CamerasArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        check_egl_choice(&[])?;
         let CamerasArgs {
             task,
             scene_dir,
@@ -1099,6 +1103,7 @@ mod small_fix_tests {
         };
         assert_eq!(
             super::BenchRenderSettings::resolve(args, &cli.global)
+                .unwrap()
                 .presets
                 .len(),
             4

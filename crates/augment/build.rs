@@ -20,16 +20,18 @@ fn git(args: &[&str]) -> Option<String> {
 
 fn main() {
     let commit = git(&["rev-parse", "HEAD"]).unwrap_or_default();
-    // Built again when HEAD moves: a checkout, a commit on the current branch.
+    // Built again when HEAD moves: a checkout, a commit (a branch's ref is a loose file
+    // under refs/heads, or a line of packed-refs; worktrees keep refs in the common dir).
+    let mut watched = Vec::new();
     if let Some(dir) = git(&["rev-parse", "--absolute-git-dir"]) {
-        let dir = Path::new(&dir);
-        let mut watched = vec![dir.join("HEAD"), dir.join("packed-refs")];
-        if let Some(branch) = git(&["symbolic-ref", "-q", "HEAD"]) {
-            watched.push(dir.join(branch));
-        }
-        for file in watched.iter().filter(|f| f.is_file()) {
-            println!("cargo:rerun-if-changed={}", file.display());
-        }
+        watched.push(Path::new(&dir).join("HEAD"));
+    }
+    if let Some(common) = git(&["rev-parse", "--path-format=absolute", "--git-common-dir"]) {
+        let common = Path::new(&common);
+        watched.extend([common.join("packed-refs"), common.join("refs/heads")]);
+    }
+    for path in watched.iter().filter(|p| p.exists()) {
+        println!("cargo:rerun-if-changed={}", path.display());
     }
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rustc-env=DEXJOCO_GIT_COMMIT={commit}");

@@ -15,7 +15,7 @@ use crate::settings::{BenchAugmentSettings, BenchIngestSettings, BenchRenderSett
 /// Runs a `bench` subcommand.
 pub fn run(global: &GlobalArgs, cmd: &BenchCommand) -> anyhow::Result<ExitStatus> {
     match cmd {
-        BenchCommand::Render(args) => render(&BenchRenderSettings::resolve(args, global)),
+        BenchCommand::Render(args) => render(&BenchRenderSettings::resolve(args, global)?),
         BenchCommand::Ingest(args) => ingest(&BenchIngestSettings::resolve(args, global)),
         BenchCommand::Convert(args) => super::bench_convert::run(global, args),
         BenchCommand::Augment(args) => super::bench_augment::run(&BenchAugmentSettings::resolve(

@@ -28,9 +28,10 @@ pub fn run(settings: ScriptedSettings) -> anyhow::Result<ExitStatus> {
         quiet,
     } = settings;
     let spec = &spec;
-    check_replaceable(&task_dir, overwrite)?;
-    // Written beside, renamed into place whole when done.
+    // Written beside, renamed into place whole when done. Begun first: it puts back a
+    // folder a killed run had moved aside, which is then checked like any other.
     let staged = StagedDir::begin(&task_dir)?;
+    check_replaceable(&task_dir, overwrite)?;
     let scene = load_task_scene(&scene, spec)?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let pb = crate::progress::bar(episodes as u64, "scripted", quiet);

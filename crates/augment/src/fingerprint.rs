@@ -140,8 +140,11 @@ pub(crate) fn scene_hash(
     }
 }
 
-/// SHA-256 of an episode's content: task, id and every array's values bit for bit.
-pub(crate) fn episode_hash(ep: &Episode) -> String {
+/// SHA-256 of an episode's content: task, id, every array's values bit for bit, and its
+/// own instruction when it has one (one that differs from `spec`'s prompt; an episode
+/// without one hashes as before instructions travelled), so a changed instruction is a
+/// changed source.
+pub(crate) fn episode_hash(ep: &Episode, spec: &TaskSpec) -> String {
     let mut h = Sha256::new();
     for part in [ep.task.as_bytes(), ep.id.as_bytes()] {
         h.update((part.len() as u64).to_le_bytes());
@@ -155,6 +158,11 @@ pub(crate) fn episode_hash(ep: &Episode) -> String {
         for v in a.as_slice() {
             h.update(v.to_bits().to_le_bytes());
         }
+    }
+    if let Some(instruction) = dexjoco_formats::raw::own_instruction(ep, spec) {
+        h.update(b"instruction");
+        h.update((instruction.len() as u64).to_le_bytes());
+        h.update(instruction.as_bytes());
     }
     format!("sha256:{:x}", h.finalize())
 }
@@ -323,7 +331,10 @@ fn diff(prefix: &str, now: &serde_json::Value, was: &serde_json::Value, out: &mu
 /// A leaf as the differences show it: a content hash by its first 12 hex digits.
 fn shown(value: &serde_json::Value) -> String {
     match value.as_str() {
-        Some(h) if h.starts_with("sha256:") && h.len() > 19 => format!("\"{}…\"", &h[..19]),
+        Some(h) if h.starts_with("sha256:") && h.len() > 19 => match h.get(..19) {
+            Some(short) => format!("\"{short}…\""),
+            None => value.to_string(),
+        },
         _ => value.to_string(),
     }
 }
@@ -370,6 +381,22 @@ mod tests {
                 .map(|(f, h)| ((*f).to_owned(), (*h).to_owned()))
                 .collect(),
         }
+    }
+
+    #[test]
+    fn an_episode_s_own_instruction_is_part_of_its_hash() {
+        let spec = dexjoco_core::TaskSpec::builtin("click_mouse").expect("built-in task");
+        let mut ep = dexjoco_core::synth::episode(spec, 5, 1);
+        ep.prompt = String::new();
+        let plain = episode_hash(&ep, spec);
+        // The spec's own prompt is no instruction of the episode's: the hash is unchanged.
+        ep.prompt = spec.prompt.clone();
+        assert_eq!(episode_hash(&ep, spec), plain);
+        ep.prompt = "Click the mouse twice".into();
+        let instructed = episode_hash(&ep, spec);
+        assert_ne!(instructed, plain);
+        ep.prompt = "Click the mouse once".into();
+        assert_ne!(episode_hash(&ep, spec), instructed);
     }
 
     #[test]

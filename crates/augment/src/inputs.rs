@@ -112,7 +112,7 @@ pub(crate) fn read_sources(
                 continue;
             }
             out.push(Source {
-                hash: crate::fingerprint::episode_hash(&episode),
+                hash: crate::fingerprint::episode_hash(&episode, &spec),
                 episode,
                 spec,
                 path: found.path,

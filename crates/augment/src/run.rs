@@ -46,8 +46,9 @@ pub fn augment_with(
     // bytes, checked below against what the folder was made with.
     let (assets, settings) = load_assets_and_settings(config, &sources)?;
     let out = &config.out;
+    let created = !out.exists();
     fs_err::create_dir_all(out).map_err(io_err("create", out))?;
-    let _lock = crate::staging::lock_output(out, config.shard)?;
+    let lock = crate::staging::lock_output(out, config.shard)?;
 
     // This run's share and what of it is on disk already (resume). When anything is left
     // to render, the renderer is probed (a machine that cannot render fails now, not after
@@ -57,8 +58,15 @@ pub fn augment_with(
     let owned = owned_replays(&sources, config, cameras);
     let on_disk = replays_on_disk(config, &sources);
     let to_render = replays_to_render(config, &sources, &owned, &on_disk);
-    if to_render > 0 {
-        executor.check_renderer()?;
+    if to_render > 0
+        && let Err(e) = executor.check_renderer()
+    {
+        // Nothing was written: a folder made for this run goes again (once unlocked).
+        drop(lock);
+        if created {
+            let _ = fs_err::remove_dir(out);
+        }
+        return Err(e);
     }
     let pool = start_workers(executor, config, &sources, &owned, to_render)?;
     let staging = prepare_output(config, &settings)?;

@@ -261,8 +261,9 @@ impl Drop for StagedDir {
 /// images, a camera pool), staged: each is written under its own name into a hidden
 /// staging folder inside that folder (`.NAME.partial-<random>`), and
 /// [`StagedFiles::publish`] renames them all into place and syncs the folder. A name that
-/// already exists there is refused, unless `overwrite`, when it is asked for: before
-/// anything of the run is published. Dropped unpublished, the staging folder is removed.
+/// already exists there is refused, unless `overwrite`, when it is asked for and again
+/// at publish: before anything of the run is published. Dropped unpublished, the staging
+/// folder is removed.
 #[derive(Debug)]
 pub struct StagedFiles {
     dir: PathBuf,
@@ -308,6 +309,15 @@ impl StagedFiles {
     /// name), then syncs the folder. Names asked for but not written are left out.
     pub fn publish(self) -> Result<()> {
         sync_tree(self.staging.path())?;
+        // Asked again: a file may have appeared (another run) since it was asked for.
+        if !self.overwrite {
+            for name in &self.names {
+                let target = self.dir.join(name);
+                if fs_err::symlink_metadata(&target).is_ok() {
+                    return Err(FormatError::WouldReplace { path: target });
+                }
+            }
+        }
         for name in &self.names {
             let staged = self.staging.path().join(name);
             if fs_err::symlink_metadata(&staged).is_err() {
@@ -494,6 +504,19 @@ mod tests {
             v
         };
         assert_eq!(names(dir.path()), ["old.png"]);
+        // A file that appears after it was asked for is not replaced either.
+        let mut files = StagedFiles::begin(dir.path(), false).unwrap();
+        fs_err::write(files.file("late.png").unwrap(), b"ours").unwrap();
+        fs_err::write(dir.path().join("late.png"), b"theirs").unwrap();
+        assert!(matches!(
+            files.publish(),
+            Err(FormatError::WouldReplace { .. })
+        ));
+        assert_eq!(
+            fs_err::read(dir.path().join("late.png")).unwrap(),
+            b"theirs"
+        );
+        fs_err::remove_file(dir.path().join("late.png")).unwrap();
         let mut files = StagedFiles::begin(dir.path(), true).unwrap();
         fs_err::write(files.file("old.png").unwrap(), b"again").unwrap();
         fs_err::write(files.file("new.png").unwrap(), b"new").unwrap();

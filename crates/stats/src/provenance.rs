@@ -46,7 +46,7 @@ pub struct ReplayProvenance {
 
 impl ReplayProvenance {
     /// Reads the replay records below `root` (every folder holding a `replay.json`,
-    /// hidden folders passed over). `Ok(None)` when there is none.
+    /// hidden and linked folders passed over). `Ok(None)` when there is none.
     pub fn read(root: &Path) -> Result<Option<Self>, StatsError> {
         let mut counts: BTreeMap<MadeOn, usize> = BTreeMap::new();
         let mut not_recorded = 0;
@@ -65,12 +65,11 @@ impl ReplayProvenance {
                 continue;
             }
             for entry in fs_err::read_dir(&dir)? {
-                let path = entry?.path();
-                let hidden = path
-                    .file_name()
-                    .is_some_and(|n| n.to_string_lossy().starts_with('.'));
-                if path.is_dir() && !hidden {
-                    stack.push(path);
+                let entry = entry?;
+                let hidden = entry.file_name().to_string_lossy().starts_with('.');
+                // Linked folders are not followed (a link loop would never end).
+                if entry.file_type()?.is_dir() && !hidden {
+                    stack.push(entry.path());
                 }
             }
         }

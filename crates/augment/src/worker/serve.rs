@@ -223,7 +223,7 @@ fn load_source<'a>(
         cache.insert(
             job.path.clone(),
             Source {
-                hash: crate::fingerprint::episode_hash(&episode),
+                hash: crate::fingerprint::episode_hash(&episode, &spec),
                 episode,
                 spec,
                 path: job.path.clone(),
