@@ -12,10 +12,12 @@ cargo build --release --locked -q
 BIN="$ROOT/target/release/dexjoco-data"
 
 "$BIN" doctor
+# (`--overwrite` where a command would refuse to replace what a previous run of this script
+# wrote: the script can be run again.)
 # Stills of every camera after the objects have fallen onto the table (1.2 s simulated),
 # with depth and a contact sheet; then a 2 s H.264 clip of the fall from the front camera.
-"$BIN" render --depth --steps 600
-"$BIN" render --video --steps 1000 --camera front --quality fast
+"$BIN" render --depth --steps 600 --overwrite
+"$BIN" render --video --steps 1000 --camera front --quality fast --overwrite
 # The embedded sample demonstrations (datasets/demos: one scripted demonstration per task
 # (all 11 tasks), made by `dexjoco-data scripted` on the built-in scenes): the first
 # episode of each task validated into the episode store; replayed 4 times each under
@@ -32,10 +34,10 @@ BIN="$ROOT/target/release/dexjoco-data"
 "$BIN" stats --dataset dexjoco-work/augment
 # A camera pose pool for click_mouse, built the paper's way (least occluded of 2000
 # poses sampled on a sphere), with a preview sheet.
-"$BIN" cameras --task click_mouse --preview
+"$BIN" cameras --task click_mouse --preview --overwrite
 # A picture of every task: the built-in scenes (next to the reference ones when
 # ../shared/dexjoco-upstream is present).
-"$BIN" render --task all --size 240 --quality fast
+"$BIN" render --task all --size 240 --quality fast --overwrite
 # The language-generalization analysis and success tables on the shipped EXAMPLE
 # evaluation outputs (made up by a script, not results).
 "$BIN" stats --language-eval --success-table
