@@ -2,7 +2,7 @@
 //! top level (global options, subcommands, shared value types); `stages` the pipeline
 //! commands (ingest, export, scripted, augment, cameras, convert, stats); `tools` doctor,
 //! render and bench. Commands (`src/commands/`) turn these into settings
-//! (`src/settings.rs`); neither is imported here, so the modules form no circle.
+//! (`src/settings/`); neither is imported here, so the modules form no circle.
 
 mod stages;
 mod tools;

@@ -1,6 +1,7 @@
 //! The DexJoCo raw layout: `replay.zarr` (Zarr v2, one episode) + `videos/`, read and
 //! written with `zarrs` exactly as the reference recorder (zarr-python 2) lays it out.
-//! [`RawFolder`] is its [`EpisodeContainer`].
+//! [`RawFolder`] is its [`EpisodeContainer`]. `zarr_read.rs` reads and checks the store's
+//! arrays; `write.rs` writes an episode the recorder's way.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -17,6 +18,13 @@ use crate::container::{EpisodeContainer, EpisodeMeta, ReadEpisode, ReadOptions, 
 use crate::error::{FormatError, ProblemCode, Result, io_err};
 use crate::manifest::{ManifestEntry, SourceKind};
 use crate::zarr_v2::{self, Blosc};
+
+mod write;
+mod zarr_read;
+
+use write::ATTRIBUTES_FILE;
+pub use write::{own_instruction, write_raw_episode, write_replay_zarr};
+use zarr_read::*;
 
 /// Name of the Zarr store inside an episode folder.
 pub const REPLAY_ZARR: &str = "replay.zarr";
@@ -53,210 +61,6 @@ enum Dtype {
     F64,
     F32,
     I64,
-}
-
-struct ArrayInfo {
-    dtype: Dtype,
-    shape: Vec<u64>,
-    chunks: Vec<u64>,
-}
-
-fn read_json(path: &Path, at: &Location) -> Result<Value> {
-    let bytes = fs_err::read(path).map_err(|e| {
-        if e.kind() == std::io::ErrorKind::NotFound {
-            FormatError::input(
-                ProblemCode::MissingArray,
-                at,
-                format!("'{}' is missing", path.display()),
-            )
-        } else {
-            FormatError::input(ProblemCode::Unreadable, at, e)
-        }
-    })?;
-    if bytes.is_empty() {
-        return Err(FormatError::input(
-            ProblemCode::EmptyFile,
-            at,
-            format!("'{}' is empty", path.display()),
-        ));
-    }
-    serde_json::from_slice(&bytes).map_err(|e| {
-        FormatError::input(
-            ProblemCode::Corrupt,
-            at,
-            format!("'{}' is not valid JSON: {e}", path.display()),
-        )
-    })
-}
-
-fn array_info(zarr: &Path, key: &str, at: &Location) -> Result<ArrayInfo> {
-    let meta = read_json(&zarr.join(key).join(".zarray"), at)?;
-    let corrupt = |what: &str| {
-        FormatError::input(
-            ProblemCode::Corrupt,
-            at,
-            format!("'.zarray' has no valid {what}"),
-        )
-    };
-    if meta.get("zarr_format").and_then(Value::as_u64) != Some(2) {
-        return Err(corrupt("zarr_format 2"));
-    }
-    let dims = |k: &str| -> Option<Vec<u64>> {
-        meta.get(k)?
-            .as_array()?
-            .iter()
-            .map(Value::as_u64)
-            .collect::<Option<Vec<_>>>()
-    };
-    let shape = dims("shape").ok_or_else(|| corrupt("shape"))?;
-    let chunks = dims("chunks").ok_or_else(|| corrupt("chunks"))?;
-    if chunks.len() != shape.len() || chunks.contains(&0) {
-        return Err(corrupt("chunks"));
-    }
-    let elements = shape
-        .iter()
-        .try_fold(1u64, |n, d| n.checked_mul(*d))
-        .filter(|n| *n <= MAX_ELEMENTS);
-    let chunk_count = shape
-        .iter()
-        .zip(&chunks)
-        .try_fold(1u64, |n, (s, c)| n.checked_mul(s.div_ceil(*c)))
-        .filter(|n| *n <= MAX_CHUNKS);
-    if elements.is_none() || chunk_count.is_none() {
-        return Err(FormatError::input(
-            ProblemCode::WrongDimensions,
-            at,
-            format!(
-                "shape {shape:?} in chunks {chunks:?} is beyond what an episode holds \
-                 (at most {MAX_ELEMENTS} values in {MAX_CHUNKS} chunks)"
-            ),
-        ));
-    }
-    let dtype_str = meta.get("dtype").and_then(Value::as_str).unwrap_or("?");
-    let dtype = match dtype_str {
-        "<f8" | ">f8" => Dtype::F64,
-        "<f4" | ">f4" => Dtype::F32,
-        "<i8" | ">i8" => Dtype::I64,
-        other => {
-            return Err(FormatError::input(
-                ProblemCode::WrongDtype,
-                at,
-                format!("dtype '{other}' is not float64 (or the older float32)"),
-            ));
-        }
-    };
-    if meta.get("order").and_then(Value::as_str) == Some("F") {
-        return Err(FormatError::input(
-            ProblemCode::Corrupt,
-            at,
-            "Fortran-ordered chunks are not written by the recorder",
-        ));
-    }
-    Ok(ArrayInfo {
-        dtype,
-        shape,
-        chunks,
-    })
-}
-
-/// Keys of every chunk of an array (default `.` separator).
-fn chunk_keys(info: &ArrayInfo, separator: &str) -> Vec<String> {
-    let counts: Vec<u64> = info
-        .shape
-        .iter()
-        .zip(&info.chunks)
-        .map(|(s, c)| s.div_ceil(*c))
-        .collect();
-    let mut keys = vec![String::new()];
-    for (d, n) in counts.iter().enumerate() {
-        let mut next = Vec::new();
-        for k in &keys {
-            for i in 0..*n {
-                next.push(if d == 0 {
-                    i.to_string()
-                } else {
-                    format!("{k}{separator}{i}")
-                });
-            }
-        }
-        keys = next;
-    }
-    if counts.contains(&0) {
-        Vec::new()
-    } else {
-        keys
-    }
-}
-
-fn open_store(zarr: &Path, at: &Location) -> Result<Arc<FilesystemStore>> {
-    FilesystemStore::new(zarr)
-        .map(Arc::new)
-        .map_err(|e| FormatError::input(ProblemCode::Unreadable, at, e))
-}
-
-fn zarr_corrupt(at: &Location, e: impl std::fmt::Display) -> FormatError {
-    FormatError::input(ProblemCode::Corrupt, at, format!("cannot decode: {e}"))
-}
-
-/// Reads one array as f64 (float32 is widened exactly), checking every chunk is present.
-fn read_array(
-    store: &Arc<FilesystemStore>,
-    zarr: &Path,
-    key: &str,
-    info: &ArrayInfo,
-    at: &Location,
-) -> Result<Vec<f64>> {
-    let meta = read_json(&zarr.join(key).join(".zarray"), at)?;
-    let sep = meta
-        .get("dimension_separator")
-        .and_then(Value::as_str)
-        .unwrap_or(".");
-    for ck in chunk_keys(info, sep) {
-        let p = zarr.join(key).join(&ck);
-        if !p.is_file() {
-            return Err(FormatError::input(
-                ProblemCode::MissingArray,
-                at,
-                format!("chunk file '{}' is missing", p.display()),
-            ));
-        }
-    }
-    let array = Array::open(store.clone(), &format!("/{key}")).map_err(|e| zarr_corrupt(at, e))?;
-    let subset = array.subset_all();
-    Ok(match info.dtype {
-        Dtype::F64 => array
-            .retrieve_array_subset::<Vec<f64>>(&subset)
-            .map_err(|e| zarr_corrupt(at, e))?,
-        Dtype::F32 => array
-            .retrieve_array_subset::<Vec<f32>>(&subset)
-            .map_err(|e| zarr_corrupt(at, e))?
-            .into_iter()
-            .map(f64::from)
-            .collect(),
-        Dtype::I64 => {
-            return Err(FormatError::input(
-                ProblemCode::WrongDtype,
-                at,
-                "dtype int64 where float64 is expected",
-            ));
-        }
-    })
-}
-
-fn read_episode_ends(store: &Arc<FilesystemStore>, zarr: &Path, at: &Location) -> Result<Vec<i64>> {
-    let key = "meta/episode_ends";
-    let info = array_info(zarr, key, at)?;
-    if info.dtype != Dtype::I64 || info.shape.len() != 1 {
-        return Err(FormatError::input(
-            ProblemCode::WrongDtype,
-            at,
-            "episode_ends must be a 1-d int64 array",
-        ));
-    }
-    let array = Array::open(store.clone(), &format!("/{key}")).map_err(|e| zarr_corrupt(at, e))?;
-    array
-        .retrieve_array_subset::<Vec<i64>>(&array.subset_all())
-        .map_err(|e| zarr_corrupt(at, e))
 }
 
 /// The task of a raw folder from its path: `<task>/episode_NNNNNN/` or
@@ -585,98 +389,6 @@ fn cameras_of(videos: &[PathBuf]) -> Vec<CameraStream> {
         }
     }
     cams
-}
-
-fn zarr_write_err(at: &Location) -> impl Fn(String) -> FormatError + '_ {
-    move |message| FormatError::Zarr {
-        at: at.clone(),
-        message,
-    }
-}
-
-/// The root group's attribute file of a Zarr v2 store.
-const ATTRIBUTES_FILE: &str = ".zattrs";
-
-/// The instruction an episode of `task` has of its own, to be stored with it: its
-/// prompt unless that is empty or the task's prompt (which applies anyway when none is
-/// stored, so recordings of the task's prompt write what the recorder writes).
-pub fn own_instruction<'e>(episode: &'e Episode, task: &TaskSpec) -> Option<&'e str> {
-    let prompt = episode.prompt.as_str();
-    (!prompt.trim().is_empty() && prompt != task.prompt).then_some(prompt)
-}
-
-/// Writes an episode of `task` as a raw folder under `dir`: `replay.zarr`
-/// ([`write_replay_zarr`]) and, when it has one, its own instruction
-/// ([`own_instruction`]) as the [`INSTRUCTION_ATTRIBUTE`] of `replay.zarr/.zattrs`.
-pub fn write_raw_episode(dir: &Path, episode: &Episode, task: &TaskSpec) -> Result<()> {
-    write_replay_zarr(dir, episode)?;
-    let Some(instruction) = own_instruction(episode, task) else {
-        return Ok(());
-    };
-    let zarr = dir.join(REPLAY_ZARR);
-    let at = Location::episode(&episode.id)
-        .path(zarr.join(ATTRIBUTES_FILE))
-        .field(INSTRUCTION_ATTRIBUTE);
-    let err = zarr_write_err(&at);
-    let store = Arc::new(FilesystemStore::new(&zarr).map_err(|e| err(e.to_string()))?);
-    let mut attributes = serde_json::Map::new();
-    attributes.insert(INSTRUCTION_ATTRIBUTE.to_owned(), instruction.into());
-    Group::new_with_metadata(
-        store,
-        "/",
-        GroupMetadata::V2(GroupMetadataV2::new().with_attributes(attributes)),
-    )
-    .map_err(|e| err(e.to_string()))?
-    .store_metadata()
-    .map_err(|e| err(e.to_string()))
-}
-
-/// Writes `replay.zarr` of one episode under `dir` (created), as the recorder does:
-/// float64 arrays, Blosc zstd clevel 5 bitshuffle, one chunk per episode up to 2 MB,
-/// `meta/episode_ends` int64 uncompressed in chunks of 1024, no `.zattrs` (the arrays
-/// only: [`write_raw_episode`] also keeps the episode's own instruction).
-pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
-    let zarr = dir.join(REPLAY_ZARR);
-    let at = Location::episode(&ep.id).path(&zarr);
-    let err = zarr_write_err(&at);
-    fs_err::create_dir_all(&zarr).map_err(io_err("create", &zarr))?;
-    let store = Arc::new(FilesystemStore::new(&zarr).map_err(|e| err(e.to_string()))?);
-    zarr_v2::create_groups(&store, &["/", "/data", "/meta"]).map_err(&err)?;
-    let array_opts = ArrayMetadataOptions::default().with_include_zarrs_metadata(false);
-    let codec_opts = CodecOptions::default().with_store_empty_chunks(true);
-    let frames = ep.len() as u64;
-    for (name, a) in &ep.arrays {
-        let width = a.width() as u64;
-        let per_step = (width as usize * 8).max(1);
-        let chunk_frames = ((CHUNK_BYTES / per_step) as u64).min(frames).max(1);
-        let (shape, chunks) = if name == Episode::TIMESTAMP && width == 1 {
-            (vec![frames], vec![chunk_frames])
-        } else {
-            (vec![frames, width], vec![chunk_frames, width])
-        };
-        let meta =
-            zarr_v2::array_metadata(&shape, &chunks, "<f8", Some(Blosc::RECORDER)).map_err(&err)?;
-        let array = Array::new_with_metadata(store.clone(), &format!("/data/{name}"), meta)
-            .map_err(|e| err(e.to_string()))?;
-        array
-            .store_metadata_opt(&array_opts)
-            .map_err(|e| err(e.to_string()))?;
-        if frames > 0 {
-            array
-                .store_array_subset_opt(&array.subset_all(), a.as_slice(), &codec_opts)
-                .map_err(|e| err(e.to_string()))?;
-        }
-    }
-    let meta = zarr_v2::array_metadata(&[1], &[1024], "<i8", None).map_err(&err)?;
-    let array = Array::new_with_metadata(store.clone(), "/meta/episode_ends", meta)
-        .map_err(|e| err(e.to_string()))?;
-    array
-        .store_metadata_opt(&array_opts)
-        .map_err(|e| err(e.to_string()))?;
-    array
-        .store_array_subset_opt(&array.subset_all(), &[frames as i64][..], &codec_opts)
-        .map_err(|e| err(e.to_string()))?;
-    Ok(())
 }
 
 /// DexJoCo raw episode folders as an [`EpisodeContainer`]: a folder holding
