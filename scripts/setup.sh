@@ -143,6 +143,25 @@ if ((want_python)); then
   fi
   echo "$VENV/bin/python" > "$ROOT/.deps/python-path"
 
+  # The DexJoCo reference environments (parity tests) pin numpy 1.26 and Python 3.11:
+  # a second, small venv (no torch), from Debian 12's own python3.11 when present.
+  ref_req="$ROOT/tests/python/reference-requirements.txt"
+  REF_PYTHON="$(command -v python3.11 || true)"
+  if [ -z "$REF_PYTHON" ] || ! "$REF_PYTHON" -c 'import venv, ensurepip' 2>/dev/null; then
+    REF_PYTHON="$PYTHON"
+  fi
+  ref_hash="$( (cat "$ref_req"; "$REF_PYTHON" -c 'import sys; print(sys.version)') | sha256sum | cut -c1-12)"
+  REF_VENV="${XDG_CACHE_HOME:-$HOME/.cache}/dexjoco-data/venv-reference-$ref_hash"
+  if [ ! -x "$REF_VENV/bin/python" ] || [ ! -f "$REF_VENV/.complete" ]; then
+    log "creating the reference venv $REF_VENV (the DexJoCo reference environments' pins)"
+    rm -rf "$REF_VENV"
+    "$REF_PYTHON" -m venv "$REF_VENV"
+    "$REF_VENV/bin/python" -m pip install -q --upgrade pip
+    "$REF_VENV/bin/python" -m pip install -q -r "$ref_req"
+    touch "$REF_VENV/.complete"
+  fi
+  echo "$REF_VENV/bin/python" > "$ROOT/.deps/reference-python-path"
+
   # Diffusion Policy has no package: its tests use the real ReplayBuffer class, one file
   # of real-stanford/diffusion_policy at a pinned commit. It goes into the cache (never
   # into the repo), checked by its sha256, from the first source that has it:

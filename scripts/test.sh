@@ -9,6 +9,7 @@ cd "$ROOT"
 "$ROOT/scripts/setup.sh" --python
 export DEXJOCO_PYTHON="$(cat "$ROOT/.deps/python-path")"
 export DEXJOCO_DIFFUSION_POLICY="${DEXJOCO_DIFFUSION_POLICY:-$(cat "$ROOT/.deps/diffusion-policy-path")}"
+export DEXJOCO_REFERENCE_PYTHON="$(cat "$ROOT/.deps/reference-python-path")"
 
 echo "== cargo fmt --check" >&2
 cargo fmt --all -- --check

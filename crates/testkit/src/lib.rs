@@ -5,6 +5,9 @@
 //!   with a hint when it is missing: they are never skipped.
 //! - [`upstream_dir`], [`reference_scene_dir`]: the DexJoCo reference scenes at
 //!   `../shared/dexjoco-upstream`.
+//! - [`reference_python`], [`run_reference_python`], [`reference_code_dir`]: the DexJoCo
+//!   reference code (`../shared/third_party/dexjoco-8d23b0f`) and the venv with its pins
+//!   that runs its environments (`tests/python/dexjoco_reference.py` drives them).
 //! - [`hostile`]: generated hostile inputs (mutated files) and a bounded, deterministic
 //!   runner that checks a parser neither panics nor hangs on them.
 
@@ -42,9 +45,67 @@ pub fn python() -> PathBuf {
     );
 }
 
+/// The Python of the reference venv (the DexJoCo reference environments' pins):
+/// `$DEXJOCO_REFERENCE_PYTHON`, else `.deps/reference-python-path` written by
+/// `scripts/setup.sh --python`. Panics with a hint when neither exists.
+pub fn reference_python() -> PathBuf {
+    if let Some(p) = std::env::var_os("DEXJOCO_REFERENCE_PYTHON") {
+        return p.into();
+    }
+    let recorded = workspace_root().join(".deps/reference-python-path");
+    if let Ok(p) = fs_err::read_to_string(&recorded) {
+        let p = PathBuf::from(p.trim());
+        if p.is_file() {
+            return p;
+        }
+    }
+    panic!(
+        "the reference venv is missing: run `scripts/test.sh` (or `scripts/setup.sh --python`) first; \
+         looked at $DEXJOCO_REFERENCE_PYTHON and {}",
+        recorded.display()
+    );
+}
+
+/// The code no registry carries (`../shared/third_party`, or `$DEXJOCO_THIRD_PARTY`).
+/// Panics, saying clearly that it is absent, when not found.
+pub fn third_party_dir() -> PathBuf {
+    let candidates = [
+        std::env::var_os("DEXJOCO_THIRD_PARTY").map(PathBuf::from),
+        Some(workspace_root().join("../shared/third_party")),
+    ];
+    candidates.into_iter().flatten().find(|p| p.join(REFERENCE_CODE).is_dir()).unwrap_or_else(|| {
+        panic!(
+            "the DexJoCo reference code is absent: expected ../shared/third_party/{REFERENCE_CODE} beside \
+             the checkout (or set DEXJOCO_THIRD_PARTY)"
+        )
+    })
+}
+
+/// The folder of the DexJoCo reference code under [`third_party_dir`].
+pub const REFERENCE_CODE: &str = "dexjoco-8d23b0f";
+
+/// The DexJoCo reference code (environments, converter, openpi's statistics).
+pub fn reference_code_dir() -> PathBuf {
+    third_party_dir().join(REFERENCE_CODE)
+}
+
+/// Runs a script of `tests/python/` in the reference venv, with `DEXJOCO_REFERENCE_CODE`
+/// and `DEXJOCO_UPSTREAM` set for `dexjoco_reference.py`; returns stdout, panicking with
+/// stderr when it fails.
+pub fn run_reference_python(script: &str, args: &[&str]) -> String {
+    let mut cmd = Command::new(reference_python());
+    cmd.env("DEXJOCO_REFERENCE_CODE", reference_code_dir())
+        .env("DEXJOCO_UPSTREAM", upstream_dir());
+    run_script(cmd, script, args)
+}
+
 /// Runs a Python script of `tests/python/` (or any path) with arguments in the test venv;
 /// returns stdout, panicking with stderr when it fails.
 pub fn run_python(script: &str, args: &[&str]) -> String {
+    run_script(Command::new(python()), script, args)
+}
+
+fn run_script(mut python: Command, script: &str, args: &[&str]) -> String {
     let path = {
         let p = Path::new(script);
         if p.is_absolute() {
@@ -53,7 +114,7 @@ pub fn run_python(script: &str, args: &[&str]) -> String {
             workspace_root().join("tests/python").join(script)
         }
     };
-    let out = Command::new(python())
+    let out = python
         .arg(&path)
         .args(args)
         .output()

@@ -1,0 +1,232 @@
+"""The DexJoCo reference code, run headless for the parity tests (reference venv only).
+
+The reference code lives outside the project (`$DEXJOCO_REFERENCE_CODE`, set by
+`testkit::run_reference_python`: ../shared/third_party/dexjoco-8d23b0f). Its environments
+load their scenes from beside their own source, so this module makes a scratch copy of
+the `dexjoco` package in the cache (never in the project), with the scene folder and the
+camera pools of `$DEXJOCO_UPSTREAM` linked in and the one line MuJoCo 3.17.0 needs
+adapted (`mj_fullM(model, M, data.qM)` became `mj_fullM(model, data, M)` in 3.5). At
+import time, for this process only: the 30 Hz pacing sleep is a no-op and the renderer
+returns a 1x1 black image (no OpenGL context; physics and success logic are untouched).
+
+Used as a library (`make_env`, `replay`, `replay_episode`) or from the command line:
+
+    python dexjoco_reference.py replay --task T --episode DIR --out OUT.npz [--extend N]
+        [--nudge M]
+
+writes the reference replay script's own trajectory (`scripts/replay_demos_zarr.py`'s
+`_replay_single_demo`) as arrays: `state` (steps x width, the observation before each
+step), `succeed`, `terminated` (per step), and prints a JSON summary (first success,
+first failure, the state blocks).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REFERENCE = "dexjoco-8d23b0f"
+_FULLM_OLD = "mujoco.mj_fullM(model, M, data.qM)"
+_FULLM_NEW = "mujoco.mj_fullM(model, data, M)"
+
+
+def _required_dir(var: str, what: str, hint: str) -> Path:
+    value = os.environ.get(var)
+    if not value or not Path(value).is_dir():
+        sys.exit(f"error: {what} not found (${var}={value!r}); {hint}")
+    return Path(value)
+
+
+def reference_code() -> Path:
+    """The DexJoCo reference code checkout (`$DEXJOCO_REFERENCE_CODE`)."""
+    return _required_dir(
+        "DEXJOCO_REFERENCE_CODE",
+        "the DexJoCo reference code",
+        f"expected ../shared/third_party/{REFERENCE} beside the checkout",
+    )
+
+
+def upstream() -> Path:
+    """The DexJoCo reference scenes and camera pools (`$DEXJOCO_UPSTREAM`)."""
+    return _required_dir(
+        "DEXJOCO_UPSTREAM",
+        "the DexJoCo reference scenes",
+        "expected ../shared/dexjoco-upstream beside the checkout",
+    )
+
+
+def _source_digest(package: Path, up: Path) -> str:
+    h = hashlib.sha256(str(up.resolve()).encode())
+    for p in sorted(package.rglob("*.py")):
+        h.update(str(p.relative_to(package)).encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def scratch_copy() -> Path:
+    """The folder to put on sys.path: a scratch copy of the reference package with the
+    scenes linked in and mj_fullM adapted. Made once per source digest, atomically."""
+    code, up = reference_code(), upstream()
+    package = code / "dexjoco" / "dexjoco"
+    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dexjoco-data"
+    root = cache / f"reference-{REFERENCE}-{_source_digest(package, up)}"
+    if (root / ".complete").is_file():
+        return root
+    tmp = cache / f".{root.name}.tmp-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    shutil.copytree(package, tmp / "dexjoco")
+    envs = tmp / "dexjoco" / "sim" / "envs"
+    os.symlink(up / "xmls", envs / "xmls")
+    for pool in ("replay_cameras.npy", "replay_cameras_2.npy"):
+        os.symlink(up / pool, envs / pool)
+    opspace = tmp / "dexjoco" / "sim" / "controllers" / "opspace.py"
+    text = opspace.read_text()
+    if text.count(_FULLM_OLD) != 1:
+        sys.exit(f"error: {opspace}: expected one `{_FULLM_OLD}` to adapt to MuJoCo 3.17")
+    opspace.write_text(text.replace(_FULLM_OLD, _FULLM_NEW))
+    (tmp / ".complete").write_text("")
+    try:
+        os.rename(tmp, root)
+    except OSError:  # another process made it first
+        shutil.rmtree(tmp, ignore_errors=True)
+    return root
+
+
+class _HeadlessRenderer:
+    """Stands in for the reference's MujocoRenderer: no OpenGL, a 1x1 black image."""
+
+    def __init__(self, model, data, *args, **kwargs):
+        self.model, self.data = model, data
+
+    def render(self, *args, **kwargs):
+        return np.zeros((1, 1, 3), dtype=np.uint8)
+
+    def close(self):
+        pass
+
+
+def _load():
+    sys.path.insert(0, str(scratch_copy()))
+    time.sleep = lambda _seconds: None  # the envs pace themselves to 30 Hz
+    import dexjoco.sim.rendering as rendering
+
+    rendering.MujocoRenderer = _HeadlessRenderer
+    from dexjoco.tasks.mappings import CONFIG_MAPPING
+
+    return CONFIG_MAPPING
+
+
+CONFIG_MAPPING = _load()
+
+
+def make_env(task: str, seed: int = 0):
+    """The task's environment as the reference replay builds it (policy mode, no
+    randomization), reset."""
+    config = CONFIG_MAPPING[task]()
+    env = config.get_environment(
+        policy_mode=True,
+        render_mode="rgb_array",
+        randomize=False,
+        randomize_dynamics=False,
+        seed=seed,
+    )
+    env.reset()
+    return config, env
+
+
+def state_blocks(task: str) -> list[tuple[str, int]]:
+    """The state vector's blocks (proprio key, width) in order."""
+    config, env = make_env(task)
+    try:
+        state = env.unwrapped._compute_observation()["state"]
+        return [(k, int(np.asarray(state[k]).size)) for k in config.proprio_keys]
+    finally:
+        env.close()
+
+
+def _replay_module():
+    """The reference replay script itself (`scripts/replay_demos_zarr.py`)."""
+    import importlib.util
+
+    path = reference_code() / "scripts" / "replay_demos_zarr.py"
+    spec = importlib.util.spec_from_file_location("replay_demos_zarr", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def replay(task: str, actions: np.ndarray, state0: np.ndarray, extend: int = 0, seed: int = 1):
+    """Replays actions from state0 with the reference replay script's own function
+    (restore on, randomization off, `--extend_steps` as given). Returns per step the
+    state before the step, `succeed` and `terminated`."""
+    module = _replay_module()
+    module.FLAGS(["replay", "--norandomize", f"--extend_steps={extend}", "--restore_state"])
+    config = CONFIG_MAPPING[task]()
+    _succeed, trajectory = module._replay_single_demo(
+        actions, state0, task, config, env_seed=seed, desc=task
+    )
+    state = np.stack([np.asarray(t["observations"]["state"]) for t in trajectory])
+    succeed = np.array([bool(t["infos"].get("succeed", False)) for t in trajectory])
+    terminated = np.array([bool(t["dones"]) for t in trajectory])
+    return state, succeed, terminated
+
+
+def read_episode(folder: Path):
+    """The actions and state[0] of a raw episode (`replay.zarr`)."""
+    import zarr
+
+    root = zarr.open(str(folder / "replay.zarr"), mode="r")
+    return np.asarray(root["data"]["action"]), np.asarray(root["data"]["state"][0]).ravel()
+
+
+def _first(flags: np.ndarray):
+    hits = np.flatnonzero(flags)
+    return int(hits[0]) if hits.size else None
+
+
+def _cli(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("replay", help="replay a raw episode with the reference replay")
+    r.add_argument("--task", required=True)
+    r.add_argument("--episode", type=Path, required=True)
+    r.add_argument("--out", type=Path, required=True)
+    r.add_argument("--extend", type=int, default=0)
+    r.add_argument(
+        "--nudge",
+        type=float,
+        default=0.0,
+        help="add this many metres to every arm position target (sensitivity)",
+    )
+    args = parser.parse_args(argv)
+    actions, state0 = read_episode(args.episode)
+    if args.nudge:
+        actions = actions.copy()
+        for arm in range(actions.shape[1] // 23):
+            moving = np.any(actions[:, arm * 23 : arm * 23 + 7] != 0, axis=1)
+            actions[moving, arm * 23] += args.nudge
+    state, succeed, terminated = replay(args.task, actions, state0, args.extend)
+    np.savez(args.out, state=state, succeed=succeed, terminated=terminated)
+    failure = _first(terminated & ~succeed)
+    print(
+        json.dumps(
+            {
+                "steps": int(len(state)),
+                "first_success": _first(succeed),
+                "first_termination_without_success": failure,
+                "blocks": state_blocks(args.task),
+            }
+        )
+    )
+
+
+if __name__ == "__main__":
+    _cli()
