@@ -1,7 +1,8 @@
 """The DexJoCo reference code, run headless for the parity tests (reference venv only).
 
-The reference code lives outside the project (`$DEXJOCO_REFERENCE_CODE`, set by
-`testkit::run_reference_python`: ../shared/third_party/dexjoco-8d23b0f). Its environments
+The reference code lives outside the project (`$DEXJOCO_REFERENCE_CODE`, as
+`testkit::run_reference_python` sets it; default ../shared/third_party/dexjoco-8d23b0f
+beside the checkout; the scenes: `$DEXJOCO_UPSTREAM`, default ../shared/dexjoco-upstream). Its environments
 load their scenes from beside their own source, so this module makes a scratch copy of
 the `dexjoco` package in the cache (never in the project), with the scene folder and the
 camera pools of `$DEXJOCO_UPSTREAM` linked in and the one line MuJoCo 3.17.0 needs
@@ -23,6 +24,7 @@ first failure, the state blocks).
 from __future__ import annotations
 
 import argparse
+import functools
 import hashlib
 import json
 import os
@@ -38,29 +40,26 @@ _FULLM_OLD = "mujoco.mj_fullM(model, M, data.qM)"
 _FULLM_NEW = "mujoco.mj_fullM(model, data, M)"
 
 
-def _required_dir(var: str, what: str, hint: str) -> Path:
-    value = os.environ.get(var)
-    if not value or not Path(value).is_dir():
-        sys.exit(f"error: {what} not found (${var}={value!r}); {hint}")
-    return Path(value)
+_SHARED = Path(__file__).resolve().parents[3] / "shared"
+
+
+def _required_dir(var: str, default: Path, what: str) -> Path:
+    value = Path(os.environ[var]) if os.environ.get(var) else default
+    if not value.is_dir():
+        sys.exit(f"error: {what} not found at {value}: put it there or set ${var}")
+    return value
 
 
 def reference_code() -> Path:
     """The DexJoCo reference code checkout (`$DEXJOCO_REFERENCE_CODE`)."""
     return _required_dir(
-        "DEXJOCO_REFERENCE_CODE",
-        "the DexJoCo reference code",
-        f"expected ../shared/third_party/{REFERENCE} beside the checkout",
+        "DEXJOCO_REFERENCE_CODE", _SHARED / "third_party" / REFERENCE, "the DexJoCo reference code"
     )
 
 
 def upstream() -> Path:
     """The DexJoCo reference scenes and camera pools (`$DEXJOCO_UPSTREAM`)."""
-    return _required_dir(
-        "DEXJOCO_UPSTREAM",
-        "the DexJoCo reference scenes",
-        "expected ../shared/dexjoco-upstream beside the checkout",
-    )
+    return _required_dir("DEXJOCO_UPSTREAM", _SHARED / "dexjoco-upstream", "the DexJoCo reference scenes")
 
 
 def _source_digest(package: Path, up: Path) -> str:
@@ -100,6 +99,25 @@ def scratch_copy() -> Path:
     return root
 
 
+def _disable_multiccd_on_load():
+    """Every reference env disables multi-point convex collision after loading its model,
+    as MuJoCo 3.4 (the reference's pin) had it off and 3.17 has it on; our TaskEnv does
+    the same by default (`EnvOptions::disable_multiccd`). `DEXJOCO_REFERENCE_MULTICCD=1`
+    leaves 3.17's default."""
+    if os.environ.get("DEXJOCO_REFERENCE_MULTICCD") == "1":
+        return
+    import mujoco
+    from dexjoco.sim import mujoco_gym_env
+
+    original = mujoco_gym_env.MujocoGymEnv.__init__
+
+    def init(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        self._model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD
+
+    mujoco_gym_env.MujocoGymEnv.__init__ = init
+
+
 class _HeadlessRenderer:
     """Stands in for the reference's MujocoRenderer: no OpenGL, a 1x1 black image."""
 
@@ -114,11 +132,13 @@ class _HeadlessRenderer:
 
 
 def _load():
+    os.environ.setdefault("TQDM_DISABLE", "1")  # the replay script's progress bar
     sys.path.insert(0, str(scratch_copy()))
     time.sleep = lambda _seconds: None  # the envs pace themselves to 30 Hz
     import dexjoco.sim.rendering as rendering
 
     rendering.MujocoRenderer = _HeadlessRenderer
+    _disable_multiccd_on_load()
     from dexjoco.tasks.mappings import CONFIG_MAPPING
 
     return CONFIG_MAPPING
@@ -152,8 +172,10 @@ def state_blocks(task: str) -> list[tuple[str, int]]:
         env.close()
 
 
+@functools.lru_cache(maxsize=None)
 def _replay_module():
-    """The reference replay script itself (`scripts/replay_demos_zarr.py`)."""
+    """The reference replay script itself (`scripts/replay_demos_zarr.py`), loaded once
+    (it defines absl flags)."""
     import importlib.util
 
     path = reference_code() / "scripts" / "replay_demos_zarr.py"
@@ -192,6 +214,81 @@ def _first(flags: np.ndarray):
     return int(hits[0]) if hits.size else None
 
 
+def nudged(actions: np.ndarray, metres: float) -> np.ndarray:
+    """The actions with `metres` added to the x of every arm position target that is not
+    a hold (all-zero pose): the reference's own sensitivity to a tiny change."""
+    out = actions.copy()
+    for arm in range(actions.shape[1] // 23):
+        moving = np.any(actions[:, arm * 23 : arm * 23 + 7] != 0, axis=1)
+        out[moving, arm * 23] += metres
+    return out
+
+
+def replay_job(job: dict, out_dir: Path) -> dict:
+    """One parity job: the reference replay of a raw episode, plain and with each nudge;
+    arrays to `out_dir/<name>.npz`, a summary returned."""
+    actions, state0 = read_episode(Path(job["episode"]))
+    cap = job.get("step_cap")
+    arrays, summary = {}, {"name": job["name"], "task": job["task"], "runs": []}
+    for k, metres in enumerate([0.0] + list(job.get("nudges", []))):
+        acts = nudged(actions, metres) if metres else actions
+        state, succeed, terminated = replay(job["task"], acts, state0, job.get("extend", 0))
+        arrays[f"state_{k}"], arrays[f"succeed_{k}"] = state, succeed
+        arrays[f"terminated_{k}"] = terminated
+        summary["runs"].append(
+            {
+                "nudge": metres,
+                "steps": int(len(state)),
+                "first_success": _first(succeed),
+                "first_failure": _first(failures(succeed, terminated, cap)),
+            }
+        )
+    np.savez(out_dir / f"{job['name']}.npz", **arrays)
+    summary["blocks"] = state_blocks(job["task"])
+    # Nothing after a failure compares: the reference's hanoi env freezes, then resets
+    # itself 3 s of wall-clock time later (a teleoperation convenience).
+    end = summary["runs"][0]["first_failure"]
+    end = None if end is None else end + 1
+    if job.get("ours"):
+        ours = read_states(Path(job["ours"]))
+        summary["ours"] = compare(ours[:end], arrays["state_0"][:end], summary["blocks"])
+    if "state_1" in arrays:
+        summary["self"] = compare(arrays["state_1"][:end], arrays["state_0"][:end], summary["blocks"])
+    return summary
+
+
+def failures(succeed: np.ndarray, terminated: np.ndarray, step_cap) -> np.ndarray:
+    """Steps that end the episode without success before the step cap (the task's
+    failure condition; the cap's own termination is not one)."""
+    steps = np.arange(len(succeed))
+    before_cap = steps + 1 < step_cap if step_cap else np.ones(len(succeed), dtype=bool)
+    return terminated & ~succeed & before_cap
+
+
+def read_states(folder: Path) -> np.ndarray:
+    """The state array of a raw episode."""
+    import zarr
+
+    return np.asarray(zarr.open(str(folder / "replay.zarr"), "r")["data"]["state"])
+
+
+def compare(other: np.ndarray, ref: np.ndarray, blocks, tol: float = 1e-6) -> dict:
+    """How far `other` is from the reference's state trajectory over their common steps:
+    the max |difference| per state block, and the first step where it exceeds `tol`."""
+    n = min(len(other), len(ref))
+    diff = np.abs(other[:n] - ref[:n])
+    per_block, start = {}, 0
+    for name, width in blocks:
+        per_block[name] = float(diff[:, start : start + width].max(initial=0.0))
+        start += width
+    return {
+        "steps": n,
+        "max_diff": float(diff.max(initial=0.0)),
+        "max_diff_per_block": per_block,
+        "first_step_over_tol": _first(diff.max(axis=1) > tol),
+    }
+
+
 def _cli(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -206,22 +303,25 @@ def _cli(argv=None):
         default=0.0,
         help="add this many metres to every arm position target (sensitivity)",
     )
+    b = sub.add_parser("batch", help="replay the jobs of a JSON list (name, task, episode, extend, nudges)")
+    b.add_argument("--jobs", type=Path, required=True)
+    b.add_argument("--out", type=Path, required=True, help="folder for <name>.npz")
     args = parser.parse_args(argv)
+    if args.command == "batch":
+        jobs = json.loads(args.jobs.read_text())
+        print(json.dumps([replay_job(job, args.out) for job in jobs]))
+        return
     actions, state0 = read_episode(args.episode)
     if args.nudge:
-        actions = actions.copy()
-        for arm in range(actions.shape[1] // 23):
-            moving = np.any(actions[:, arm * 23 : arm * 23 + 7] != 0, axis=1)
-            actions[moving, arm * 23] += args.nudge
+        actions = nudged(actions, args.nudge)
     state, succeed, terminated = replay(args.task, actions, state0, args.extend)
     np.savez(args.out, state=state, succeed=succeed, terminated=terminated)
-    failure = _first(terminated & ~succeed)
     print(
         json.dumps(
             {
                 "steps": int(len(state)),
                 "first_success": _first(succeed),
-                "first_termination_without_success": failure,
+                "first_termination_without_success": _first(terminated & ~succeed),
                 "blocks": state_blocks(args.task),
             }
         )

@@ -1,0 +1,233 @@
+//! Simulation parity with the DexJoCo reference code itself: the same episodes replayed by
+//! the reference replay script (`scripts/replay_demos_zarr.py`, its environments run
+//! headless under MuJoCo 3.17.0 by `tests/python/dexjoco_reference.py`) and by our
+//! `TaskEnv`, on the reference scenes, for all 11 tasks: a demonstration planned by
+//! `scripted` (or the sample demonstration where no plan can be made there) and the
+//! deliberately wrong plans. Same success and failure verdicts on the same step (within
+//! the extension where the reference's own success step moves when its arm targets are
+//! nudged by 1e-9 m), and a state trajectory no further from the reference's than the
+//! reference's own under that nudge.
+
+use std::path::Path;
+
+use dexjoco_core::{Episode, FrameArray, TaskSpec};
+use dexjoco_formats::raw::{read_raw_episode, write_replay_zarr};
+use dexjoco_sim::scripted::{self, PLANNED_TASKS, Variant};
+use dexjoco_sim::{EnvOptions, SceneSource, TaskEnv, load_task_scene};
+use rand::{Rng, SeedableRng};
+use serde_json::Value;
+
+/// The seed of the resets planned here (used by no other test).
+const SEED: u64 = 2525;
+/// Steps the last action is repeated after the recording (augment's default).
+const EXTEND: usize = 30;
+/// The reference's own sensitivity: metres added to its arm position targets.
+const NUDGE: f64 = 1e-9;
+
+/// One episode replayed on both sides, and what our side did with it.
+struct Case {
+    name: String,
+    spec: TaskSpec,
+    /// Our trajectory: the recording a plan made (a replay reproduces it bit for bit,
+    /// `scripted_tasks.rs`), or our replay of a sample demonstration.
+    ours: Episode,
+    first_success: Option<usize>,
+    first_failure: Option<usize>,
+}
+
+fn reference_scene(spec: &TaskSpec) -> dexjoco_sim::Scene {
+    let source = SceneSource::Dir(dexjoco_testkit::reference_scene_dir());
+    load_task_scene(&source, spec).unwrap_or_else(|e| panic!("{}: {e}", spec.id))
+}
+
+/// The demonstration (or wrong plan) of `task` from a seeded reset of the reference
+/// scene, or our replay of the task's sample demonstration where the planner cannot plan
+/// there.
+fn case(task: &str, variant: Variant) -> Case {
+    let spec = TaskSpec::builtin(task).expect("a built-in task").clone();
+    let scene = reference_scene(&spec);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(SEED);
+    let s0 = TaskEnv::sample_initial_state(&scene, &spec, &mut || rng.random::<f64>()).unwrap();
+    let suffix = if variant == Variant::Wrong {
+        "wrong"
+    } else {
+        "demo"
+    };
+    let name = format!("{task}_{suffix}");
+    match scripted::plan(&scene, &spec, &s0, &name, variant) {
+        Ok(planned) => Case {
+            first_failure: planned.failed.then(|| planned.episode.len() - 1),
+            first_success: planned.success_at,
+            ours: planned.episode,
+            name,
+            spec,
+        },
+        Err(e) => {
+            eprintln!("{task}: no plan on the reference scene ({e}): its sample demonstration");
+            let dir = dexjoco_testkit::workspace_root()
+                .join("datasets/demos")
+                .join(task);
+            let sample = read_raw_episode(&dir.join("episode_000000"), &spec)
+                .unwrap()
+                .episode;
+            replay_sample(&scene, spec, name, &sample)
+        }
+    }
+}
+
+/// Our replay of a recording on the reference scene, with the extension.
+fn replay_sample(
+    scene: &dexjoco_sim::Scene,
+    spec: TaskSpec,
+    name: String,
+    sample: &Episode,
+) -> Case {
+    let state0 = sample.array(Episode::STATE).unwrap().row(0).to_vec();
+    let mut env =
+        TaskEnv::from_initial_state(scene, &spec, &state0, EnvOptions::default()).unwrap();
+    let recorded = sample.array(Episode::ACTION).unwrap();
+    let last = recorded.row(recorded.len() - 1).to_vec();
+    let mut rows: Vec<Vec<f64>> = recorded.rows().map(<[f64]>::to_vec).collect();
+    rows.extend(std::iter::repeat_n(last, EXTEND));
+    let actions = FrameArray::from_rows(&rows).unwrap();
+    let rollout = env.rollout(&actions).unwrap();
+    let mut ours = sample.clone();
+    ours.arrays.clear();
+    ours.arrays.insert(Episode::ACTION.to_owned(), actions);
+    ours.arrays
+        .insert(Episode::STATE.to_owned(), rollout.states.clone());
+    ours.arrays.insert(
+        Episode::TIMESTAMP.to_owned(),
+        Episode::regular_timestamps(rows.len(), 30.0),
+    );
+    Case {
+        name,
+        spec,
+        ours,
+        first_success: rollout.first_success(),
+        first_failure: rollout.first_failure(),
+    }
+}
+
+/// Runs the reference replays of `jobs` in two processes (the machine's two cores).
+fn replay_reference(jobs: &[Value], dir: &Path) -> Vec<Value> {
+    let halves: Vec<&[Value]> = jobs.chunks(jobs.len().div_ceil(2)).collect();
+    std::thread::scope(|s| {
+        let handles: Vec<_> = halves
+            .iter()
+            .enumerate()
+            .map(|(i, half)| {
+                let file = dir.join(format!("jobs-{i}.json"));
+                fs_err::write(&file, serde_json::to_vec(half).unwrap()).unwrap();
+                let out = dir.to_owned();
+                s.spawn(move || {
+                    let stdout = dexjoco_testkit::run_reference_python(
+                        "dexjoco_reference.py",
+                        &[
+                            "batch",
+                            "--jobs",
+                            file.to_str().unwrap(),
+                            "--out",
+                            out.to_str().unwrap(),
+                        ],
+                    );
+                    serde_json::from_str::<Vec<Value>>(&stdout).unwrap()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap())
+            .collect()
+    })
+}
+
+fn step(v: &Value) -> Option<usize> {
+    v.as_u64().map(|s| s as usize)
+}
+
+/// Our verdict step against the reference's: the same, or within the extension where the
+/// nudged reference's own step moved.
+fn verdict_agrees(ours: Option<usize>, plain: Option<usize>, nudged: Option<usize>) -> bool {
+    match (ours, plain) {
+        (None, None) => true,
+        (Some(o), Some(p)) if plain == nudged => o == p,
+        (Some(o), Some(p)) => o.abs_diff(p) <= EXTEND,
+        _ => false,
+    }
+}
+
+/// Checks one case against the reference's summary; returns its table row and problems.
+fn check(c: &Case, s: &Value, problems: &mut Vec<String>) -> String {
+    let (plain, nudged) = (&s["runs"][0], &s["runs"][1]);
+    let (ref_success, ref_nudged) = (
+        step(&plain["first_success"]),
+        step(&nudged["first_success"]),
+    );
+    let ref_failure = step(&plain["first_failure"]);
+    if !verdict_agrees(c.first_success, ref_success, ref_nudged) {
+        problems.push(format!(
+            "{}: success at {:?}, the reference's at {ref_success:?} (nudged {ref_nudged:?})",
+            c.name, c.first_success
+        ));
+    }
+    if !verdict_agrees(c.first_failure, ref_failure, step(&nudged["first_failure"])) {
+        problems.push(format!(
+            "{}: failure at {:?}, the reference's at {ref_failure:?}",
+            c.name, c.first_failure
+        ));
+    }
+    let ours = s["ours"]["max_diff"].as_f64().unwrap();
+    let own = s["self"]["max_diff"].as_f64().unwrap();
+    if ours > 10.0 * own + 1e-6 {
+        problems.push(format!("{}: state {ours:.3e} from the reference's, which moves {own:.3e} itself under a {NUDGE:e} m nudge", c.name));
+    }
+    let show = |v: Option<usize>| v.map_or("-".to_owned(), |s| s.to_string());
+    format!(
+        "| {} | {} | {} | {} | {} | {:.1e} | {:.1e} |",
+        c.name,
+        show(c.first_success.or(c.first_failure)),
+        show(ref_success.or(ref_failure)),
+        show(ref_nudged.or(step(&nudged["first_failure"]))),
+        if c.first_success.or(c.first_failure) == ref_success.or(ref_failure) {
+            "yes"
+        } else {
+            "no"
+        },
+        ours,
+        own,
+    )
+}
+
+#[test]
+fn every_task_replays_as_the_reference_replays_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cases: Vec<Case> = PLANNED_TASKS
+        .iter()
+        .map(|t| case(t, Variant::Demo))
+        .collect();
+    for task in ["bimanual_hanoi", "bimanual_unlock_ipad", "water_plant"] {
+        cases.push(case(task, Variant::Wrong));
+    }
+    let mut jobs = Vec::new();
+    for c in &cases {
+        let recording = dir.path().join(&c.name);
+        let mut recorded = c.ours.clone();
+        recorded.arrays.retain(|k, _| k != Episode::ACTION_ROTVEC);
+        write_replay_zarr(&recording, &recorded).unwrap();
+        jobs.push(serde_json::json!({
+            "name": c.name, "task": c.spec.id, "episode": recording, "extend": EXTEND,
+            "step_cap": c.spec.step_cap, "nudges": [NUDGE], "ours": recording,
+        }));
+    }
+    let summaries = replay_reference(&jobs, dir.path());
+    let mut problems = Vec::new();
+    println!(
+        "| episode | ours: success (or failure) step | reference | reference, nudged {NUDGE:e} m | same step | max state difference | reference's own under the nudge |"
+    );
+    println!("|---|---:|---:|---:|---|---:|---:|");
+    for (c, s) in cases.iter().zip(&summaries) {
+        println!("{}", check(c, s, &mut problems));
+    }
+    assert!(problems.is_empty(), "{problems:#?}");
+}
