@@ -469,6 +469,8 @@ fn convert_writes_diffusion_policy_v21_and_norm_stats() {
             "diffusion-policy",
             "--videos",
             "--norm-stats",
+            "--norm-stats-batch",
+            "4",
             "-q",
         ],
         dir.path(),

@@ -229,6 +229,17 @@ pub struct ConvertArgs {
     /// Diffusion Policy: keep each episode's videos beside the replay buffer.
     #[arg(long)]
     pub videos: bool,
+    /// openpi's norm stats.
+    #[command(flatten)]
+    pub norm_stats: NormStatsArgs,
+    /// The known tasks.
+    #[command(flatten)]
+    pub tasks: TasksDirArgs,
+}
+
+/// `convert`'s openpi normalization statistics options.
+#[derive(Debug, Args)]
+pub struct NormStatsArgs {
     /// Also write openpi's norm_stats.json into the dataset folder.
     #[arg(long)]
     pub norm_stats: bool,
@@ -236,9 +247,11 @@ pub struct ConvertArgs {
     #[arg(long, default_value_t = 50, value_name = "FRAMES",
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub norm_stats_horizon: usize,
-    /// The known tasks.
-    #[command(flatten)]
-    pub tasks: TasksDirArgs,
+    /// Frames per update for --norm-stats (openpi's batch_size); the frames after the
+    /// last whole batch are left out, as openpi's compute_norm_stats does.
+    #[arg(long, default_value_t = 32, value_name = "FRAMES",
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    pub norm_stats_batch: usize,
 }
 
 /// `augment` options.

@@ -91,8 +91,8 @@ pub enum BenchCommand {
     Render(BenchRenderArgs),
     /// Episodes/s and MB/s of `ingest` on generated raw folders and MCAP files.
     Ingest(BenchIngestArgs),
-    /// `convert` against lerobot's own dataset writer on the same episodes, and our
-    /// peak memory for few vs many short episodes.
+    /// `convert` against lerobot's own dataset writer and the DexJoCo reference converter
+    /// on the same episodes, and our peak memory for few vs many short episodes.
     Convert(BenchConvertArgs),
     /// `augment` with 1 and N worker processes against the reference approach (re-simulate
     /// and render every replay in one process) and the render-only limit of N processes.
@@ -206,7 +206,14 @@ Examples:
   dexjoco-data bench convert --episodes 50 --frames 120 --memory-episodes 100,1000
 
 Needs the test venv (`scripts/setup.sh --python`, or DEXJOCO_PYTHON) for lerobot's writer
-and /usr/bin/time for peak memory (maximum resident set size of each child process).")]
+and /usr/bin/time for peak memory (maximum resident set size of each child process: for
+the reference converter, the largest of its processes).
+
+The DexJoCo reference converter (dexjoco-dc-single-lerobot and dexjoco-dc-single-zarr)
+runs from its code in place: $DEXJOCO_THIRD_PARTY, else ../shared/third_party beside the
+checkout, with Diffusion Policy from $DEXJOCO_DIFFUSION_POLICY or the checkout's .deps;
+beside it, our --format diffusion-policy --videos. When that code is absent the output
+says so and those rows are skipped.")]
 pub struct BenchConvertArgs {
     /// Generated click_mouse episodes converted by both tools.
     #[arg(long, default_value_t = 50)]
@@ -223,9 +230,12 @@ pub struct BenchConvertArgs {
     /// Frames per episode in the peak-memory runs.
     #[arg(long, default_value_t = 10)]
     pub memory_frames: usize,
-    /// Skip lerobot's writer (our side only).
+    /// Skip lerobot's writer.
     #[arg(long)]
     pub no_lerobot: bool,
+    /// Skip the DexJoCo reference converter.
+    #[arg(long)]
+    pub no_reference: bool,
 }
 
 /// `bench render` options.

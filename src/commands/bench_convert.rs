@@ -1,6 +1,8 @@
-//! `dexjoco-data bench convert`: our `convert` against lerobot's own dataset writer on
-//! the same generated episodes (wall time, peak memory of each child process), and our
-//! peak memory for few vs many short episodes.
+//! `dexjoco-data bench convert`: our `convert` against lerobot's own dataset writer and
+//! the DexJoCo reference converter (its LeRobot and Zarr entry points, run in place from
+//! the reference code beside the checkout) on the same generated episodes (wall time,
+//! peak memory of each child process), and our peak memory for few vs many short
+//! episodes.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -20,6 +22,28 @@ struct Run {
     seconds: f64,
     peak_rss_mb: f64,
 }
+
+impl Run {
+    fn new(tool: &str, args: &BenchConvertArgs, (seconds, peak_rss_mb): (f64, f64)) -> Self {
+        Self {
+            tool: tool.into(),
+            episodes: args.episodes,
+            frames: args.frames,
+            seconds,
+            peak_rss_mb,
+        }
+    }
+}
+
+/// A line under the table: run `theirs` against run `ours` (indices into the runs).
+struct Ratio {
+    label: &'static str,
+    theirs: usize,
+    ours: usize,
+}
+
+/// Our LeRobot v3.0 row's tool.
+const OURS_LEROBOT: &str = "dexjoco-data convert (LeRobot v3.0, stream copy)";
 
 /// Writes `episodes` click_mouse raw episode folders with a `front` H.264 camera (one
 /// video encoded, copied into every episode: generation stays quick).
@@ -91,72 +115,238 @@ fn python() -> anyhow::Result<PathBuf> {
     )
 }
 
+/// Our conversion of `input` into `tmp/name` (`extra`: more convert flags); returns
+/// (seconds, peak RSS MB).
 fn ours(
     tmp: &Path,
     input: &Path,
     name: &str,
     config: &Path,
-    episodes: usize,
-    frames: usize,
-) -> anyhow::Result<Run> {
+    extra: &[&str],
+) -> anyhow::Result<(f64, f64)> {
     let exe = std::env::current_exe()?;
     let out = tmp.join(name);
-    let (seconds, peak, _) = timed(
-        &exe,
-        &[
-            "-q",
-            "convert",
-            &input.to_string_lossy(),
-            "--out",
-            &out.to_string_lossy(),
-            "--config",
-            &config.to_string_lossy(),
-            "--no-skip-static",
-        ],
-    )?;
-    Ok(Run {
-        tool: "dexjoco-data convert (LeRobot v3.0, stream copy)".into(),
-        episodes,
-        frames,
-        seconds,
-        peak_rss_mb: peak,
-    })
+    let (input, out, config) = (
+        input.to_string_lossy(),
+        out.to_string_lossy(),
+        config.to_string_lossy(),
+    );
+    let mut argv = vec![
+        "-q",
+        "convert",
+        &input,
+        "--out",
+        &out,
+        "--config",
+        &config,
+        "--no-skip-static",
+    ];
+    argv.extend_from_slice(extra);
+    let (seconds, peak, _) = timed(&exe, &argv)?;
+    Ok((seconds, peak))
 }
 
 /// Runs `bench convert`.
 pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitStatus> {
     let tmp = tempfile::tempdir()?;
     let config = tmp.path().join("selection.toml");
-    // The same arrays on both sides: action (23) and the proprioceptive state (23).
+    // The same arrays on every side: action (23) and the proprioceptive state (23).
     fs_err::write(&config, "[default]\naction = \"action\"\nstate = [0, 23]\n")?;
     let raw = tmp.path().join("raw");
     let pb = crate::progress::bar(1, "generate", global.quiet);
     generate(&raw, args.episodes, args.frames, args.size)?;
     pb.finish_and_clear();
-    let mut runs = vec![ours(
-        tmp.path(),
-        &raw,
-        "ours",
-        &config,
-        args.episodes,
-        args.frames,
-    )?];
+    let ours_lerobot = ours(tmp.path(), &raw, "ours", &config, &[])?;
+    let mut runs = vec![Run::new(OURS_LEROBOT, args, ours_lerobot)];
     tracing::info!("ours: {:?}", runs[0]);
+    let mut ratios = Vec::new();
     if !args.no_lerobot {
         runs.push(lerobot(tmp.path(), &raw, args)?);
         tracing::info!("lerobot: {:?}", runs[1]);
+        ratios.push(Ratio {
+            label: "lerobot's writer / ours (LeRobot v3.0)",
+            theirs: 1,
+            ours: 0,
+        });
+    }
+    let reference = if args.no_reference {
+        Err("--no-reference".to_owned())
+    } else {
+        reference_code()
+    };
+    match &reference {
+        Ok(code) => reference_runs(
+            tmp.path(),
+            &raw,
+            &config,
+            args,
+            code,
+            &mut runs,
+            &mut ratios,
+        )?,
+        Err(why) => outln!("DexJoCo reference converter: skipped ({why})"),
     }
     let memory = memory_runs(tmp.path(), &config, args)?;
-    print_tables(args, &runs, &memory);
+    print_tables(args, &runs, &ratios, &memory);
     let out = global.work_dir.join("bench");
     fs_err::create_dir_all(&out)?;
     let json = out.join("convert.json");
+    let skipped = reference.err();
     fs_err::write(
         &json,
-        serde_json::to_string_pretty(&serde_json::json!({ "runs": runs, "memory": memory }))?,
+        serde_json::to_string_pretty(&serde_json::json!({
+            "runs": runs,
+            "memory": memory,
+            "reference_converter_skipped": skipped,
+        }))?,
     )?;
     errln!("wrote {}", json.display());
     Ok(ExitStatus::Success)
+}
+
+/// The DexJoCo reference converter's code, found in place.
+struct ReferenceCode {
+    /// `dexjoco-data-converter/src` (the `dexjoco_data_converter` package).
+    converter_src: PathBuf,
+    /// The folder of Diffusion Policy's `replay_buffer.py` (its Zarr writer imports it).
+    diffusion_policy: PathBuf,
+    /// `tests/python/reference_converter.py` of the checkout, which runs it.
+    driver: PathBuf,
+}
+
+/// The reference code: `$DEXJOCO_THIRD_PARTY`, else `../shared/third_party` beside the
+/// checkout; Diffusion Policy from `$DEXJOCO_DIFFUSION_POLICY`, else the checkout's
+/// `.deps/diffusion-policy-path`. Err says what is missing.
+fn reference_code() -> Result<ReferenceCode, String> {
+    let checkout = crate::locate::checkout().ok_or("not run from a source checkout")?;
+    let third_party = std::env::var_os("DEXJOCO_THIRD_PARTY")
+        .map_or_else(|| checkout.join("../shared/third_party"), PathBuf::from);
+    let converter_src = third_party.join("dexjoco-8d23b0f/dexjoco-data-converter/src");
+    if !converter_src
+        .join("dexjoco_data_converter/cli.py")
+        .is_file()
+    {
+        return Err(format!(
+            "its code is absent: no {} (looked in $DEXJOCO_THIRD_PARTY, else ../shared/third_party beside the checkout)",
+            converter_src.display()
+        ));
+    }
+    let recorded = checkout.join(".deps/diffusion-policy-path");
+    let diffusion_policy = std::env::var_os("DEXJOCO_DIFFUSION_POLICY").map_or_else(
+        || PathBuf::from(fs_err::read_to_string(&recorded).unwrap_or_default().trim()),
+        PathBuf::from,
+    );
+    if !diffusion_policy
+        .join("diffusion_policy/common/replay_buffer.py")
+        .is_file()
+    {
+        return Err(format!(
+            "Diffusion Policy's replay_buffer.py is absent (DEXJOCO_DIFFUSION_POLICY, {}): run scripts/setup.sh --python",
+            recorded.display()
+        ));
+    }
+    Ok(ReferenceCode {
+        converter_src,
+        diffusion_policy,
+        driver: checkout.join("tests/python/reference_converter.py"),
+    })
+}
+
+/// The reference converter's LeRobot and Zarr entry points on the generated episodes,
+/// with our Diffusion Policy conversion beside the Zarr one (videos stream-copied, as
+/// the reference copies them when nothing is trimmed).
+fn reference_runs(
+    tmp: &Path,
+    raw: &Path,
+    config: &Path,
+    args: &BenchConvertArgs,
+    code: &ReferenceCode,
+    runs: &mut Vec<Run>,
+    ratios: &mut Vec<Ratio>,
+) -> anyhow::Result<()> {
+    let task = TaskSpec::builtin("click_mouse").context("click_mouse task")?;
+    let selected = "{action: action, state: state, cameras: {front: front}}";
+    let lerobot_flags = [
+        "--language-instruction",
+        task.prompt.as_str(),
+        "--selected-data-yaml",
+        selected,
+    ];
+    let reference_lerobot =
+        run_reference(tmp, raw, code, "dexjoco-dc-single-lerobot", &lerobot_flags)?;
+    runs.push(Run::new(
+        "DexJoCo reference converter, dexjoco-dc-single-lerobot (decode, AV1 encode)",
+        args,
+        reference_lerobot,
+    ));
+    ratios.push(Ratio {
+        label: "reference converter / ours (LeRobot v3.0)",
+        theirs: runs.len() - 1,
+        ours: 0,
+    });
+    let dp = [
+        "--format",
+        "diffusion-policy",
+        "--videos",
+        "--video-codec",
+        "h264",
+    ];
+    let ours_dp = ours(tmp, raw, "ours-dp", config, &dp)?;
+    runs.push(Run::new(
+        "dexjoco-data convert --format diffusion-policy --videos (frames decoded into the store, videos copied)",
+        args,
+        ours_dp,
+    ));
+    let reference_zarr = run_reference(tmp, raw, code, "dexjoco-dc-single-zarr", &[])?;
+    runs.push(Run::new(
+        "DexJoCo reference converter, dexjoco-dc-single-zarr (arrays, videos copied)",
+        args,
+        reference_zarr,
+    ));
+    ratios.push(Ratio {
+        label: "reference converter / ours (Diffusion Policy)",
+        theirs: runs.len() - 1,
+        ours: runs.len() - 2,
+    });
+    tracing::info!("reference converter: {:?}", &runs[runs.len() - 3..]);
+    Ok(())
+}
+
+/// One reference console script on the click_mouse episodes in `raw` (state sliced to
+/// the proprioceptive 23, static frames kept, as on our side); (seconds, peak RSS MB).
+fn run_reference(
+    tmp: &Path,
+    raw: &Path,
+    code: &ReferenceCode,
+    entry: &str,
+    flags: &[&str],
+) -> anyhow::Result<(f64, f64)> {
+    let s = |p: &Path| p.to_string_lossy().into_owned();
+    let (driver, src, dp) = (
+        s(&code.driver),
+        s(&code.converter_src),
+        s(&code.diffusion_policy),
+    );
+    let (input, out) = (s(&raw.join("click_mouse")), s(&tmp.join(entry)));
+    let mut argv = vec![
+        driver.as_str(),
+        "run",
+        "--code",
+        &src,
+        "--diffusion-policy",
+        &dp,
+        entry,
+        "--input",
+        &input,
+        "--output",
+        &out,
+        "--slice-yaml",
+        "{state: [null, 23]}",
+        "--no-skip-static-frames",
+    ];
+    argv.extend_from_slice(flags);
+    let (seconds, peak, _) = timed(&python()?, &argv)?;
+    Ok((seconds, peak))
 }
 
 /// lerobot's own writer on the episodes in `raw` (the checkout's
@@ -175,13 +365,11 @@ fn lerobot(tmp: &Path, raw: &Path, args: &BenchConvertArgs) -> anyhow::Result<Ru
             "30",
         ],
     )?;
-    Ok(Run {
-        tool: "lerobot 0.6.1 LeRobotDataset writer (AV1 encode)".into(),
-        episodes: args.episodes,
-        frames: args.frames,
-        seconds,
-        peak_rss_mb: peak,
-    })
+    Ok(Run::new(
+        "lerobot 0.6.1 LeRobotDataset writer (AV1 encode)",
+        args,
+        (seconds, peak),
+    ))
 }
 
 /// Our conversion of each of `--memory-episodes` generated 64 px episode sets.
@@ -190,14 +378,14 @@ fn memory_runs(tmp: &Path, config: &Path, args: &BenchConvertArgs) -> anyhow::Re
     for &n in &args.memory_episodes {
         let dir = tmp.join(format!("raw-{n}"));
         generate(&dir, n, args.memory_frames, 64)?;
-        memory.push(ours(
-            tmp,
-            &dir,
-            &format!("ours-{n}"),
-            config,
-            n,
-            args.memory_frames,
-        )?);
+        let (seconds, peak_rss_mb) = ours(tmp, &dir, &format!("ours-{n}"), config, &[])?;
+        memory.push(Run {
+            tool: OURS_LEROBOT.into(),
+            episodes: n,
+            frames: args.memory_frames,
+            seconds,
+            peak_rss_mb,
+        });
         tracing::info!("memory: {:?}", memory.last());
         fs_err::remove_dir_all(&dir)?;
     }
@@ -205,9 +393,9 @@ fn memory_runs(tmp: &Path, config: &Path, args: &BenchConvertArgs) -> anyhow::Re
 }
 
 /// The comparison and memory tables, as markdown.
-fn print_tables(args: &BenchConvertArgs, runs: &[Run], memory: &[Run]) {
+fn print_tables(args: &BenchConvertArgs, runs: &[Run], ratios: &[Ratio], memory: &[Run]) {
     outln!(
-        "Convert {} generated click_mouse episodes x {} frames ({}x{} H.264 camera) to LeRobot v3.0",
+        "Convert {} generated click_mouse episodes x {} frames ({}x{} H.264 camera)",
         args.episodes,
         args.frames,
         args.size,
@@ -225,12 +413,16 @@ fn print_tables(args: &BenchConvertArgs, runs: &[Run], memory: &[Run]) {
             r.peak_rss_mb
         );
     }
-    if runs.len() == 2 {
+    if !ratios.is_empty() {
         outln!();
+    }
+    for r in ratios {
+        let (theirs, ours) = (&runs[r.theirs], &runs[r.ours]);
         outln!(
-            "lerobot / ours: {:.1}x the wall time, {:.1}x the peak memory",
-            runs[1].seconds / runs[0].seconds,
-            runs[1].peak_rss_mb / runs[0].peak_rss_mb
+            "{}: {:.1}x the wall time, {:.1}x the peak memory",
+            r.label,
+            theirs.seconds / ours.seconds,
+            theirs.peak_rss_mb / ours.peak_rss_mb
         );
     }
     outln!();

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use dexjoco_augment::{AugmentConfig, Shard};
 use dexjoco_convert::{
-    ConvertOptions, OutputFormat, Selection, V3Options, VideoCodec, VideoOptions,
+    ConvertOptions, NormStatsOptions, OutputFormat, Selection, V3Options, VideoCodec, VideoOptions,
 };
 use dexjoco_core::{TaskSet, TaskSpec};
 use dexjoco_formats::EpisodeContainer;
@@ -22,7 +22,7 @@ use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
 use crate::cli::{
     AugmentArgs, BenchAugmentArgs, BenchIngestArgs, BenchRenderArgs, CamerasArgs, ConvertArgs,
     ConvertFormatArg, DoctorArgs, ExportArgs, ExportFormat, GlobalArgs, IngestArgs, JsBaseArg,
-    QualityArg, RenderArgs, ScriptedArgs, StatsArgs, TasksDirArgs, VideoCodecArg,
+    NormStatsArgs, QualityArg, RenderArgs, ScriptedArgs, StatsArgs, TasksDirArgs, VideoCodecArg,
 };
 use crate::exit::{CliError, ExitStatus};
 

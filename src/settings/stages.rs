@@ -258,7 +258,6 @@ impl ConvertSettings {
             robot_type,
             videos,
             norm_stats,
-            norm_stats_horizon,
             tasks,
         } = args;
         let tasks = task_set(&tasks)?;
@@ -323,7 +322,7 @@ impl ConvertSettings {
                 protected_dirs: vec![global.work_dir.clone()],
                 format,
                 videos,
-                norm_stats: norm_stats.then_some(norm_stats_horizon),
+                norm_stats: norm_stats_options(&norm_stats),
                 selection,
                 video: VideoOptions {
                     codec: match video_codec {
@@ -343,6 +342,14 @@ impl ConvertSettings {
             tasks,
         })
     }
+}
+
+/// openpi's normalization statistics options, when `--norm-stats` asks for them.
+fn norm_stats_options(args: &NormStatsArgs) -> Option<NormStatsOptions> {
+    args.norm_stats.then_some(NormStatsOptions {
+        action_horizon: args.norm_stats_horizon,
+        batch_size: args.norm_stats_batch,
+    })
 }
 
 /// `stats`.

@@ -43,7 +43,9 @@ pub fn convert_input(dir: &Path) -> PathBuf {
         let action: Vec<Vec<f64>> = (0..n)
             .map(|k| {
                 let mut r = vec![0.0; 23];
-                r[0] = k as f64 * 0.01;
+                // Moving from frame 0, never the all-zero action_rotvec row that the
+                // static-frame rule would skip too.
+                r[0] = 0.1 + k as f64 * 0.01;
                 r[3] = 1.0;
                 r
             })

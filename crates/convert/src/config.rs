@@ -192,10 +192,20 @@ impl Selection {
 
 /// The first frame the reference converter keeps: the first `i` with
 /// `action[i] != action[i + 1]`, plus one when `action[i]` is all zeros. An episode whose
-/// action never changes keeps all its frames (start 0).
-pub fn first_moving_frame(action: &dexjoco_core::FrameArray) -> usize {
+/// action never changes keeps all its frames (start 0). `action` is the selected action;
+/// with `float32` its values are compared rounded to float32, as the reference's LeRobot
+/// writer loads them (its Zarr writer compares them as recorded).
+pub fn first_moving_frame(action: &dexjoco_core::FrameArray, float32: bool) -> usize {
     let n = action.len();
-    let Some(i) = (0..n.saturating_sub(1)).find(|&i| action.row(i) != action.row(i + 1)) else {
+    let differ = |i: usize| {
+        let (a, b) = (action.row(i), action.row(i + 1));
+        if float32 {
+            a.iter().zip(b).any(|(x, y)| *x as f32 != *y as f32)
+        } else {
+            a != b
+        }
+    };
+    let Some(i) = (0..n.saturating_sub(1)).find(|&i| differ(i)) else {
         return 0;
     };
     if action.row(i).iter().all(|v| *v == 0.0) {
@@ -224,11 +234,18 @@ mod tests {
             FrameArray::from_rows(&v.iter().map(|x| vec![*x, 1.0]).collect::<Vec<_>>()).unwrap()
         };
         // repeats, then moves: start at the last repeat
-        assert_eq!(first_moving_frame(&rows(&[3.0, 3.0, 3.0, 4.0, 5.0])), 2);
+        assert_eq!(
+            first_moving_frame(&rows(&[3.0, 3.0, 3.0, 4.0, 5.0]), false),
+            2
+        );
         // moving from the start
-        assert_eq!(first_moving_frame(&rows(&[1.0, 2.0])), 0);
+        assert_eq!(first_moving_frame(&rows(&[1.0, 2.0]), false), 0);
         // never moves: keep everything
-        assert_eq!(first_moving_frame(&rows(&[1.0, 1.0])), 0);
+        assert_eq!(first_moving_frame(&rows(&[1.0, 1.0]), false), 0);
+        // a change below float32's resolution moves only as recorded
+        let tiny = rows(&[0.3, 0.3 + 1e-12, 0.3 + 2e-12, 0.4]);
+        assert_eq!(first_moving_frame(&tiny, false), 0);
+        assert_eq!(first_moving_frame(&tiny, true), 2);
         // all-zero rows before the first change: one further
         let z = FrameArray::from_rows(&[
             vec![0.0, 0.0],
@@ -237,7 +254,8 @@ mod tests {
             vec![0.6, 0.0],
         ])
         .unwrap();
-        assert_eq!(first_moving_frame(&z), 2);
+        assert_eq!(first_moving_frame(&z, false), 2);
+        assert_eq!(first_moving_frame(&z, true), 2);
     }
 
     #[test]

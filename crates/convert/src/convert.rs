@@ -8,7 +8,7 @@ use dexjoco_formats::dataset::{
     DatasetWriter, PreparedEpisode, V3Options, V3Writer, V21Writer, VideoLayout, ZarrWriter,
 };
 use dexjoco_formats::fs::StagedDir;
-use dexjoco_formats::openpi::NormStats;
+use dexjoco_formats::openpi::{NormStats, NormStatsOptions};
 use rayon::prelude::*;
 
 use crate::config::Selection;
@@ -37,6 +37,12 @@ impl OutputFormat {
         }
     }
 
+    /// Whether the format stores action and state as float32 (LeRobot) rather than as
+    /// recorded (Diffusion Policy: float64).
+    fn stores_float32(self) -> bool {
+        self != Self::DiffusionPolicy
+    }
+
     fn layout(self, videos: bool) -> VideoLayout {
         match self {
             Self::LeRobotV3 => VideoLayout::Joined,
@@ -62,9 +68,9 @@ pub struct ConvertOptions {
     pub overwrite: bool,
     /// Diffusion Policy: keep each episode's videos beside the replay buffer.
     pub videos: bool,
-    /// Write openpi's `norm_stats.json` into the dataset folder, with actions over
-    /// chunks of this many frames (openpi's `action_horizon`).
-    pub norm_stats: Option<usize>,
+    /// Write openpi's `norm_stats.json` into the dataset folder, fed as these options say
+    /// (openpi's `action_horizon` and `batch_size`).
+    pub norm_stats: Option<NormStatsOptions>,
     /// Episodes prepared in parallel at a time (0: twice the worker threads). Memory is
     /// bounded by this many episodes.
     pub batch: usize,
@@ -301,7 +307,18 @@ where
         }
         let prepared: Vec<Result<PreparedEpisode, ConvertError>> = pending
             .par_iter()
-            .map(|(i, input)| prepare(input, &options.selection, options.video, layout, &work, *i))
+            .map(|(i, input)| {
+                let float32 = options.format.stores_float32();
+                prepare(
+                    input,
+                    &options.selection,
+                    options.video,
+                    layout,
+                    float32,
+                    &work,
+                    *i,
+                )
+            })
             .collect();
         if run.writer.is_none()
             && let Some(leader) = layout_leader(&prepared)

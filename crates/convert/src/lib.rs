@@ -31,5 +31,6 @@ pub use convert::{
 };
 // The dataset types of this crate's API (the writers' input and options).
 pub use dexjoco_formats::dataset::{PreparedEpisode, V3Options};
+pub use dexjoco_formats::openpi::NormStatsOptions;
 pub use error::ConvertError;
 pub use prepare::{InputEpisode, VideoCodec, VideoOptions, prepare};

@@ -83,19 +83,22 @@ fn slice_columns(a: &FrameArray, range: std::ops::Range<usize>, from: usize) -> 
 }
 
 /// Selects, trims and measures one episode; encodes its videos into `work_dir` when
-/// `layout` cannot use the source as it is. `ordinal` names temporary files.
+/// `layout` cannot use the source as it is. `ordinal` names temporary files. `float32`:
+/// the output stores the values as float32 (static leading frames are then found on
+/// the rounded values, as the reference converter's LeRobot writer does).
 pub fn prepare(
     input: &InputEpisode,
     selection: &Selection,
     video: VideoOptions,
     layout: VideoLayout,
+    float32: bool,
     work_dir: &Path,
     ordinal: usize,
 ) -> Result<PreparedEpisode, ConvertError> {
     let ep = &input.episode;
     ep.check_consistent()?;
     let sel = selection.for_task(&ep.task);
-    let arrays = select_arrays(input, selection)?;
+    let arrays = select_arrays(input, selection, float32)?;
     let fps = ep.fps.round();
     if !(fps >= 1.0 && (ep.fps - fps).abs() < 1e-9) {
         return Err(ConvertError::episode(
@@ -177,9 +180,14 @@ struct Selected {
     skipped: usize,
 }
 
-/// Selects the action and state columns, skips static leading frames and, with
-/// `merge_bimanual`, lays one-arm episodes into the two-arm layout.
-fn select_arrays(input: &InputEpisode, selection: &Selection) -> Result<Selected, ConvertError> {
+/// Selects the action and state columns, skips static leading frames (found on the
+/// selected action, rounded to float32 with `float32`) and, with `merge_bimanual`, lays
+/// one-arm episodes into the two-arm layout.
+fn select_arrays(
+    input: &InputEpisode,
+    selection: &Selection,
+    float32: bool,
+) -> Result<Selected, ConvertError> {
     let ep = &input.episode;
     let sel = selection.for_task(&ep.task);
     let at = |field: &str| Location::episode(&ep.id).field(field).path(&input.dir);
@@ -210,7 +218,7 @@ fn select_arrays(input: &InputEpisode, selection: &Selection) -> Result<Selected
         return Err(ConvertError::episode(&ep.id, "the episode has no frames"));
     }
     let skipped = if selection.skip_static_frames {
-        first_moving_frame(ep.array(Episode::ACTION).unwrap_or(&action_full))
+        first_moving_frame(&action_full, float32)
     } else {
         0
     };

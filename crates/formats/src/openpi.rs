@@ -4,15 +4,20 @@
 //! `RunningStats` (`openpi/shared/normalize.py`) computes them, in f64 on the values
 //! as stored (float32):
 //!
-//! - one update per episode (openpi updates per batch; the result depends on the
-//!   batching only through the histogram re-binning when min or max grows);
-//! - running mean and mean of squares, population std `sqrt(max(0, E[x²] - E[x]²))`;
-//! - per column a 5000-bin histogram over `[min - 1e-10, max + 1e-10]`, re-binned
-//!   (counts moved by their old left edge) whenever min or max grows;
+//! - running mean and mean of squares, population std `sqrt(max(0, E[x²] - E[x]²))`
+//!   (no guard for a zero std: openpi's file has none either);
+//! - per column a 5000-bin histogram over `[min - 1e-10, max + 1e-10]` from the first
+//!   update; whenever min or max grows, re-binned onto `[min, max]` (no margin, as
+//!   openpi's `_adjust_histograms`), counts moved by their old left edge;
 //! - q01 / q99 = the left bin edge where the cumulative count first reaches
-//!   `q * count` (no interpolation, unlike lerobot);
-//! - `actions` over action chunks as openpi's data loader makes them: for every frame
-//!   `t` the rows `t..t+horizon`, the last frame repeated past the episode's end.
+//!   `q * count` (no interpolation, unlike lerobot).
+//!
+//! [`NormStats`] feeds it as openpi's `scripts/compute_norm_stats.py` does
+//! ([`NormStatsOptions`]): frames in dataset order in batches of `batch_size` (across
+//! episode boundaries; the frames after the last whole batch are left out, as openpi's
+//! loader drops them), `actions` over action chunks as openpi's data loader makes them
+//! (for every frame `t` the rows `t..t+horizon`, the last frame repeated past the
+//! episode's end). The file is what openpi's `normalize.save` writes for the same values.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -100,7 +105,7 @@ impl RunningStats {
             }
             if changed {
                 for j in 0..width {
-                    let new_edges = linspace(self.min[j] - 1e-10, self.max[j] + 1e-10);
+                    let new_edges = linspace(self.min[j], self.max[j]);
                     let mut new_hist = vec![0.0; BINS];
                     for (b, &w) in self.hist[j].iter().enumerate() {
                         add_to_bin(&mut new_hist, &new_edges, self.edges[j][b], w);
@@ -163,54 +168,111 @@ impl RunningStats {
     }
 }
 
-/// openpi's `norm_stats.json` of a dataset: `state` and `actions`, fed episode by episode.
+/// How openpi's `compute_norm_stats.py` feeds `RunningStats`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NormStatsOptions {
+    /// Frames per action chunk (openpi's `model.action_horizon`; 1 = each frame once).
+    pub action_horizon: usize,
+    /// Frames per update (openpi's `batch_size`); the frames after the last whole batch
+    /// are left out.
+    pub batch_size: usize,
+}
+
+impl Default for NormStatsOptions {
+    /// openpi's defaults: `action_horizon` 50 (pi0), `batch_size` 32.
+    fn default() -> Self {
+        Self {
+            action_horizon: 50,
+            batch_size: 32,
+        }
+    }
+}
+
+/// openpi's `norm_stats.json` of a dataset: `state` and `actions`, fed in batches of
+/// frames as openpi's `compute_norm_stats.py` feeds them.
 #[derive(Debug, Clone)]
 pub struct NormStats {
-    horizon: usize,
+    options: NormStatsOptions,
     state: RunningStats,
     actions: RunningStats,
+    /// The batch being filled: its frames' state rows and action chunks, and the widths.
+    batch_state: Vec<f64>,
+    batch_actions: Vec<f64>,
+    batch_frames: usize,
+    widths: (usize, usize),
 }
 
 impl NormStats {
-    /// Statistics with actions over chunks of `horizon` frames (openpi's
-    /// `action_horizon`; 1 = each frame once).
-    pub fn new(horizon: usize) -> Self {
+    /// Statistics fed as `options` say (a horizon or batch size of 0 counts as 1).
+    pub fn new(options: NormStatsOptions) -> Self {
         Self {
-            horizon: horizon.max(1),
+            options: NormStatsOptions {
+                action_horizon: options.action_horizon.max(1),
+                batch_size: options.batch_size.max(1),
+            },
             state: RunningStats::default(),
             actions: RunningStats::default(),
+            batch_state: Vec::new(),
+            batch_actions: Vec::new(),
+            batch_frames: 0,
+            widths: (0, 0),
         }
     }
 
-    /// Adds one episode's state and action rows (values as stored: float32).
+    /// Adds one episode's state and action rows (values as stored: float32), frame by
+    /// frame into the batch being filled; every full batch updates the statistics.
     pub fn add_episode(&mut self, state: &[f64], state_width: usize, action: &[f64], width: usize) {
-        self.state.update(state, state_width);
         let n = action.len() / width;
-        let mut rows = Vec::with_capacity(n * self.horizon * width);
+        assert_eq!(
+            state.len(),
+            n * state_width,
+            "state and action frames differ"
+        );
+        if self.batch_frames > 0 {
+            assert_eq!(self.widths, (state_width, width), "vector width changed");
+        }
+        self.widths = (state_width, width);
         for t in 0..n {
-            for k in 0..self.horizon {
+            self.batch_state
+                .extend_from_slice(&state[t * state_width..(t + 1) * state_width]);
+            for k in 0..self.options.action_horizon {
                 let r = (t + k).min(n - 1);
-                rows.extend_from_slice(&action[r * width..(r + 1) * width]);
+                self.batch_actions
+                    .extend_from_slice(&action[r * width..(r + 1) * width]);
+            }
+            self.batch_frames += 1;
+            if self.batch_frames == self.options.batch_size {
+                self.state.update(&self.batch_state, state_width);
+                self.actions.update(&self.batch_actions, width);
+                self.batch_state.clear();
+                self.batch_actions.clear();
+                self.batch_frames = 0;
             }
         }
-        self.actions.update(&rows, width);
     }
 
     /// The `norm_stats.json` document: `{"norm_stats": {"state", "actions"}}`; `None`
-    /// under two frames (openpi refuses those).
+    /// under two frames in whole batches (openpi refuses those).
     pub fn document(&self) -> Option<Value> {
         let (state, actions) = (self.state.statistics()?, self.actions.statistics()?);
         Some(json!({"norm_stats": {"state": state, "actions": actions}}))
     }
 
-    /// Writes `norm_stats.json` (indent 2, as openpi's pydantic writer) into `dir`.
+    /// Writes `norm_stats.json` (as openpi's `normalize.save`) into `dir`.
     pub fn write(&self, dir: &Path) -> Result<()> {
         let path = dir.join(NORM_STATS);
         let doc = self.document().ok_or_else(|| {
             FormatError::input(
                 ProblemCode::WrongLength,
                 &dexjoco_core::Location::default().path(&path),
-                "openpi's normalization statistics need at least two frames",
+                format!(
+                    "openpi's normalization statistics need at least {} frames in whole \
+                     batches of {} (openpi leaves out the frames after the last whole batch); \
+                     the dataset has {}: lower the batch size (convert --norm-stats-batch)",
+                    self.options.batch_size.max(2),
+                    self.options.batch_size,
+                    self.state.count() as usize + self.batch_frames
+                ),
             )
         })?;
         write_document(&path, &doc)
@@ -235,10 +297,10 @@ pub fn norm_stats_document(arrays: &BTreeMap<String, RunningStats>) -> Value {
     json!({ "norm_stats": stats })
 }
 
-/// Writes a `norm_stats.json` document (indent 2 and a final newline, as openpi's pydantic
-/// writer), atomically.
+/// Writes a `norm_stats.json` document as openpi's `normalize.save` does (pydantic's
+/// `model_dump_json(indent=2)`: indent 2, shortest round-trip floats, no final newline),
+/// atomically.
 pub fn write_document(path: &Path, doc: &Value) -> Result<()> {
-    let mut text = serde_json::to_string_pretty(doc).expect("JSON values serialize");
-    text.push('\n');
+    let text = serde_json::to_string_pretty(doc).expect("JSON values serialize");
     crate::fs::write_atomic(path, text.as_bytes())
 }
