@@ -10,10 +10,12 @@ adapted (`mj_fullM(model, M, data.qM)` became `mj_fullM(model, data, M)` in 3.5)
 import time, for this process only: the 30 Hz pacing sleep is a no-op and the renderer
 returns a 1x1 black image (no OpenGL context; physics and success logic are untouched).
 
-Used as a library (`make_env`, `replay`, `replay_episode`) or from the command line:
+Used as a library (`make_env`, `replay`, `replay_job`, `record`) or from the command line:
 
     python dexjoco_reference.py replay --task T --episode DIR --out OUT.npz [--extend N]
         [--nudge M]
+    python dexjoco_reference.py batch --jobs JOBS.json --out DIR
+    python dexjoco_reference.py record --task T --episode DIR --out DIR
 
 writes the reference replay script's own trajectory (`scripts/replay_demos_zarr.py`'s
 `_replay_single_demo`) as arrays: `state` (steps x width, the observation before each
@@ -202,6 +204,23 @@ def replay(task: str, actions: np.ndarray, state0: np.ndarray, extend: int = 0, 
     return state, succeed, terminated
 
 
+def record(task: str, episode: Path, out: Path) -> dict:
+    """The reference's own recording of an episode's actions: its replay, written by the
+    replay script's writer (`_write_demo_zarr_and_videos`: `replay.zarr` through the
+    reference's `ZarrEpisodeStore`, with `state`, `action`, `action_rotvec`,
+    `timestamp`), without videos (nothing is rendered here)."""
+    module = _replay_module()
+    actions, state0 = read_episode(episode)
+    module.FLAGS(["replay", "--norandomize", "--extend_steps=0", "--restore_state"])
+    config = CONFIG_MAPPING[task]()
+    succeed, trajectory = module._replay_single_demo(actions, state0, task, config, env_seed=1, desc=task)
+    for t in trajectory:
+        t["observations"] = {"state": t["observations"]["state"]}
+    folder = module._write_demo_zarr_and_videos(trajectory, task, 1, out, 30)
+    succeeded = [bool(t["infos"].get("succeed", False)) for t in trajectory]
+    return {"folder": folder, "succeed": bool(succeed), "first_success": _first(np.array(succeeded))}
+
+
 def read_episode(folder: Path):
     """The actions and state[0] of a raw episode (`replay.zarr`)."""
     import zarr
@@ -311,10 +330,17 @@ def _cli(argv=None):
         default=0.0,
         help="add this many metres to every arm position target (sensitivity)",
     )
+    rec = sub.add_parser("record", help="the reference's own recording of a raw episode's actions")
+    rec.add_argument("--task", required=True)
+    rec.add_argument("--episode", type=Path, required=True)
+    rec.add_argument("--out", type=Path, required=True, help="folder for the recording's folder")
     b = sub.add_parser("batch", help="replay the jobs of a JSON list (name, task, episode, extend, nudges)")
     b.add_argument("--jobs", type=Path, required=True)
     b.add_argument("--out", type=Path, required=True, help="folder for <name>.npz")
     args = parser.parse_args(argv)
+    if args.command == "record":
+        print(json.dumps(record(args.task, args.episode, args.out)))
+        return
     if args.command == "batch":
         jobs = json.loads(args.jobs.read_text())
         print(json.dumps([replay_job(job, args.out) for job in jobs]))

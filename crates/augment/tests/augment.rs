@@ -237,11 +237,12 @@ fn depth_streams_to_npz_that_numpy_loads_and_equals_a_direct_render() {
     );
 }
 
-/// A click_mouse demonstration recorded on the DexJoCo reference scene, as a raw folder
-/// under `<dir>/click_mouse/`, then augmented with `--scene-dir` pointing at the reference
-/// scenes (and so the reference camera pool and table textures).
+/// A recording the DexJoCo reference code made on its scene (its replay script's writer,
+/// through `tests/python/dexjoco_reference.py record`, of a click_mouse demonstration's
+/// actions), under `<dir>/click_mouse/`, augmented with `--scene-dir` pointing at the
+/// reference scenes (and so the reference camera pool and table textures).
 #[test]
-fn a_recording_on_the_reference_scene_replays_to_success_with_scene_dir() {
+fn a_recording_the_reference_code_made_replays_to_success_with_scene_dir() {
     let xmls = dexjoco_testkit::reference_scene_dir();
     let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
     let source = SceneSource::Dir(xmls.clone());
@@ -256,8 +257,27 @@ fn a_recording_on_the_reference_scene_replays_to_success_with_scene_dir() {
     let s0 = dexjoco_sim::TaskEnv::sample_initial_state(&scene, spec, &mut uniform).unwrap();
     let ep = dexjoco_sim::scripted::click_mouse_demo(&scene, spec, &s0, "episode_000000").unwrap();
     let tmp = tempfile::tempdir().unwrap();
-    let raw_dir = tmp.path().join("recorded/click_mouse/episode_000000");
-    dexjoco_formats::raw::write_replay_zarr(&raw_dir, &ep).unwrap();
+    let planned = tmp.path().join("planned/click_mouse/episode_000000");
+    dexjoco_formats::raw::write_replay_zarr(&planned, &ep).unwrap();
+    let recorded = tmp.path().join("recorded/click_mouse");
+    let stdout = dexjoco_testkit::run_reference_python(
+        "dexjoco_reference.py",
+        &[
+            "record",
+            "--task",
+            "click_mouse",
+            "--episode",
+            planned.to_str().unwrap(),
+            "--out",
+            recorded.to_str().unwrap(),
+        ],
+    );
+    let made: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(
+        made["first_success"],
+        serde_json::json!(ep.len() - 1),
+        "{made}"
+    );
 
     let out = tmp.path().join("aug");
     let mut c = config(vec![tmp.path().join("recorded")], &out);
@@ -268,8 +288,14 @@ fn a_recording_on_the_reference_scene_replays_to_success_with_scene_dir() {
     let report = run(&c, 2);
     let e = &report.episodes[0];
     assert!(e.success, "{e:?}");
-    assert_eq!(e.first_success, Some(ep.len() - 1));
-    assert_eq!(e.max_state_deviation, 0.0);
+    assert_eq!(
+        e.first_success,
+        Some(ep.len() - 1),
+        "on the reference's last frame"
+    );
+    // Equal to rounding until the mouse is touched, then as far apart as the reference
+    // is from itself under a 1e-9 m nudge (2.4e-2 here: docs/reference-parity.md).
+    assert!(e.max_state_deviation < 0.05, "{e:?}");
     assert_eq!(report.replays.len(), 2);
     let pool = &report.camera_pools["click_mouse"];
     assert!(pool.ends_with("replay_cameras.json"), "{pool}");
