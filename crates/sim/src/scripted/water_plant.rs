@@ -3,6 +3,13 @@
 //! the index finger straight along the bottle over the trigger lever on the spray head;
 //! carry the nozzle beside the plant, then curl the index finger to press the lever
 //! down and keep it pressed.
+//!
+//! A sprayer whose trigger hangs in front of the body below the spray head (the
+//! reference bottle: measured from the trigger hinge's place in the bottle's frame) has
+//! its trigger face 12.8 cm from the back of the body, beyond what the hand spans from a
+//! thumb on the back: the same grasp carries it beside the plant and sets it down there,
+//! then the hand rests palm-down on the body with the index and middle fingers hooked in
+//! front of the trigger (the middle one near its free end) and curls them to pull it.
 
 use dexjoco_core::HAND_DOF;
 
@@ -33,7 +40,8 @@ const TCP_Z: f64 = 0.16;
 const GRIP_Y: f64 = -0.05;
 
 /// Plans water_plant on an environment just restored from its initial state; the wrong
-/// plan pulls the trigger right after lifting the bottle, far from the plant.
+/// plan pulls the trigger right after lifting the bottle (a front trigger: after setting
+/// it down again), far from the plant.
 pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, SimError> {
     let s = env.state();
     let home = [s[3], s[4], s[5], s[6]];
@@ -48,6 +56,8 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     let yaw = front[1].atan2(front[0]);
     let q = kin::qmul(kin::yaw(yaw), home);
     let table = kin::site(e, "table_top")?[2];
+    let front_kind = front_trigger(e)?;
+    let rest_z = bp[2];
     let grip = kin::add(bp, kin::mulv(&m, [0.0, GRIP_Y, -0.01]));
     let mut at = kin::sub(grip, kin::mulv(&kin::qmat(kin::yaw(yaw)), GRIP));
     at[2] = table + TCP_Z;
@@ -78,6 +88,10 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     rec.settle(0.004, 60)?;
     show(&rec, "lifted");
     let latched = |e: &TaskEnv| e.checker().value("trigger") == Some(true);
+    if variant == Variant::Wrong && front_kind {
+        // Set down where it was lifted, far from the plant, and pull there.
+        return place_and_press(rec, home, rest_z, [up[0], up[1]], id);
+    }
     if variant == Variant::Wrong {
         rec.go_many(&[Goal::new(0, up, q, PULL)], 60, latched)?;
         rec.wait(30)?;
@@ -88,6 +102,10 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     let nozzle = kin::sub(kin::site(e, "ref_point")?, kin::tcp(e, 0).0);
     let plant = kin::body(e, "plant")?.0;
     let target = [plant[0] - 0.15, plant[1], plant[2] + 0.02];
+    if front_kind {
+        let to = kin::sub(target, nozzle);
+        return place_and_press(rec, home, rest_z, [to[0], to[1]], id);
+    }
     let mid = kin::scale(kin::add(kin::add(up, kin::sub(target, nozzle)), up), 0.5);
     rec.go(0, [mid[0], mid[1], up[2] + 0.05], q, HOLD, 90)?;
     rec.go(0, kin::sub(target, nozzle), q, HOLD, 90)?;
@@ -145,4 +163,108 @@ fn frame_debug_inner(rec: &Recorder) -> Result<(), SimError> {
         }
     }
     Ok(())
+}
+
+/// Whether the trigger hangs in front of the body (its hinge ahead of the body's front
+/// face along the spray direction), as on a hand-held sprayer, rather than lying on top
+/// of the spray head.
+fn front_trigger(e: &TaskEnv) -> Result<bool, SimError> {
+    let (bp, m) = kin::body(e, "link_2")?;
+    let d = kin::sub(kin::anchor(e, "joint_0")?, bp);
+    Ok(m[2] * d[0] + m[5] * d[1] + m[8] * d[2] > 0.03)
+}
+
+/// Diagnostics: the TCP in the bottle's frame and the fingertips relative to it.
+fn tips_debug(rec: &Recorder, what: &str) {
+    if !debug() {
+        return;
+    }
+    let e = rec.env();
+    let Ok((bp, m)) = kin::body(e, "link_2") else {
+        return;
+    };
+    let local = |d: V3| {
+        [
+            m[0] * d[0] + m[3] * d[1] + m[6] * d[2],
+            m[1] * d[0] + m[4] * d[1] + m[7] * d[2],
+            m[2] * d[0] + m[5] * d[1] + m[8] * d[2],
+        ]
+    };
+    let t = kin::tcp(e, 0).0;
+    eprintln!(
+        "{what}: tcp (bottle frame) {:.3?} trigger {:.3}",
+        local(kin::sub(t, bp)),
+        kin::joint(e, "joint_0").unwrap_or(f64::NAN)
+    );
+    for b in ["ff_tip", "mf_tip", "rf_tip", "th_tip"] {
+        if let Some(g) = super::geom_of_body(e, b) {
+            let tip = local(kin::sub(e.data().geom_xpos()[g], t));
+            eprintln!("{what} {b} - tcp (bottle frame) {tip:.3?}");
+        }
+    }
+}
+
+/// Front-trigger press, fingers pointing along the spray direction: index and middle
+/// fingers hooked down (tips ~0.08 below and ~0.13 ahead of the TCP, measured), the ring
+/// finger lying over the body, the thumb at home.
+const AIM: [f64; HAND_DOF] = [
+    0.0, 0.0, 1.0, 0.6, 0.0, 0.0, 1.0, 0.6, 0.0, 0.2, 0.3, 0.2, 0.263, 0.0, 0.0, 0.0,
+];
+/// As [`AIM`], index and middle curled (mostly the two outer joints, so the tips sweep
+/// back toward the body at the trigger's height rather than down under it).
+const PRESS: [f64; HAND_DOF] = [
+    0.0, 0.4, 1.709, 1.618, 0.0, 0.4, 1.709, 1.618, 0.0, 0.2, 0.3, 0.2, 0.263, 0.0, 0.0, 0.0,
+];
+/// The TCP in the bottle's frame for the press (x down, y toward the head, z along the
+/// spray): the hand rests on the body's upper face (x; it stops ~1 cm above this and
+/// presses, so the bottle does not slide), the index tip at y ~0.04 and the middle one
+/// at ~-0.01 near the trigger's free end (y), both ~1 cm ahead of the trigger (z).
+const PRESS_TCP: V3 = [-0.062, -0.035, -0.035];
+
+/// A sprayer whose trigger hangs in front of the body: carry the held bottle to TCP
+/// position `xy` and set it down (its centre `rest_z` high, as it lay), let go, then
+/// rest the hand on the body, yawed to its new spray direction, and pull the trigger
+/// with the index and middle fingers.
+fn place_and_press(
+    mut rec: Recorder,
+    home: kin::Q,
+    rest_z: f64,
+    xy: [f64; 2],
+    id: &str,
+) -> Result<Planned, SimError> {
+    let (tp, tq) = rec.target(0);
+    let bz = kin::body(rec.env(), "link_2")?.0[2];
+    let down = [xy[0], xy[1], tp[2] - (bz - rest_z) + 0.005];
+    if (down[0] - tp[0]).hypot(down[1] - tp[1]) > 0.05 {
+        let mid = kin::scale(kin::add(tp, down), 0.5);
+        rec.go(0, [mid[0], mid[1], tp[2] + 0.03], tq, HOLD, 70)?;
+    }
+    rec.go(0, down, tq, HOLD, 70)?;
+    rec.settle(0.004, 40)?;
+    rec.go(0, down, tq, OPEN, 20)?;
+    rec.go(0, kin::add(down, [0.0, 0.0, 0.08]), tq, OPEN, 40)?;
+    let e = rec.env();
+    let (bp, m) = kin::body(e, "link_2")?;
+    let yaw = m[5].atan2(m[2]);
+    let q = kin::qmul(kin::yaw(yaw), home);
+    let at = kin::add(bp, kin::mulv(&m, PRESS_TCP));
+    rec.go(0, kin::add(at, [0.0, 0.0, 0.08]), q, AIM, 60)?;
+    rec.go(0, at, q, AIM, 40)?;
+    rec.settle(0.003, 30)?;
+    tips_debug(&rec, "aim");
+    rec.snap(0, "water_aim");
+    let latched = |e: &TaskEnv| e.checker().value("trigger") == Some(true);
+    rec.go_many(&[Goal::new(0, at, q, PRESS)], 60, latched)?;
+    if debug() {
+        let st = rec.env().state();
+        eprintln!(
+            "pressed: trigger {:.3} ff {:.2?}",
+            kin::joint(rec.env(), "joint_0")?,
+            &st[7..11]
+        );
+    }
+    tips_debug(&rec, "press");
+    rec.snap(0, "water_press");
+    rec.wait(60)?;
+    rec.finish(id)
 }
