@@ -33,14 +33,28 @@ const RELEASE_Z: f64 = 0.02;
 /// the [`POINT`] pose (measured on the built-in robot, which has the reference's
 /// kinematics).
 const TIP: V3 = [-0.0142, 0.0547, -0.1778];
-/// The fingertip's distance from the hinge while folding.
+/// How far the front should stand from the table's near edge after a push back.
+const EDGE_CLEAR: f64 = 0.2;
+/// A fold stops (for a push back) when the front comes this close to the table's edge.
+const EDGE_MIN: f64 = 0.05;
+/// The fingertip's distance from a light hinge (damping under [`DAMPED`]) while folding.
 const FOLD_R: f64 = 0.13;
+/// Hinge damping (N m s) from which a temple is pushed near its tip ([`FOLD_AT`]): a
+/// damped hinge needs the longer lever, or the push drags the whole glasses.
+const DAMPED: f64 = 0.05;
+/// Where the fingertip pushes a temple on a damped hinge, as a fraction of its reach
+/// from the hinge.
+const FOLD_AT: f64 = 0.85;
+/// As [`FOLD_AT`] for the second temple (clear of the first one's tip, folded by then).
+const FOLD_AT_2: f64 = 0.8;
 /// How far the fingertip's target leads the temple around the hinge (rad).
 const FOLD_LEAD: f64 = 0.06;
 /// Where the fingertip comes down, behind the temple around the hinge (rad).
 const FOLD_BEHIND: f64 = 0.3;
 /// The fingertip's offset outside the temple (m).
 const FOLD_OUT: f64 = 0.018;
+/// The fingertip's height above the temple's estimated lowest point while folding.
+const FOLD_DZ: f64 = 0.005;
 
 /// Plans fold_glasses on an environment just restored from its initial state.
 pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
@@ -50,11 +64,20 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let table = kin::site(rec.env(), "table_top")?[2];
     // The hand pitched fingers-down (formed on the way to the first temple).
     let down = kin::qmul(kin::axis_angle([0.0, 1.0, 0.0], FRAC_PI_2), home);
-    for (joint, temple, other) in [
-        ("glass_joint_0", "glass_temple_0", "glass_joint_1"),
-        ("glass_joint_1", "glass_temple_1", "glass_joint_0"),
+    for (joint, other) in [
+        ("glass_joint_0", "glass_joint_1"),
+        ("glass_joint_1", "glass_joint_0"),
     ] {
-        fold_temple(&mut rec, down, joint, temple, other)?;
+        // When the folding slides the glasses near the table's edge, push them back
+        // and go on folding.
+        let mut approach = if joint == "glass_joint_0" { 110 } else { 45 };
+        for _ in 0..3 {
+            if fold_temple(&mut rec, down, joint, other, approach)? {
+                break;
+            }
+            push_back(&mut rec, down)?;
+            approach = 45;
+        }
     }
     // Folded, the glasses cannot stand: tip them over backwards (away from the table's
     // edge) with the fingertip on the top of the front.
@@ -100,32 +123,91 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     rec.finish(id)
 }
 
+/// Pushes the standing glasses away from the table's near edge (the folds push them
+/// toward it): the fingertip comes down in front of the lower front and moves it back
+/// until the front is [`EDGE_CLEAR`] from the edge.
+fn push_back(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
+    let e = rec.env();
+    let (fc, fm, half) = front(e)?;
+    let edge = table_near_edge(e)?;
+    let need = (edge + EDGE_CLEAR - fc[0]).min(0.15);
+    if debug() {
+        eprintln!("table edge {edge:.3} front {:.3} push {need:.3}", fc[0]);
+    }
+    if need < 0.01 {
+        return Ok(());
+    }
+    let mut back = kin::horizontal([fm[0], fm[3], fm[6]]);
+    if back[0] < 0.0 {
+        back = [-back[0], -back[1], 0.0];
+    }
+    let mut p0 = kin::sub(fc, kin::scale(back, half[0] + 0.03));
+    p0[2] = fc[2] - 0.4 * half[2];
+    let p1 = kin::add(p0, kin::scale(back, (need + 0.03) / back[0]));
+    rec.go(
+        0,
+        kin::sub(kin::add(p0, [0.0, 0.0, 0.1]), TIP),
+        down,
+        POINT,
+        45,
+    )?;
+    rec.settle(0.01, 10)?;
+    rec.go(0, kin::sub(p0, TIP), down, POINT, 20)?;
+    rec.settle(0.008, 10)?;
+    rec.go(0, kin::sub(p1, TIP), down, POINT, 40)?;
+    let here = rec.target(0).0;
+    rec.go(
+        0,
+        kin::add(kin::sub(here, kin::scale(back, 0.02)), [0.0, 0.0, 0.08]),
+        down,
+        POINT,
+        15,
+    )?;
+    show(rec, "pushed back");
+    Ok(())
+}
+
+/// The x of the table's near edge (the robot's side): the bounding box of the body
+/// holding site `table_top`.
+fn table_near_edge(e: &TaskEnv) -> Result<f64, SimError> {
+    let m = e.data().model();
+    let s = crate::checker::name_id(m, dexjoco_core::NameKind::Site, "table_top")
+        .ok_or_else(|| SimError::Spec("the scene has no Site 'table_top'".into()))?;
+    let b = m.site_bodyid()[s] as usize;
+    let (c, h) = body_box(e, b);
+    let d = e.data();
+    let xm = d.xmat()[b];
+    let x = d.xpos()[b][0] + kin::mulv(&xm, c)[0];
+    Ok(x - (0..3).map(|i| xm[i].abs() * h[i]).sum::<f64>())
+}
+
 /// In debug mode, prints the temples' joints and the glasses' position after a phase.
 fn show(rec: &Recorder, what: &str) {
     if debug() {
         let e = rec.env();
         eprintln!(
-            "{what}: step {} joints {:.3} {:.3} glass {:.3?}",
+            "{what}: step {} joints {:.3} {:.3} glass {:.3?} front {:.3?}",
             e.steps(),
             kin::joint(e, "glass_joint_0").unwrap_or(f64::NAN),
             kin::joint(e, "glass_joint_1").unwrap_or(f64::NAN),
             kin::body(e, "glass").map(|b| b.0).unwrap_or_default(),
+            front(e).ok(),
         );
     }
 }
 
-/// Folds one temple (`joint`, `temple`) toward the other hinge (`other`): the index
+/// Folds the temple on hinge `joint` toward the other hinge (`other`): the index
 /// fingertip comes down behind it and sweeps it around its hinge in a closed loop.
 fn fold_temple(
     rec: &mut Recorder,
     down: Q,
     joint: &str,
-    temple: &str,
     other: &str,
-) -> Result<(), SimError> {
+    approach: usize,
+) -> Result<bool, SimError> {
     let e = rec.env();
     let hinge = kin::anchor(e, joint)?;
-    let dir = kin::horizontal(kin::sub(kin::geom(e, temple)?.0, hinge));
+    let dir = kin::horizontal(kin::sub(temple(e, joint)?, hinge));
     let fold = kin::horizontal(kin::sub(kin::anchor(e, other)?, hinge));
     let a0 = dir[1].atan2(dir[0]);
     let mut a1 = fold[1].atan2(fold[0]);
@@ -137,24 +219,34 @@ fn fold_temple(
         a1 += 2.0 * std::f64::consts::PI;
     }
     let sign = (a1 - a0).signum();
-    let z = hinge[2];
+    let first_time = joint == "glass_joint_0";
+    // The fold stops just short of the hinge's limit.
+    let stop = {
+        let m = e.data().model();
+        let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
+            .ok_or_else(|| SimError::Spec(format!("no joint {joint}")))?;
+        m.jnt_range()[j][1] - 0.02
+    };
+    if kin::joint(e, joint)? > stop {
+        // Folded already (pushing the glasses back may fold a temple).
+        return Ok(true);
+    }
+    let (fold_r, z) = fold_at(e, joint, if first_time { FOLD_AT } else { FOLD_AT_2 })?;
     // The fingertip behind the temple (against the sweep), FOLD_OUT outside it.
     let at = |a: f64| {
-        let b = a - sign * FOLD_OUT / FOLD_R;
-        let p = [hinge[0] + FOLD_R * b.cos(), hinge[1] + FOLD_R * b.sin(), z];
+        let b = a - sign * FOLD_OUT / fold_r;
+        let p = [hinge[0] + fold_r * b.cos(), hinge[1] + fold_r * b.sin(), z];
         kin::sub(p, TIP)
     };
     let first = at(a0);
-    let first_time = joint == "glass_joint_0";
-    let steps = if first_time { 110 } else { 45 };
-    rec.go(0, kin::add(first, [0.0, 0.0, 0.08]), down, POINT, steps)?;
+    rec.go(0, kin::add(first, [0.0, 0.0, 0.08]), down, POINT, approach)?;
     rec.settle(0.01, 20)?;
     // The temple may have moved meanwhile: come down behind where it is now.
     let e = rec.env();
     let hinge = kin::anchor(e, joint)?;
-    let dir = kin::horizontal(kin::sub(kin::geom(e, temple)?.0, hinge));
+    let dir = kin::horizontal(kin::sub(temple(e, joint)?, hinge));
     let a = dir[1].atan2(dir[0]) - sign * FOLD_BEHIND;
-    let p = [hinge[0] + FOLD_R * a.cos(), hinge[1] + FOLD_R * a.sin(), z];
+    let p = [hinge[0] + fold_r * a.cos(), hinge[1] + fold_r * a.sin(), z];
     let first = kin::sub(p, TIP);
     rec.go(0, kin::add(first, [0.0, 0.0, 0.08]), down, POINT, 15)?;
     rec.go(0, first, down, POINT, 25)?;
@@ -163,21 +255,24 @@ fn fold_temple(
     rec.snap(0, &format!("glasses_at_{joint}"));
     // Closed loop: the fingertip's target leads the temple by FOLD_LEAD around the
     // hinge, both read again every step (the glasses slide a little while pushed).
-    let range = {
-        let m = rec.env().data().model();
-        let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
-            .ok_or_else(|| SimError::Spec(format!("no joint {joint}")))?;
-        m.jnt_range()[j][1]
-    };
-    for _ in 0..400 {
+    let edge = table_near_edge(rec.env())?;
+    let mut clear = true;
+    for k in 0..400_usize {
         let e = rec.env();
-        if kin::joint(e, joint)? > range - 0.02 || rec.done() {
+        if debug() && k.is_multiple_of(25) {
+            show(rec, &format!("  {k}"));
+        }
+        if front(e)?.0[0] < edge + EDGE_MIN {
+            clear = false;
+            break;
+        }
+        if kin::joint(e, joint)? > stop || rec.done() {
             break;
         }
         let hinge = kin::anchor(e, joint)?;
-        let dir = kin::horizontal(kin::sub(kin::geom(e, temple)?.0, hinge));
+        let dir = kin::horizontal(kin::sub(temple(e, joint)?, hinge));
         let a = dir[1].atan2(dir[0]) + sign * FOLD_LEAD;
-        let p = [hinge[0] + FOLD_R * a.cos(), hinge[1] + FOLD_R * a.sin(), z];
+        let p = [hinge[0] + fold_r * a.cos(), hinge[1] + fold_r * a.sin(), z];
         rec.go(0, kin::sub(p, TIP), down, POINT, 1)?;
     }
     rec.wait(20)?;
@@ -185,21 +280,21 @@ fn fold_temple(
     rec.snap(0, &format!("glasses_{joint}"));
     let here = rec.target(0).0;
     rec.go(0, kin::add(here, [0.0, 0.0, 0.12]), down, POINT, 30)?;
-    Ok(())
+    Ok(clear)
 }
 
 /// Tips the folded glasses over backwards (away from the table's edge) with the
 /// fingertip on the top of the front, when they still stand.
 fn tip_over_backwards(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
     let e = rec.env();
-    let (fc, fm) = kin::geom(e, "glass_front")?;
+    let (fc, fm, half) = front(e)?;
     let up = [fm[2], fm[5], fm[8]];
     if up[2] > 0.7 {
         let mut back = kin::horizontal([fm[0], fm[3], fm[6]]);
         if back[0] < 0.0 {
             back = [-back[0], -back[1], 0.0];
         }
-        let top = kin::add(fc, kin::scale(up, 0.035));
+        let top = kin::add(fc, kin::scale(up, half[2] - 0.009));
         let p0 = kin::sub(top, kin::scale(back, 0.03));
         let p1 = kin::add(top, kin::scale(back, 0.05));
         rec.go(
@@ -222,7 +317,7 @@ fn tip_over_backwards(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
 /// glasses lie (thumb at one long edge, fingers at the other), the thin front near its
 /// top when they still stand; fingers away from the robot.
 fn front_pinch(e: &TaskEnv, table: f64, home: Q) -> Result<(V3, Q), SimError> {
-    let (fc, fm) = kin::geom(e, "glass_front")?;
+    let (fc, fm, _) = front(e)?;
     let up = [fm[2], fm[5], fm[8]];
     let thick = [fm[0], fm[3], fm[6]];
     let upright = up[2].abs() > 0.7;
@@ -248,4 +343,101 @@ fn front_pinch(e: &TaskEnv, table: f64, home: Q) -> Result<(V3, Q), SimError> {
     );
     at[2] = table + tcp_z;
     Ok((at, q))
+}
+
+/// The union of the collision geoms' bounding boxes of body `b`, in the body's frame:
+/// its centre and half sizes.
+fn body_box(e: &TaskEnv, b: usize) -> (V3, V3) {
+    let m = e.data().model();
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for g in 0..m.ffi().ngeom as usize {
+        if m.geom_bodyid()[g] as usize != b
+            || (m.geom_contype()[g] == 0 && m.geom_conaffinity()[g] == 0)
+        {
+            continue;
+        }
+        let bb = m.geom_aabb()[g];
+        let r = kin::qmat(m.geom_quat()[g]);
+        for k in 0..8 {
+            let c: V3 = std::array::from_fn(|i| {
+                let s = if k >> i & 1 == 1 { 1.0 } else { -1.0 };
+                bb[i] + s * bb[3 + i]
+            });
+            let p = kin::add(m.geom_pos()[g], kin::mulv(&r, c));
+            for i in 0..3 {
+                lo[i] = lo[i].min(p[i]);
+                hi[i] = hi[i].max(p[i]);
+            }
+        }
+    }
+    let c = std::array::from_fn(|i| (lo[i] + hi[i]) / 2.0);
+    let h = std::array::from_fn(|i| (hi[i] - lo[i]) / 2.0);
+    (c, h)
+}
+
+/// The centre (world) of the bounding box of the temple on hinge `joint` (the body the
+/// joint moves).
+fn temple(e: &TaskEnv, joint: &str) -> Result<V3, SimError> {
+    let m = e.data().model();
+    let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
+        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
+    let b = m.jnt_bodyid()[j] as usize;
+    let (c, _) = body_box(e, b);
+    let d = e.data();
+    Ok(kin::add(d.xpos()[b], kin::mulv(&d.xmat()[b], c)))
+}
+
+/// Where the fingertip pushes the temple on hinge `joint` (damped: see [`DAMPED`]): its
+/// distance from the hinge,
+/// [`FOLD_AT`] of the temple's reach (near its tip, so the push beats the tip's friction
+/// on the table directly, not through the hinge), and its height, just above the
+/// temple's lowest point there. The temple (its bounding box) is taken to run from the
+/// hinge down to the box's bottom over twice the horizontal distance to the box's centre
+/// (the straight finger, pointing down, spans the temple's height).
+fn fold_at(e: &TaskEnv, joint: &str, t: f64) -> Result<(f64, f64), SimError> {
+    let m = e.data().model();
+    let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
+        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
+    let b = m.jnt_bodyid()[j] as usize;
+    let (c, h) = body_box(e, b);
+    let d = e.data();
+    let xm = d.xmat()[b];
+    let centre = kin::add(d.xpos()[b], kin::mulv(&xm, c));
+    let bottom = centre[2] - (0..3).map(|i| xm[6 + i].abs() * h[i]).sum::<f64>();
+    let hinge = kin::anchor(e, joint)?;
+    if m.dof_damping()[m.jnt_dofadr()[j] as usize] < DAMPED {
+        // A light hinge: push the temple mid-way, level with the hinge.
+        return Ok((FOLD_R, hinge[2]));
+    }
+    let reach = 2.0 * (centre[0] - hinge[0]).hypot(centre[1] - hinge[1]);
+    if debug() {
+        eprintln!(
+            "{joint}: hinge z {:.3} bottom {bottom:.3} reach {reach:.3}",
+            hinge[2]
+        );
+    }
+    Ok((reach * t, hinge[2] - (hinge[2] - bottom) * t + FOLD_DZ))
+}
+
+/// The front of the glasses (the collision geoms of body `glass`): its bounding box's
+/// centre (world), a row-major matrix whose columns are the box's thin, wide and tall
+/// axes (world; the tall one pointing up when the glasses stand), and its half sizes
+/// along them.
+fn front(e: &TaskEnv) -> Result<(V3, [f64; 9], V3), SimError> {
+    let m = e.data().model();
+    let b = crate::checker::name_id(m, dexjoco_core::NameKind::Body, "glass")
+        .ok_or_else(|| SimError::Spec("the scene has no Body 'glass'".into()))?;
+    let (c, h) = body_box(e, b);
+    let d = e.data();
+    let xm = d.xmat()[b];
+    let mut order = [0, 1, 2];
+    order.sort_by(|&a, &b| h[a].total_cmp(&h[b]));
+    let [thin, tall, wide] = order;
+    let col = |i: usize| [xm[i], xm[3 + i], xm[6 + i]];
+    let up = col(tall);
+    let s = if up[2] < 0.0 { -1.0 } else { 1.0 };
+    let (a, w, u) = (col(thin), col(wide), kin::scale(up, s));
+    let fm = [a[0], w[0], u[0], a[1], w[1], u[1], a[2], w[2], u[2]];
+    let centre = kin::add(d.xpos()[b], kin::mulv(&xm, c));
+    Ok((centre, fm, [h[thin], h[wide], h[tall]]))
 }
