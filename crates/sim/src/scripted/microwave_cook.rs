@@ -6,7 +6,8 @@
 //! fingers-up. The right hand carries the hot dog in over the oven's floor, lets go and
 //! backs out of the door's sweep; the left hand pushes the door shut with its fingertips,
 //! slides out of the handle and backs away; the right index finger then presses the start
-//! button with a guarded move, ending on the success step.
+//! button with a guarded move, re-aimed by where the fingertip is measured to be, ending
+//! on the success step.
 
 use dexjoco_core::{HAND_DOF, NameKind};
 
@@ -43,9 +44,14 @@ const RELEASE: [f64; HAND_DOF] = [
 const PRESS: [f64; HAND_DOF] = [
     0.0, 0.0, 0.0, 0.0, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 1.4, 0.5, 1.6, 1.6,
 ];
-/// The straight index fingertip from the TCP with the hand palm down, fingers along x
-/// (the robot's kinematics).
-const INDEX_TIP: V3 = [0.176, 0.054, -0.051];
+/// The straight index fingertip (its collision geom's centre) from the TCP with the hand
+/// palm down, fingers along x (the robot's kinematics).
+const INDEX_TIP: V3 = [0.176, 0.054, -0.035];
+/// The most the press target is shifted per round toward the button (m).
+const AIM_MAX: f64 = 0.05;
+/// The fingertip's offset from the button's centre below which the press is not
+/// re-aimed (m; the button's face is 50 mm square).
+const AIM_TOL: f64 = 0.005;
 
 /// The finger plane's offset from the TCP along the palm normal.
 const FINGERS_OUT: f64 = 0.03;
@@ -322,6 +328,7 @@ struct Setup {
     pq: Q,
     button: usize,
     button_depth: f64,
+    tip: usize,
 }
 
 impl Setup {
@@ -372,6 +379,8 @@ impl Setup {
         );
         let button = geom_id("start_button")?;
         let button_depth = e.data().model().geom_size()[button][1];
+        let tip = super::geom_of_body(e, "ff_tip_right")
+            .ok_or_else(|| SimError::Spec("no right index fingertip geom".into()))?;
         Ok(Self {
             hinge,
             theta0,
@@ -390,6 +399,7 @@ impl Setup {
             pq,
             button,
             button_depth,
+            tip,
         })
     }
 
@@ -617,13 +627,21 @@ fn press_start(rec: &mut Recorder, setup: &Setup, ready: V3) -> Result<(), SimEr
         25,
         |_| false,
     )?;
-    let arrived = |e: &TaskEnv| kin::norm(kin::sub(kin::tcp(e, RIGHT).0, ready)) < 0.004;
-    rec.go_many(&[], 30, arrived)?;
+    let aim = aim_at_button(rec, setup, ready)?;
     let pressed = |e: &TaskEnv| e.checker().value("start_pressed") == Some(true);
-    let deep = kin::add(ready, kin::scale(setup.into, 0.045));
+    let deep = kin::add(aim, kin::scale(setup.into, 0.045));
     rec.go_many(&[Goal::new(RIGHT, deep, setup.level, PRESS)], 25, pressed)?;
     show(rec, "pressed");
     if debug() {
+        let e = rec.env();
+        let tip = e.data().geom_xpos()[setup.tip];
+        eprintln!(
+            "  tcp {:.4?} tip {:.4?} button {:.4?} tip contacts {:?}",
+            kin::tcp(e, RIGHT).0,
+            tip,
+            e.data().geom_xpos()[setup.button],
+            contacts(e, None, "ff_tip_right")
+        );
         eprintln!(
             "  button touched by {:?}",
             contacts(rec.env(), Some(setup.button), "")
@@ -632,4 +650,33 @@ fn press_start(rec: &mut Recorder, setup: &Setup, ready: V3) -> Result<(), SimEr
     rec.wait(20)?;
     snap(rec, "f_end", VIEW, 1.0);
     Ok(())
+}
+
+/// The right index fingertip in front of the button: waits for the TCP to arrive at
+/// `ready`, measures where the fingertip is, and shifts the target across the press
+/// direction by the fingertip's offset from the button's centre (the arm may settle
+/// off its target, its elbow folded near its limit, so close to its base). Returns the
+/// TCP target the press starts from.
+fn aim_at_button(rec: &mut Recorder, setup: &Setup, ready: V3) -> Result<V3, SimError> {
+    let near = |to: V3| move |e: &TaskEnv| kin::norm(kin::sub(kin::tcp(e, RIGHT).0, to)) < 0.003;
+    rec.go_many(&[], 60, near(ready))?;
+    let e = rec.env();
+    let off = kin::sub(
+        e.data().geom_xpos()[setup.button],
+        e.data().geom_xpos()[setup.tip],
+    );
+    let along = off[0] * setup.into[0] + off[1] * setup.into[1] + off[2] * setup.into[2];
+    let across = kin::sub(off, kin::scale(setup.into, along));
+    if debug() {
+        eprintln!("  fingertip off the button by {across:.4?}");
+    }
+    if kin::norm(across) < AIM_TOL {
+        return Ok(ready);
+    }
+    let aim = kin::add(
+        ready,
+        kin::scale(across, (AIM_MAX / kin::norm(across)).min(1.0)),
+    );
+    rec.go_many(&[Goal::new(RIGHT, aim, setup.level, PRESS)], 40, near(aim))?;
+    Ok(aim)
 }
