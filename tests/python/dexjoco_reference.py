@@ -165,8 +165,10 @@ def make_env(task: str, seed: int = 0):
     return config, env
 
 
+@functools.lru_cache(maxsize=None)
 def state_blocks(task: str) -> list[tuple[str, int]]:
-    """The state vector's blocks (proprio key, width) in order."""
+    """The state vector's blocks (proprio key, width) in order (an env made once per
+    task and process)."""
     config, env = make_env(task)
     try:
         state = env.unwrapped._compute_observation()["state"]

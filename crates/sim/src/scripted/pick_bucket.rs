@@ -201,6 +201,14 @@ fn raise_folded(rec: &mut Recorder, home: Q) -> Result<(), SimError> {
         let tip = kin::add(mid, kin::mulv(&rot, kin::scale(u0, rho)));
         kin::add(tip, [DOWN_TIP.0 * u0[0], DOWN_TIP.0 * u0[1], DOWN_TIP.1])
     };
+    // Carries the fingertips along the arc, a step at a time, until the bar is at `to`.
+    let sweep = |rec: &mut Recorder, t: &mut f64, to: f64, hand: &[f64; HAND_DOF]| {
+        while *t < to - TIP_LAG {
+            *t += ARC_STEP.0;
+            rec.go(0, tcp_at(*t), q, *hand, ARC_STEP.1)?;
+        }
+        Ok::<(), SimError>(())
+    };
     let mut t = -TIP_LAG;
     rec.go(0, kin::add(tcp_at(t), [0.0, 0.0, 0.1]), q, DOWN, 60)?;
     rec.settle(0.005, 40)?;
@@ -208,19 +216,13 @@ fn raise_folded(rec: &mut Recorder, home: Q) -> Result<(), SimError> {
     rec.settle(0.003, 40)?;
     show(rec, "below the bar");
     rec.snap(0, "bucket_below_bar");
-    while t < HOOK_AT - TIP_LAG {
-        t += ARC_STEP.0;
-        rec.go(0, tcp_at(t), q, DOWN, ARC_STEP.1)?;
-    }
+    sweep(rec, &mut t, HOOK_AT, &DOWN)?;
     rec.wait(10)?;
     show(rec, "bar raised");
     rec.go(0, tcp_at(t), q, HOOK_DOWN, 25)?;
     show(rec, "bar hooked");
     rec.snap(0, "bucket_bar_hooked");
-    while t < ARC_END - TIP_LAG {
-        t += ARC_STEP.0;
-        rec.go(0, tcp_at(t), q, HOOK_DOWN, ARC_STEP.1)?;
-    }
+    sweep(rec, &mut t, ARC_END, &HOOK_DOWN)?;
     rec.wait(10)?;
     show(rec, "bar up");
     rec.go(0, tcp_at(t), q, CLOSE, 20)?;
