@@ -482,6 +482,7 @@ fn record_of(
         extended: physics.extended(),
         max_state_deviation: physics.deviation,
         deviation_at: physics.deviation_at,
+        flags: Vec::new(),
         videos: Vec::new(),
         depth: Vec::new(),
         dynamics,

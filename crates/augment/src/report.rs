@@ -5,6 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use dexjoco_formats::raw::RenderFlag;
 use dexjoco_sim::RenderSettings;
 use serde::{Deserialize, Serialize};
 
@@ -44,6 +45,10 @@ pub struct ReplayRecord {
     pub max_state_deviation: f64,
     /// Where that largest deviation is: (frame, column).
     pub deviation_at: Option<(usize, usize)>,
+    /// The render checks this replay failed (empty: it passed them all). Absent in
+    /// replays made before the checks existed.
+    #[serde(default)]
+    pub flags: Vec<RenderFlag>,
     /// Videos written, relative to the replay folder.
     pub videos: Vec<String>,
     /// Depth files written (`videos/<camera>_depth.npz`), relative to the replay folder.

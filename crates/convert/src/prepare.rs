@@ -165,6 +165,10 @@ pub fn prepare(
         skipped,
         videos,
         stats,
+        label: None,
+        privileged: None,
+        privileged_names: Vec::new(),
+        depth: Vec::new(),
     })
 }
 

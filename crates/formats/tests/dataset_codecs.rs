@@ -91,6 +91,10 @@ fn episode(e: usize, n: usize, instruction: &str, video: Option<VideoPart>) -> P
         skipped: 0,
         videos: video.into_iter().collect(),
         stats,
+        label: None,
+        privileged: None,
+        privileged_names: Vec::new(),
+        depth: Vec::new(),
     }
 }
 

@@ -28,6 +28,7 @@ use dexjoco_video::VideoInfo;
 use serde::Serialize;
 
 use crate::error::DatasetError;
+use crate::raw::ReplayLabel;
 use stats::FeatureStats;
 
 pub use diffusion_policy::{REPLAY_BUFFER, ZarrWriter};
@@ -121,6 +122,34 @@ pub struct PreparedEpisode {
     pub videos: Vec<VideoPart>,
     /// Statistics of action, state and each camera (`observation.images.<name>`).
     pub stats: BTreeMap<String, FeatureStats>,
+    /// The replay's record (outcome, render flags, randomization draw) for a replay
+    /// made by augment; `None` for a recording.
+    pub label: Option<ReplayLabel>,
+    /// With `--privileged-state`: the task spec's non-proprioceptive state columns
+    /// (objects' reset-time poses, `dh`), from the first kept frame.
+    pub privileged: Option<FrameArray>,
+    /// Column names of `privileged`, from the task spec (`mouse.pos[0]` ...).
+    pub privileged_names: Vec<String>,
+    /// With `--depth`: per output camera, in name order, its depth archive.
+    pub depth: Vec<DepthPart>,
+}
+
+/// A camera's depth for one episode: augment's `videos/<camera>_depth.npz` (key
+/// `depth`, float32 (T, H, W), metres).
+#[derive(Debug, Clone)]
+pub struct DepthPart {
+    /// Output camera name (the same as its colour video's).
+    pub name: String,
+    /// The archive.
+    pub path: PathBuf,
+    /// Frames of the archive before the episode's first kept frame.
+    pub skip: usize,
+    /// All frames of the archive.
+    pub frames: usize,
+    /// Frame width in pixels.
+    pub width: usize,
+    /// Frame height in pixels.
+    pub height: usize,
 }
 
 impl PreparedEpisode {

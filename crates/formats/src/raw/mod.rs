@@ -19,9 +19,13 @@ use crate::error::{FormatError, ProblemCode, Result, io_err};
 use crate::manifest::{ManifestEntry, SourceKind};
 use crate::zarr_v2::{self, Blosc};
 
+mod record;
 mod write;
 mod zarr_read;
 
+pub use record::{
+    REPLAY_RECORD, RenderCheck, RenderFlag, ReplayLabel, read_replay_label, replay_success,
+};
 use write::ATTRIBUTES_FILE;
 pub use write::{own_instruction, write_raw_episode, write_replay_zarr};
 use zarr_read::*;
@@ -270,33 +274,6 @@ fn normalise(episode: &mut Episode, task: &TaskSpec, notes: &mut Vec<String>) ->
         notes.push("action_rotvec was absent: computed from action".into());
     }
     Ok(())
-}
-
-/// Augment's record of one replay, in the replay folder (its `success` field says
-/// whether the task succeeded in the replay; `--keep-failed` keeps failed ones).
-pub const REPLAY_RECORD: &str = "replay.json";
-
-/// Whether the replay record (`replay.json`) of an episode folder says its task
-/// succeeded: `None` when the folder has no record (a recording, not a replay); an
-/// error naming the file and field when the record is unreadable or has no boolean
-/// `success`.
-pub fn replay_success(dir: &Path) -> Result<Option<bool>> {
-    let path = dir.join(REPLAY_RECORD);
-    if !path.exists() {
-        return Ok(None);
-    }
-    let at = Location::default().path(&path).field("success");
-    let v = read_json(&path, &at)?;
-    v.get("success")
-        .and_then(Value::as_bool)
-        .map(Some)
-        .ok_or_else(|| {
-            FormatError::input(
-                ProblemCode::Corrupt,
-                &at,
-                "the replay record has no boolean 'success'",
-            )
-        })
 }
 
 /// The number of frames every array holds: that of `action` (else of the first array);

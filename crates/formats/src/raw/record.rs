@@ -1,0 +1,162 @@
+//! What the later stages read of augment's replay record (`replay.json`): the task's
+//! outcome, the render checks' flags and the randomization draw. Augment writes the
+//! whole record (its `ReplayRecord`); `convert` labels episodes with this part of it and
+//! `stats --dataset` counts it.
+
+use std::path::Path;
+
+use dexjoco_core::Location;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use super::zarr_read::read_json;
+use crate::error::{FormatError, ProblemCode, Result};
+
+/// Augment's record of one replay, in the replay folder (its `success` field says
+/// whether the task succeeded in the replay; `--keep-failed` keeps failed ones).
+pub const REPLAY_RECORD: &str = "replay.json";
+
+/// One render check a replay can fail.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RenderCheck {
+    /// Frames of one colour (all black, or the clear colour only): nothing was drawn.
+    BlankFrame,
+    /// A camera's video stands still over many frames while the robot moves.
+    FrozenVideo,
+    /// NaN or infinity in a stored array (state, action, depth...).
+    NonFinite,
+}
+
+impl RenderCheck {
+    /// The name in records and reports (`blank_frame`, `frozen_video`, `non_finite`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::BlankFrame => "blank_frame",
+            Self::FrozenVideo => "frozen_video",
+            Self::NonFinite => "non_finite",
+        }
+    }
+}
+
+impl std::fmt::Display for RenderCheck {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A check a replay failed, with where: one entry per check, camera (or array) and run
+/// of consecutive frames.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RenderFlag {
+    /// Which check.
+    pub check: RenderCheck,
+    /// The camera whose frames failed it (`None` for an array).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<String>,
+    /// The array holding a non-finite value (`state`, `action`, `<camera>_depth`...).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub array: Option<String>,
+    /// First frame of the run.
+    pub first_frame: usize,
+    /// Last frame of the run (inclusive).
+    pub last_frame: usize,
+    /// What was seen, in words (e.g. "every pixel (0, 0, 0)", "state moved 0.12 m").
+    pub detail: String,
+}
+
+impl RenderFlag {
+    /// Frames in the run.
+    pub fn frames(&self) -> usize {
+        self.last_frame + 1 - self.first_frame
+    }
+
+    /// One line: `blank_frame on front, frames 10-20 (every pixel (0, 0, 0))`.
+    pub fn describe(&self) -> String {
+        let what = match (&self.camera, &self.array) {
+            (Some(c), _) => format!(" on {c}"),
+            (None, Some(a)) => format!(" in {a}"),
+            (None, None) => String::new(),
+        };
+        format!(
+            "{}{what}, frames {}-{} ({})",
+            self.check, self.first_frame, self.last_frame, self.detail
+        )
+    }
+}
+
+/// The part of a replay record (`replay.json`) the later stages use.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct ReplayLabel {
+    /// Whether the task succeeded on some step.
+    pub success: bool,
+    /// First successful step.
+    #[serde(default)]
+    pub first_success: Option<usize>,
+    /// Frames replayed.
+    #[serde(default)]
+    pub steps: usize,
+    /// Recorded steps used.
+    #[serde(default)]
+    pub recorded_steps: usize,
+    /// Whether the replay ran past the recording to reach its success.
+    #[serde(default)]
+    pub extended: bool,
+    /// Failed render checks (empty: every check passed, or a record made before the
+    /// checks existed, see `checked`).
+    #[serde(default)]
+    pub flags: Vec<RenderFlag>,
+    /// Whether the render checks ran on this replay (records made before they existed
+    /// have no `flags` field).
+    #[serde(skip)]
+    pub checked: bool,
+    /// The visual randomization draw (`seed`, `camera_index`, `camera`, `table_index`,
+    /// `table`, `headlight_*`, `lights`), as written.
+    #[serde(default)]
+    pub sample: Value,
+    /// The dynamics draw (`--dynamics`): `[{kind, target, original, value}]`.
+    #[serde(default)]
+    pub dynamics: Option<Value>,
+}
+
+impl ReplayLabel {
+    /// Whether a render check flagged this replay.
+    pub fn flagged(&self) -> bool {
+        !self.flags.is_empty()
+    }
+}
+
+/// Reads the replay record (`replay.json`) of an episode folder: `None` when the folder
+/// has none (a recording, not a replay); an error naming the file and field when it is
+/// unreadable or has no boolean `success`.
+pub fn read_replay_label(dir: &Path) -> Result<Option<ReplayLabel>> {
+    let path = dir.join(REPLAY_RECORD);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let at = Location::default().path(&path).field("success");
+    let v = read_json(&path, &at)?;
+    if !v.get("success").is_some_and(Value::is_boolean) {
+        return Err(FormatError::input(
+            ProblemCode::Corrupt,
+            &at,
+            "the replay record has no boolean 'success'",
+        ));
+    }
+    let checked = v.get("flags").is_some();
+    let mut label: ReplayLabel = serde_json::from_value(v).map_err(|e| {
+        FormatError::input(
+            ProblemCode::Corrupt,
+            &Location::default().path(&path),
+            format!("the replay record does not parse: {e}"),
+        )
+    })?;
+    label.checked = checked;
+    Ok(Some(label))
+}
+
+/// Whether the replay record (`replay.json`) of an episode folder says its task
+/// succeeded: `None` when the folder has no record (a recording, not a replay).
+pub fn replay_success(dir: &Path) -> Result<Option<bool>> {
+    Ok(read_replay_label(dir)?.map(|l| l.success))
+}
