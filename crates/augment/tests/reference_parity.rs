@@ -71,6 +71,34 @@ fn case(task: &str, variant: Variant) -> Case {
     }
 }
 
+/// Plans every `(task, variant)` on the machine's two cores (each plan is independent and
+/// deterministic), in the order given.
+fn plan_all(wanted: &[(&str, Variant)]) -> Vec<Case> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut planned: Vec<(usize, Case)> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..2)
+            .map(|_| {
+                s.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(&(task, variant)) = wanted.get(i) else {
+                            return mine;
+                        };
+                        mine.push((i, case(task, variant)));
+                    }
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().unwrap())
+            .collect()
+    });
+    planned.sort_by_key(|(i, _)| *i);
+    planned.into_iter().map(|(_, c)| c).collect()
+}
+
 /// Runs the reference replays of `jobs` in two processes (the machine's two cores).
 fn replay_reference(jobs: &[Value], dir: &Path) -> Vec<Value> {
     let halves: Vec<&[Value]> = jobs.chunks(jobs.len().div_ceil(2)).collect();
@@ -240,13 +268,12 @@ fn replay_through_augment(cases: &[Case], dir: &Path) {
 #[test]
 fn every_task_replays_as_the_reference_replays_it() {
     let dir = tempfile::tempdir().unwrap();
-    let mut cases: Vec<Case> = PLANNED_TASKS
-        .iter()
-        .map(|t| case(t, Variant::Demo))
-        .collect();
+    let mut wanted: Vec<(&str, Variant)> =
+        PLANNED_TASKS.iter().map(|t| (*t, Variant::Demo)).collect();
     for task in ["bimanual_hanoi", "bimanual_unlock_ipad", "water_plant"] {
-        cases.push(case(task, Variant::Wrong));
+        wanted.push((task, Variant::Wrong));
     }
+    let cases = plan_all(&wanted);
     let mut jobs = Vec::new();
     for c in &cases {
         let recording = dir.path().join(&c.name);
