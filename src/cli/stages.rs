@@ -160,7 +160,10 @@ Input: an episode store (a folder with manifest.json, as `ingest` writes it: its
 episodes) or any folder of DexJoCo raw episode folders (replay.zarr + videos/<camera>.mp4),
 searched recursively (folders starting with `.`, such as augment's .staging/, are not
 read). Without an input: <work-dir>/augment. Replays whose replay.json says the task
-failed (augment --keep-failed) are left out and named unless --include-failed.
+failed (augment --keep-failed) are left out and named unless --include-failed, those a
+render check flagged unless --include-flagged. Every replay converted carries its outcome
+and randomization draw as per-episode metadata (LeRobot v3.0: meta/episodes columns
+outcome/*, randomization/*; Diffusion Policy: meta/<name> arrays and meta/.zattrs).
 
 Videos are joined per camera by stream copy when the source codec fits (H.264, HEVC,
 AV1 in yuv420p at the dataset's rate): no re-encode, and static leading frames are
@@ -206,6 +209,24 @@ pub struct ConvertArgs {
     /// --keep-failed); by default they are left out and named (exit code 3).
     #[arg(long)]
     pub include_failed: bool,
+    /// Also convert replays a render check flagged (blank frames, a frozen video,
+    /// non-finite values: replay.json's flags); by default they are left out and named
+    /// with their flags (exit code 3).
+    #[arg(long)]
+    pub include_flagged: bool,
+    /// Also export the privileged state (the task spec's state columns after the
+    /// proprioception: objects' reset-time poses, dh) as `privileged.state` (LeRobot, outside
+    /// observation.*, so policies do not take it as input) or data/privileged_state
+    /// (Diffusion Policy), one name per column from the task spec.
+    #[arg(long)]
+    pub privileged_state: bool,
+    /// Also carry each camera's depth (augment --depth's videos/<camera>_depth.npz, float32
+    /// metres): LeRobot v3.0 as lerobot 0.6.1 stores depth (video feature
+    /// observation.images.<camera>_depth, 12-bit log-quantized, lossless HEVC), Diffusion
+    /// Policy as data/<camera>_depth (float32 metres); not with --format lerobot-v2.1. An
+    /// episode without its archives is left out and named.
+    #[arg(long)]
+    pub depth: bool,
     /// Keep static leading frames (skipped by default, by the reference converter's rule).
     #[arg(long)]
     pub no_skip_static: bool,

@@ -118,6 +118,7 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
     if config.shard.is_none() {
         outln!("report: {}", out.join(dexjoco_augment::REPORT_MD).display());
     }
+    warn_flagged(&report, &config);
     let partial = report.failed_episodes() > 0
         || !report.skipped.is_empty()
         || !report.failed_units.is_empty();
@@ -126,6 +127,34 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
     } else {
         ExitStatus::Success
     })
+}
+
+/// The warning, on stderr, that render checks flagged replays: how many, where they are
+/// listed, and that `convert` leaves them out.
+fn warn_flagged(report: &dexjoco_augment::AugmentReport, config: &AugmentConfig) {
+    if report.flagged.is_empty() {
+        return;
+    }
+    let listed = if config.shard.is_some() {
+        "in their replay.json `flags` (the run without --shard lists them in its report)".to_owned()
+    } else {
+        format!(
+            "under \"Flagged replays\" in {} (`flagged` in {})",
+            config.out.join(dexjoco_augment::REPORT_MD).display(),
+            dexjoco_augment::REPORT_JSON
+        )
+    };
+    errln!(
+        "warning: {} replay(s) failed a render check (blank frames, a frozen video, NaN or infinity), listed {listed}; they are kept, but `convert` leaves them out unless --include-flagged",
+        report.flagged.len()
+    );
+    for f in report.flagged.iter().take(5) {
+        let first = f.flags.first().map(|x| x.describe()).unwrap_or_default();
+        errln!("  FLAGGED: {}/{}: {first}", f.task, f.replay);
+    }
+    if report.flagged.len() > 5 {
+        errln!("  ... and {} more", report.flagged.len() - 5);
+    }
 }
 
 /// The errors augment finds before spending any work, with their exit status and hint: a

@@ -500,12 +500,19 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
         "Where a frame's time goes: milliseconds of work per rendered frame, summed over the processes (the x264 encoders run in processes of their own), and each stage's share"
     );
     outln!();
+    // The render checks' column comes last, after the stages of making a frame.
     let names = StageTimes::default().stages().map(|(n, _)| n);
+    let (making, checks) = names.split_at(names.len() - 1);
     outln!(
-        "| size | quality | geometry | approach | workers | {} | bottleneck |",
-        names.join(" | ")
+        "| size | quality | geometry | approach | workers | {} | bottleneck | {} |",
+        making.join(" | "),
+        checks.join(" | ")
     );
-    outln!("|---:|---|---|---|---:|{}---|", "---:|".repeat(names.len()));
+    outln!(
+        "|---:|---|---|---|---:|{}---|{}",
+        "---:|".repeat(making.len()),
+        "---:|".repeat(checks.len())
+    );
     for r in runs {
         let Some(t) = &r.times else { continue };
         let total = t.total().max(f64::MIN_POSITIVE);
@@ -514,17 +521,45 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
             .iter()
             .map(|(_, s)| format!("{:.2} ({:.0} %)", t.ms_per_frame(*s), 100.0 * s / total))
             .collect();
+        let (making, checks) = cells.split_at(cells.len() - 1);
         outln!(
-            "| {0}x{0} | {1} | {6} | {2} | {3} | {4} | {5} |",
+            "| {0}x{0} | {1} | {6} | {2} | {3} | {4} | {5} | {7} |",
             r.size,
             r.quality,
             r.approach,
             r.workers,
-            cells.join(" | "),
+            making.join(" | "),
             t.bottleneck(),
-            r.geometry
+            r.geometry,
+            checks.join(" | ")
         );
     }
+    print_checks_share(runs);
+}
+
+/// What the render checks cost: their share of each augment run's work, smallest and
+/// largest.
+fn print_checks_share(runs: &[Run]) {
+    let shares: Vec<(f64, f64)> = runs
+        .iter()
+        .filter_map(|r| r.times.as_ref())
+        .filter(|t| t.frames > 0)
+        .map(|t| {
+            let share = 100.0 * t.checks / t.total().max(f64::MIN_POSITIVE);
+            (share, t.ms_per_frame(t.checks))
+        })
+        .collect();
+    if shares.is_empty() {
+        return;
+    }
+    let (lo, hi) = shares.iter().fold((f64::MAX, 0.0f64), |(lo, hi), (s, _)| {
+        (lo.min(*s), hi.max(*s))
+    });
+    let ms = shares.iter().map(|(_, m)| *m).fold(0.0f64, f64::max);
+    outln!();
+    outln!(
+        "Render checks (blank, frozen, non-finite; every frame): {lo:.2}-{hi:.2} % of the work, at most {ms:.3} ms per frame"
+    );
 }
 
 /// Frames of a replay compared between the full and the light geometry.

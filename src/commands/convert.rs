@@ -81,6 +81,9 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
             format!("; left out: {}", summary.excluded.join(", "))
         }
     );
+    if options.norm_stats.is_some() {
+        warn_flat_norm_stats(&summary.out);
+    }
     if summary.failed.is_empty() {
         return Ok(ExitStatus::Success);
     }
@@ -92,6 +95,34 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
         outln!("  {}: {}", f.episode, f.reason);
     }
     Ok(ExitStatus::Partial)
+}
+
+/// Warns about each zero-variance column of the dataset's `norm_stats.json` (named after
+/// the LeRobot features' names where the dataset has `meta/info.json`): the file stays as
+/// openpi writes it, and openpi's Normalize divides by std + 1e-6.
+fn warn_flat_norm_stats(dataset: &std::path::Path) {
+    let read = |p: std::path::PathBuf| -> Option<serde_json::Value> {
+        serde_json::from_slice(&fs_err::read(p).ok()?).ok()
+    };
+    let Some(doc) = read(dataset.join(dexjoco_formats::openpi::NORM_STATS)) else {
+        return;
+    };
+    let mut names = std::collections::BTreeMap::new();
+    if let Some(info) = read(dataset.join("meta").join("info.json")) {
+        for (key, feature) in [("state", "observation.state"), ("actions", "action")] {
+            let list = info["features"][feature]["names"].as_array().map(|a| {
+                a.iter()
+                    .filter_map(|n| n.as_str().map(str::to_owned))
+                    .collect::<Vec<_>>()
+            });
+            if let Some(list) = list {
+                names.insert(key.to_owned(), list);
+            }
+        }
+    }
+    for c in dexjoco_formats::openpi::flat_columns(&doc, &names) {
+        tracing::warn!("{}", c.warning());
+    }
 }
 
 /// Reads one episode through the one reader (arrays, cameras from `videos/`).

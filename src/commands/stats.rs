@@ -244,7 +244,8 @@ where
 }
 
 /// Reads every episode of a store (its landed episodes, from `manifest.json`) or of a
-/// folder tree of DexJoCo raw episodes, and computes their statistics. An episode that
+/// folder tree of DexJoCo raw episodes (with its replay record and videos' digest), and
+/// computes their statistics; the health section's warnings go to stderr. An episode that
 /// cannot be read, or whose array widths differ from the other episodes of its task, is
 /// named and left out (the count is returned); it never stops the others.
 fn dataset_stats(
@@ -270,28 +271,36 @@ fn dataset_stats(
     let read: Vec<_> = sources
         .par_iter()
         .map(|s| {
-            let r = s.read(tasks).map(|r| r.episode);
+            let r = s.read(tasks).map_err(|e| e.to_string()).and_then(|r| {
+                // The replay record and the videos' digest, for the health section.
+                let files = dexjoco_stats::EpisodeFiles::read(&s.path, &r.episode)
+                    .map_err(|e| e.to_string())?;
+                Ok((r.episode, files))
+            });
             pb.inc(1);
             r
         })
         .collect();
     pb.finish_and_clear();
     let mut episodes = Vec::with_capacity(read.len());
+    let mut files = Vec::with_capacity(read.len());
     let mut dirs = Vec::with_capacity(read.len());
     let mut left_out = Vec::new();
     for (r, source) in read.into_iter().zip(&sources) {
         match r {
-            Ok(e) => {
+            Ok((e, f)) => {
                 episodes.push(e);
+                files.push(f);
                 dirs.push(&source.path);
             }
-            Err(e) => left_out.push((source.path.display().to_string(), e.to_string())),
+            Err(e) => left_out.push((source.path.display().to_string(), e)),
         }
     }
     let outliers = dexjoco_stats::width_outliers(&episodes);
     for (i, e) in outliers.iter().rev() {
         left_out.push((dirs[*i].display().to_string(), e.to_string()));
         episodes.remove(*i);
+        files.remove(*i);
     }
     left_out.sort();
     for (p, r) in &left_out {
@@ -309,7 +318,10 @@ fn dataset_stats(
         }
         .into());
     }
-    let stats = dexjoco_stats::DatasetStats::compute_with_tasks(&episodes, tasks)
+    let stats = dexjoco_stats::DatasetStats::compute_with_files(&episodes, &files, tasks)
         .with_context(|| format!("dataset statistics of {}", path.display()))?;
+    for w in &stats.health.warnings {
+        tracing::warn!("health: {w}");
+    }
     Ok((stats, left_out))
 }

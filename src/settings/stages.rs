@@ -239,6 +239,41 @@ pub struct ConvertSettings {
     pub tasks: TaskSet,
 }
 
+/// `convert`'s inputs: INPUT and `--input`, else `<work-dir>/augment`; each must exist.
+fn convert_inputs(
+    mut inputs: Vec<PathBuf>,
+    input_flag: Vec<PathBuf>,
+    global: &GlobalArgs,
+) -> anyhow::Result<Vec<PathBuf>> {
+    inputs.extend(input_flag);
+    if inputs.is_empty() {
+        let default = global.work_dir.join("augment");
+        if !default.is_dir() {
+            return Err(CliError {
+                message: format!(
+                    "no input: the augment stage's output {} does not exist",
+                    default.display()
+                ),
+                hint: Some(
+                    "pass INPUT (or --input INPUT): an episode store (`dexjoco-data ingest` makes one) or a \
+                     folder of DexJoCo raw episode folders (replay.zarr + videos/)"
+                        .into(),
+                ),
+                status: ExitStatus::Failure,
+            }
+            .into());
+        }
+        inputs.push(default);
+    }
+    for input in &inputs {
+        must_exist(
+            input,
+            "give an episode store or a folder of DexJoCo raw episode folders",
+        )?;
+    }
+    Ok(inputs)
+}
+
 impl ConvertSettings {
     /// Resolves `convert`'s arguments.
     pub fn resolve(args: ConvertArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
@@ -250,6 +285,9 @@ impl ConvertSettings {
             config,
             overwrite,
             include_failed,
+            include_flagged,
+            privileged_state,
+            depth,
             no_skip_static,
             merge_bimanual,
             exclude,
@@ -261,33 +299,7 @@ impl ConvertSettings {
             tasks,
         } = args;
         let tasks = task_set(&tasks)?;
-        let mut inputs = inputs;
-        inputs.extend(input_flag);
-        if inputs.is_empty() {
-            let default = global.work_dir.join("augment");
-            if !default.is_dir() {
-                return Err(CliError {
-                    message: format!(
-                        "no input: the augment stage's output {} does not exist",
-                        default.display()
-                    ),
-                    hint: Some(
-                        "pass INPUT (or --input INPUT): an episode store (`dexjoco-data ingest` makes one) or a \
-                         folder of DexJoCo raw episode folders (replay.zarr + videos/)"
-                            .into(),
-                    ),
-                    status: ExitStatus::Failure,
-                }
-                .into());
-            }
-            inputs.push(default);
-        }
-        for input in &inputs {
-            must_exist(
-                input,
-                "give an episode store or a folder of DexJoCo raw episode folders",
-            )?;
-        }
+        let inputs = convert_inputs(inputs, input_flag, global)?;
         let (format, format_dir) = match format {
             ConvertFormatArg::DiffusionPolicy => {
                 (OutputFormat::DiffusionPolicy, "diffusion-policy")
@@ -318,6 +330,9 @@ impl ConvertSettings {
             out,
             options: ConvertOptions {
                 include_failed,
+                include_flagged,
+                privileged_state: privileged_state.then(|| tasks.clone()),
+                depth,
                 protected_inputs: inputs.clone(),
                 protected_dirs: vec![global.work_dir.clone()],
                 format,

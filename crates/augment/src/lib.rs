@@ -13,12 +13,14 @@
 //! deviation, `--extend-steps`), `plan` (shards, resume, units), `render` (a unit of
 //! replays drawn from one simulation), `profile` (where a frame's time goes), `worker`
 //! (units on threads or worker processes, first-frame deadlines), `staging` (replay
-//! folders staged and renamed whole; the records of dropped replays), `report` (report and
+//! folders staged and renamed whole; the records of dropped replays), `checks` (the render
+//! checks of every frame and stored array, and their test hook), `report` (report and
 //! contact sheet), `run` (the orchestration), `compare` (light against full geometry);
 //! `randomize`, `dynamics` and `camera_pool` the randomization.
 
 mod assets;
 mod camera_pool;
+mod checks;
 mod compare;
 mod config;
 mod dry_run;
@@ -39,6 +41,8 @@ mod staging;
 mod worker;
 
 pub use camera_pool::{BuiltPool, PoolOptions, ScoredPose, build_pool, occlusion};
+pub use checks::inject::RENDER_DEFECT_ENV;
+pub use checks::{BLANK_SHARE, BLANK_TOLERANCE, FROZEN_HAND_RAD, FROZEN_MIN_FRAMES, FROZEN_TCP_M};
 pub use compare::{GeometryDifference, geometry_difference, psnr, ssim};
 pub use config::{
     AugmentConfig, CONTACT_SHEET, DEFAULT_EXTEND_STEPS, REPORT_JSON, REPORT_MD, SETTINGS_FILE,
@@ -55,7 +59,7 @@ pub use randomize::{
     CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,
     replay_seed,
 };
-pub use report::{AugmentReport, EpisodeOutcome, FailedUnit, MadeOn, ReplayRecord};
+pub use report::{AugmentReport, EpisodeOutcome, FailedUnit, FlaggedReplay, MadeOn, ReplayRecord};
 pub use run::{augment, augment_with};
 pub use worker::{
     DEFAULT_FIRST_FRAME_TIMEOUT, Executor, FAULT_ENV, STALL_ENV, WorkerProcesses, serve_worker,

@@ -1,6 +1,6 @@
 //! Where a frame's time goes: the seconds an augment run spends per stage of making its
-//! frames (physics, scene update, rasterization, read-back, encoding), summed over its
-//! workers, so that `bench augment` and the dry run can show a machine's bottleneck.
+//! frames (physics, scene update, rasterization, read-back, encoding, render checks),
+//! summed over its workers, so that `bench augment` and the dry run can show a machine's bottleneck.
 //! Measuring costs a few clock reads per frame; outputs do not depend on it.
 
 use std::time::Instant;
@@ -27,11 +27,16 @@ pub struct StageTimes {
     pub encode_feed: f64,
     /// CPU seconds of the x264 encoder processes (their own cores).
     pub encode_cpu: f64,
+    /// The render checks: every frame's colour share, repeat and depth scan, and the
+    /// stored arrays' scan at commit (0 in profiles made before the checks existed).
+    #[serde(default)]
+    pub checks: f64,
 }
 
 impl StageTimes {
-    /// The stages, named as tables print them, with their seconds.
-    pub fn stages(&self) -> [(&'static str, f64); 6] {
+    /// The stages, named as tables print them, with their seconds; the render checks
+    /// last (`bench augment` prints them after the bottleneck of making a frame).
+    pub fn stages(&self) -> [(&'static str, f64); 7] {
         [
             ("physics", self.physics),
             ("scene update", self.scene),
@@ -39,6 +44,7 @@ impl StageTimes {
             ("readback", self.readback),
             ("encode (x264 CPU)", self.encode_cpu),
             ("encoder feed", self.encode_feed),
+            ("render checks", self.checks),
         ]
     }
 
@@ -69,6 +75,7 @@ impl StageTimes {
         self.readback += other.readback;
         self.encode_feed += other.encode_feed;
         self.encode_cpu += other.encode_cpu;
+        self.checks += other.checks;
     }
 
     /// Adds a renderer's stages (its scene update counted with the visual edits already
@@ -139,6 +146,7 @@ mod tests {
             readback: 0.1,
             encode_feed: 0.0,
             encode_cpu: 0.2,
+            checks: 0.0,
         };
         assert_eq!(t.bottleneck(), "render");
         assert!((t.total() - 1.0).abs() < 1e-12);

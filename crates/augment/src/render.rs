@@ -17,6 +17,8 @@ use dexjoco_video::{Codec, VideoSpec, VideoWriter};
 use serde::{Deserialize, Serialize};
 
 use crate::assets::TaskAssets;
+use crate::checks::ReplayChecks;
+use crate::checks::inject::{Defects, ReplayDefects};
 use crate::config::{AugmentConfig, replay_name};
 use crate::dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, sample_dynamics};
 use crate::error::{AugmentError, io_err, sim_err, video_err};
@@ -159,6 +161,10 @@ struct Pending {
     /// The drawn dynamics, with `--dynamics`.
     dynamics: Option<Vec<DynamicsValue>>,
     preview: Option<dexjoco_sim::Frame>,
+    /// The render checks watching its frames.
+    checks: ReplayChecks,
+    /// What the test hook corrupts (nothing unless it is set).
+    defects: ReplayDefects,
 }
 
 /// What the unit needs besides the job: the episode, its task's scene and looks.
@@ -222,6 +228,7 @@ pub(crate) fn render_unit(
         &rendered,
         &expected,
         &cameras,
+        &mut times,
         frames_done,
     )?;
     times.encode_cpu = encoders.seconds();
@@ -304,6 +311,7 @@ fn open_replays(
         fps: src.episode.fps.round().max(1.0) as u32,
         codec: Codec::DEXJOCO,
     };
+    let defects = Defects::from_env()?;
     let mut pending = Vec::new();
     for &r in &job.replays {
         let staging = staging_dir(out, &src.spec.id, &replay_name(id, r));
@@ -346,6 +354,8 @@ fn open_replays(
             depth,
             dynamics,
             preview: None,
+            checks: ReplayChecks::new(cameras, spec.width),
+            defects: defects.for_replay(&src.spec.id, &replay_name(id, r), cameras),
         });
     }
     Ok(pending)
@@ -389,7 +399,11 @@ fn draw_replays(
                         timed(&mut times.scene, || {
                             apply_visuals(renderer, &p.sample, &assets.table)
                         });
-                        let frame = renderer.draw().map_err(sim_err(id))?;
+                        let mut frame = renderer.draw().map_err(sim_err(id))?;
+                        p.defects.frame(c, k, &mut frame);
+                        timed(&mut times.checks, || {
+                            p.checks.frame(c, k, &frame.rgb, frame.depth.as_deref());
+                        });
                         timed(&mut times.encode_feed, || writer.write_frame(&frame.rgb))
                             .map_err(video_err(id))?;
                         if let (Some(d), Some(depth)) = (p.depth.get_mut(c), &frame.depth) {
@@ -411,8 +425,9 @@ fn draw_replays(
     )
 }
 
-/// Finishes each pending replay's writers and commits the replay (episode, record,
-/// preview) from staging; returns their outcomes.
+/// Finishes each pending replay's writers, checks its stored arrays and commits the
+/// replay (episode, record with its flags, preview) from staging; returns their outcomes.
+#[allow(clippy::too_many_arguments)]
 fn commit_replays(
     job: &UnitJob,
     inputs: &UnitInputs<'_>,
@@ -420,6 +435,7 @@ fn commit_replays(
     rendered: &Physics,
     expected: &PhysicsSummary,
     cameras: &[String],
+    times: &mut StageTimes,
     frames_done: &mut dyn FnMut(u64) -> Result<(), AugmentError>,
 ) -> Result<Vec<Outcome>, AugmentError> {
     let UnitInputs {
@@ -435,8 +451,10 @@ fn commit_replays(
             d.finish()?;
         }
         let name = replay_name(id, p.index);
-        let ep = replay_episode(src, &name, &rendered.states, cameras, config.depth)?;
+        let mut ep = replay_episode(src, &name, &rendered.states, cameras, config.depth)?;
+        p.defects.episode(&mut ep);
         let mut record = record_of(job, p.index, p.sample, p.dynamics, expected);
+        record.flags = timed(&mut times.checks, || p.checks.finish(&ep, &src.spec));
         record.videos = cameras
             .iter()
             .map(|c| format!("{}/{c}.mp4", raw::VIDEOS))

@@ -1,5 +1,6 @@
 //! The augment report: per episode (success, first success, deviation, replays kept),
-//! per replay (sample, success, videos, dynamics), skipped inputs; written as
+//! per replay (sample, success, videos, dynamics), the replays the render checks flagged,
+//! skipped inputs; written as
 //! `augment_report.json` and `augment_report.md`, with a contact sheet of the replays.
 
 use std::collections::BTreeMap;
@@ -136,6 +137,10 @@ pub struct AugmentReport {
     /// order.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub dropped: Vec<ReplayRecord>,
+    /// The replays a render check flagged (kept on disk, with their `flags` in their
+    /// record; `convert` leaves them out unless `--include-flagged`), in the order of `replays`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub flagged: Vec<FlaggedReplay>,
     /// Inputs that could not be replayed: those unreadable, of an unknown task or missing
     /// a field, in input order, then those the simulator rejected, by task and episode.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -158,6 +163,30 @@ pub struct AugmentReport {
     /// validation pass counted as physics). Not written, like `rendered_now`.
     #[serde(skip)]
     pub times: crate::profile::StageTimes,
+}
+
+/// A replay a render check flagged, and why.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FlaggedReplay {
+    /// Task id.
+    pub task: String,
+    /// Replay folder name, `<episode>__rNN`.
+    pub replay: String,
+    /// The checks it failed, where (as in its record).
+    pub flags: Vec<RenderFlag>,
+}
+
+/// The flagged replays among `replays`, in their order.
+pub(crate) fn flagged_replays(replays: &[ReplayRecord]) -> Vec<FlaggedReplay> {
+    replays
+        .iter()
+        .filter(|r| !r.flags.is_empty())
+        .map(|r| FlaggedReplay {
+            task: r.task.clone(),
+            replay: r.name.clone(),
+            flags: r.flags.clone(),
+        })
+        .collect()
 }
 
 /// One place replays were made, and how many.
@@ -229,6 +258,7 @@ pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), Aug
     push_episodes(&mut md, report);
     push_instructions(&mut md, report);
     push_failed_and_skipped(&mut md, report);
+    push_flagged(&mut md, report);
     push_replays(&mut md, report);
     push_dynamics(&mut md, report);
     push_made_on(&mut md, report);
@@ -313,6 +343,34 @@ fn push_failed_and_skipped(md: &mut String, report: &AugmentReport) {
         ));
         for k in &report.skipped {
             md.push_str(&format!("- `{}`: {}\n", k.source, k.reason));
+        }
+    }
+}
+
+/// The replays a render check flagged, one row per flag, when any.
+fn push_flagged(md: &mut String, report: &AugmentReport) {
+    if report.flagged.is_empty() {
+        return;
+    }
+    md.push_str(&format!(
+        "\n## Flagged replays\n\n{} replay(s) failed a render check. They are kept on disk with \
+         their `flags` in `replay.json`; `convert` leaves them out unless `--include-flagged`.\n\n\
+         | replay | check | camera / array | frames | detail |\n|---|---|---|---|---|\n",
+        report.flagged.len()
+    ));
+    for f in &report.flagged {
+        for flag in &f.flags {
+            let place = flag.camera.as_ref().or(flag.array.as_ref());
+            md.push_str(&format!(
+                "| {}/{} | {} | {} | {}-{} | {} |\n",
+                f.task,
+                f.replay,
+                flag.check,
+                place.map_or("-", String::as_str),
+                flag.first_frame,
+                flag.last_frame,
+                flag.detail.replace('|', "\\|")
+            ));
         }
     }
 }

@@ -442,6 +442,7 @@ fn build_report(
         }
     }
     let made_on = crate::report::take_made_on(&mut replays, &mut dropped);
+    let flagged = crate::report::flagged_replays(&replays);
     let episodes = sources
         .iter()
         .zip(physics)
@@ -484,6 +485,7 @@ fn build_report(
         episodes,
         replays,
         dropped,
+        flagged,
         skipped,
         failed_units,
         made_on,

@@ -3,12 +3,13 @@
 
 use std::path::{Path, PathBuf};
 
-use dexjoco_core::Progress;
+use dexjoco_core::{Progress, TaskSet};
 use dexjoco_formats::dataset::{
     DatasetWriter, PreparedEpisode, V3Options, V3Writer, V21Writer, VideoLayout, ZarrWriter,
 };
 use dexjoco_formats::fs::StagedDir;
 use dexjoco_formats::openpi::{NormStats, NormStatsOptions};
+use dexjoco_formats::raw::{RenderFlag, ReplayLabel};
 use rayon::prelude::*;
 
 use crate::config::Selection;
@@ -77,6 +78,17 @@ pub struct ConvertOptions {
     /// Also convert replays whose record (`replay.json`) says the task failed
     /// (augment's `--keep-failed`); by default they are left out and named.
     pub include_failed: bool,
+    /// Also convert replays a render check flagged (their record's `flags`); by default
+    /// they are left out and named with their flags.
+    pub include_flagged: bool,
+    /// Export each task's privileged state (its spec's state columns after the
+    /// proprioception: objects' reset-time poses, `dh`) under its own key, the specs
+    /// taken from this task set.
+    pub privileged_state: Option<TaskSet>,
+    /// Carry each camera's depth (augment's `videos/<camera>_depth.npz`): LeRobot v3.0
+    /// as lerobot 0.6.1 stores depth, Diffusion Policy as `data/<camera>_depth`; refused
+    /// for LeRobot v2.1.
+    pub depth: bool,
     /// Inputs: a non-empty output folder that holds one of them, or lies inside one, is
     /// never replaced (even with `overwrite`).
     pub protected_inputs: Vec<PathBuf>,
@@ -138,6 +150,13 @@ where
 {
     if out.is_file() {
         return Err(ConvertError::OutputNotEmpty(out.to_path_buf()));
+    }
+    if options.depth && options.format == OutputFormat::LeRobotV21 {
+        return Err(ConvertError::Unsupported {
+            format: options.format.name(),
+            message: "--depth is not supported: openpi's lerobot (v2.1) has no depth decoding                       (lerobot 0.6.1 reads depth from v3.0 only); use --format lerobot-v3 or                       diffusion-policy"
+                .into(),
+        });
     }
     let staged = StagedDir::begin(out)?;
     check_output(out, options)?;
@@ -230,7 +249,13 @@ fn layout_leader(prepared: &[Result<PreparedEpisode, ConvertError>]) -> Option<&
                 )
             })
             .collect();
-        (p.fps, p.action.width(), p.state.width(), videos)
+        (
+            p.fps,
+            p.action.width(),
+            p.state.width(),
+            videos,
+            p.privileged_names.clone(),
+        )
     };
     let keys: Vec<_> = ok.iter().map(|p| key(p)).collect();
     (0..ok.len())
@@ -307,9 +332,9 @@ where
         }
         let prepared: Vec<Result<PreparedEpisode, ConvertError>> = pending
             .par_iter()
-            .map(|(i, input)| {
+            .map(|(i, input, label)| {
                 let float32 = options.format.stores_float32();
-                prepare(
+                let mut p = prepare(
                     input,
                     &options.selection,
                     options.video,
@@ -317,7 +342,15 @@ where
                     float32,
                     &work,
                     *i,
-                )
+                )?;
+                p.label.clone_from(label);
+                if options.depth {
+                    crate::depth::add_depth(&mut p, input, &options.selection, layout, &work, *i)?;
+                }
+                if let Some(tasks) = &options.privileged_state {
+                    crate::privileged::add_privileged(&mut p, input, tasks)?;
+                }
+                Ok(p)
             })
             .collect();
         if run.writer.is_none()
@@ -329,6 +362,9 @@ where
     }
     run.finish(&work)
 }
+
+/// An input taken for preparation: its ordinal, the episode and its replay record.
+type Pending = (usize, InputEpisode, Option<ReplayLabel>);
 
 /// One conversion between its batches: what was written and left out so far.
 struct Run<'a> {
@@ -351,7 +387,7 @@ impl Run<'_> {
         &mut self,
         inputs: &mut impl Iterator<Item = Result<InputEpisode, ConvertError>>,
         size: usize,
-    ) -> Vec<(usize, InputEpisode)> {
+    ) -> Vec<Pending> {
         let mut pending = Vec::with_capacity(size);
         for item in inputs {
             let item = match item {
@@ -371,10 +407,10 @@ impl Run<'_> {
                     continue;
                 }
             };
-            let Some(item) = self.admit(item) else {
+            let Some((item, label)) = self.admit(item) else {
                 continue;
             };
-            pending.push((self.ordinal, item));
+            pending.push((self.ordinal, item, label));
             self.ordinal += 1;
             if pending.len() == size {
                 break;
@@ -383,9 +419,10 @@ impl Run<'_> {
         pending
     }
 
-    /// Leaves out an episode of the bad-episodes list, or a replay whose record says it
-    /// failed its task (unless `include_failed`); returns the others.
-    fn admit(&mut self, item: InputEpisode) -> Option<InputEpisode> {
+    /// Leaves out an episode of the bad-episodes list, a replay whose record says it
+    /// failed its task (unless `include_failed`) or that a render check flagged (unless
+    /// `include_flagged`); returns the others with their replay record.
+    fn admit(&mut self, item: InputEpisode) -> Option<(InputEpisode, Option<ReplayLabel>)> {
         if self
             .options
             .selection
@@ -398,14 +435,24 @@ impl Run<'_> {
             self.summary.excluded.push(item.episode.id);
             return None;
         }
-        if self.options.include_failed {
-            return Some(item);
-        }
-        let e = match dexjoco_formats::raw::replay_success(&item.dir) {
-            Ok(Some(false)) => ConvertError::FailedReplay {
-                dir: item.dir.clone(),
-            },
-            Ok(_) => return Some(item),
+        let e = match dexjoco_formats::raw::read_replay_label(&item.dir) {
+            Ok(Some(l)) if !l.success && !self.options.include_failed => {
+                ConvertError::FailedReplay {
+                    dir: item.dir.clone(),
+                }
+            }
+            Ok(Some(l)) if l.flagged() && !self.options.include_flagged => {
+                ConvertError::FlaggedReplay {
+                    dir: item.dir.clone(),
+                    flags: l
+                        .flags
+                        .iter()
+                        .map(RenderFlag::describe)
+                        .collect::<Vec<_>>()
+                        .join("; "),
+                }
+            }
+            Ok(label) => return Some((item, label)),
             Err(e) => ConvertError::Format(e),
         };
         let key = (self.ordinal, 0);
@@ -418,9 +465,9 @@ impl Run<'_> {
     fn write_batch(
         &mut self,
         prepared: Vec<Result<PreparedEpisode, ConvertError>>,
-        pending: &[(usize, InputEpisode)],
+        pending: &[Pending],
     ) -> Result<(), ConvertError> {
-        for (p, (i, input)) in prepared.into_iter().zip(pending) {
+        for (p, (i, input, _)) in prepared.into_iter().zip(pending) {
             let p = match p {
                 Ok(p) => p,
                 Err(e) => {

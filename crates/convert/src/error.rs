@@ -56,6 +56,17 @@ pub enum ConvertError {
         /// The replay folder.
         dir: PathBuf,
     },
+    /// A replay a render check flagged (blank frames, a frozen video, non-finite values).
+    #[error(
+        "file '{}', field 'flags': the replay failed render checks: {flags}; --include-flagged converts it",
+        dir.join(dexjoco_formats::raw::REPLAY_RECORD).display()
+    )]
+    FlaggedReplay {
+        /// The replay folder.
+        dir: PathBuf,
+        /// Each flag in one line ([`dexjoco_formats::raw::RenderFlag::describe`]), `; `-joined.
+        flags: String,
+    },
     /// Every episode failed; the first reason is given.
     #[error("none of the {count} episode(s) could be converted; the first: {first}")]
     AllFailed {
@@ -63,6 +74,14 @@ pub enum ConvertError {
         count: usize,
         /// The first failure.
         first: String,
+    },
+    /// The output format cannot carry what the options ask for.
+    #[error("--format {format}: {message}")]
+    Unsupported {
+        /// The `--format` name.
+        format: &'static str,
+        /// What it cannot carry, and what can.
+        message: String,
     },
     /// Nothing to convert.
     #[error("no episodes to convert (all were excluded or the input is empty)")]

@@ -9,6 +9,9 @@
 //!   reference converter's config folder.
 //! - [`prepare`]: one episode made ready for writing (selected arrays, trimmed start,
 //!   per-camera video parts stream-copied or encoded, statistics), in parallel.
+//! - `privileged`: `--privileged-state`, the task spec's privileged state columns
+//!   (objects' poses, `dh`) named after its state layout; each replay's record
+//!   (`replay.json`) is carried into the episode as its label.
 //! - [`merge`]: several tasks in one dataset (task table from the instructions);
 //!   one-arm episodes laid into the right-arm slots of the two-arm layout.
 //! - [`convert`]: the driver (parallel preparation in bounded batches, sequential
@@ -21,9 +24,11 @@
 
 mod config;
 mod convert;
+mod depth;
 mod error;
 pub mod merge;
 mod prepare;
+mod privileged;
 
 pub use config::{ActionSource, ColumnSlice, Selection, TaskSelection, first_moving_frame};
 pub use convert::{

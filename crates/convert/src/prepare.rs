@@ -298,7 +298,10 @@ fn select_action(input: &InputEpisode, name: &str) -> Result<FrameArray, Convert
 
 /// Output camera name -> raw camera: the selection's mapping, or every camera with a
 /// video under its own name.
-fn camera_mapping(ep: &Episode, mapping: &BTreeMap<String, String>) -> Vec<(String, String)> {
+pub(crate) fn camera_mapping(
+    ep: &Episode,
+    mapping: &BTreeMap<String, String>,
+) -> Vec<(String, String)> {
     if mapping.is_empty() {
         ep.cameras
             .iter()

@@ -97,6 +97,32 @@ impl FrameArray {
     }
 }
 
+/// The first frame the reference converter keeps (the end of an episode's static leading
+/// frames): the first `i` with `action[i] != action[i + 1]`, plus one when `action[i]` is
+/// all zeros. An episode whose action never changes keeps all its frames (start 0).
+/// `action` is the selected action; with `float32` its values are compared rounded to
+/// float32, as the reference's LeRobot writer loads them (its Zarr writer compares them
+/// as recorded). `convert` skips these frames; `stats --dataset` counts them.
+pub fn first_moving_frame(action: &FrameArray, float32: bool) -> usize {
+    let n = action.len();
+    let differ = |i: usize| {
+        let (a, b) = (action.row(i), action.row(i + 1));
+        if float32 {
+            a.iter().zip(b).any(|(x, y)| *x as f32 != *y as f32)
+        } else {
+            a != b
+        }
+    };
+    let Some(i) = (0..n.saturating_sub(1)).find(|&i| differ(i)) else {
+        return 0;
+    };
+    if action.row(i).iter().all(|v| *v == 0.0) {
+        (i + 1).min(n.saturating_sub(1))
+    } else {
+        i
+    }
+}
+
 /// One camera of an episode: its name and where its frames are stored.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct CameraStream {

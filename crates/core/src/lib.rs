@@ -22,7 +22,7 @@ pub mod synth;
 mod task_set;
 mod task_spec;
 
-pub use episode::{CameraStream, Episode, FrameArray};
+pub use episode::{CameraStream, Episode, FrameArray, first_moving_frame};
 pub use error::{CoreError, Location};
 pub use layout::{
     ArmSetup, ArrayLayout, DEXJOCO_FPS, FieldSlice, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM,

@@ -3,7 +3,8 @@
 //! `depth.npy` member).
 //!
 //! [`DepthWriter`] streams frames into the archive one at a time (never a whole episode
-//! in memory) and renames the finished file into place; [`read_depth_npz`] reads one back.
+//! in memory) and renames the finished file into place; [`read_depth_npz`] reads one back,
+//! [`for_each_depth_frame`] streams its frames, [`depth_npz_shape`] reads its shape.
 
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -153,36 +154,32 @@ impl DepthWriter {
     }
 }
 
-/// Reads `<camera>_depth.npz`: (frames, height, width) and the values, row-major.
-pub fn read_depth_npz(path: &Path) -> Result<((usize, usize, usize), Vec<f32>)> {
-    let bad = |what: String| FormatError::Io {
+/// An invalid-data error on `path`.
+fn invalid(path: &Path, what: String) -> FormatError {
+    FormatError::Io {
         op: "read",
         path: path.to_path_buf(),
         source: std::io::Error::new(std::io::ErrorKind::InvalidData, what),
-    };
-    let file = fs_err::File::open(path).map_err(io_err("open", path))?;
-    let mut zip = zip::ZipArchive::new(file).map_err(|e| bad(e.to_string()))?;
-    let mut member = zip
-        .by_name(&format!("{DEPTH_KEY}.npy"))
-        .map_err(|e| bad(format!("member {DEPTH_KEY}.npy: {e}")))?;
-    let mut bytes = Vec::new();
-    member
-        .read_to_end(&mut bytes)
-        .map_err(io_err("read", path))?;
-    if bytes.len() < 10 || &bytes[..8] != b"\x93NUMPY\x01\x00" {
-        return Err(bad("not an .npy (format 1.0) member".into()));
     }
-    let hlen = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
-    let header = std::str::from_utf8(
-        bytes
-            .get(10..10 + hlen)
-            .ok_or_else(|| bad("short header".into()))?,
-    )
-    .map_err(|e| bad(e.to_string()))?;
+}
+
+/// Reads the `.npy` header of the `depth` member from `r`: the (T, H, W) shape.
+fn read_header(r: &mut impl Read, path: &Path) -> Result<(usize, usize, usize)> {
+    let mut pre = [0u8; 10];
+    r.read_exact(&mut pre)
+        .map_err(|_| invalid(path, "not an .npy (format 1.0) member".into()))?;
+    if &pre[..8] != b"\x93NUMPY\x01\x00" {
+        return Err(invalid(path, "not an .npy (format 1.0) member".into()));
+    }
+    let mut header = vec![0u8; u16::from_le_bytes([pre[8], pre[9]]) as usize];
+    r.read_exact(&mut header)
+        .map_err(|_| invalid(path, "short header".into()))?;
+    let header = String::from_utf8(header).map_err(|e| invalid(path, e.to_string()))?;
     if !header.contains("'descr': '<f4'") || !header.contains("'fortran_order': False") {
-        return Err(bad(format!(
-            "expected little-endian float32 in C order, found {header}"
-        )));
+        return Err(invalid(
+            path,
+            format!("expected little-endian float32 in C order, found {header}"),
+        ));
     }
     let dims: Vec<usize> = header
         .split("'shape': (")
@@ -191,20 +188,71 @@ pub fn read_depth_npz(path: &Path) -> Result<((usize, usize, usize), Vec<f32>)> 
         .map(|s| s.split(',').filter_map(|d| d.trim().parse().ok()).collect())
         .unwrap_or_default();
     let [t, h, w] = dims[..] else {
-        return Err(bad(format!("expected a (T, H, W) shape, found {header}")));
+        return Err(invalid(
+            path,
+            format!("expected a (T, H, W) shape, found {header}"),
+        ));
     };
-    let data = &bytes[10 + hlen..];
-    if data.len() != t * h * w * 4 {
-        return Err(bad(format!(
-            "{} data bytes for shape ({t}, {h}, {w})",
-            data.len()
-        )));
-    }
-    let values = data
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
-    Ok(((t, h, w), values))
+    Ok((t, h, w))
+}
+
+/// Opens the archive's `depth.npy` member and hands it to `f`.
+fn with_member<T>(
+    path: &Path,
+    f: impl FnOnce(&mut zip::read::ZipFile<'_, fs_err::File>) -> Result<T>,
+) -> Result<T> {
+    let file = fs_err::File::open(path).map_err(io_err("open", path))?;
+    let mut zip = zip::ZipArchive::new(file).map_err(|e| invalid(path, e.to_string()))?;
+    let mut member = zip
+        .by_name(&format!("{DEPTH_KEY}.npy"))
+        .map_err(|e| invalid(path, format!("member {DEPTH_KEY}.npy: {e}")))?;
+    f(&mut member)
+}
+
+/// The (frames, height, width) shape of `<camera>_depth.npz`, from its header only.
+pub fn depth_npz_shape(path: &Path) -> Result<(usize, usize, usize)> {
+    with_member(path, |m| read_header(m, path))
+}
+
+/// Streams the frames of `<camera>_depth.npz` one at a time (never the whole array in
+/// memory): `f(k, frame)` for each frame k (row-major, metres); stops at the first error
+/// `f` returns. Returns the (frames, height, width) shape.
+pub fn for_each_depth_frame<E: From<FormatError>>(
+    path: &Path,
+    mut f: impl FnMut(usize, &[f32]) -> std::result::Result<(), E>,
+) -> std::result::Result<(usize, usize, usize), E> {
+    let mut outcome: std::result::Result<(), E> = Ok(());
+    let shape = with_member(path, |m| {
+        let (t, h, w) = read_header(m, path)?;
+        let mut bytes = vec![0u8; h * w * 4];
+        let mut frame = vec![0f32; h * w];
+        for k in 0..t {
+            m.read_exact(&mut bytes)
+                .map_err(|e| invalid(path, format!("frame {k} of {t} cannot be read: {e}")))?;
+            for (v, c) in frame.iter_mut().zip(bytes.chunks_exact(4)) {
+                *v = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+            }
+            if let Err(e) = f(k, &frame) {
+                outcome = Err(e);
+                return Ok((t, h, w));
+            }
+        }
+        if m.read(&mut [0u8; 1]).map_err(io_err("read", path))? != 0 {
+            return Err(invalid(path, format!("data beyond shape ({t}, {h}, {w})")));
+        }
+        Ok((t, h, w))
+    })?;
+    outcome.map(|()| shape)
+}
+
+/// Reads `<camera>_depth.npz`: (frames, height, width) and the values, row-major.
+pub fn read_depth_npz(path: &Path) -> Result<((usize, usize, usize), Vec<f32>)> {
+    let mut values = Vec::new();
+    let shape = for_each_depth_frame::<FormatError>(path, |_, frame| {
+        values.extend_from_slice(frame);
+        Ok(())
+    })?;
+    Ok((shape, values))
 }
 
 #[cfg(test)]

@@ -18,6 +18,12 @@
 //! loader drops them), `actions` over action chunks as openpi's data loader makes them
 //! (for every frame `t` the rows `t..t+horizon`, the last frame repeated past the
 //! episode's end). The file is what openpi's `normalize.save` writes for the same values.
+//!
+//! Zero variance: openpi's file has no guard, its `transforms.Normalize` has one: it
+//! divides by `std + 1e-6` (z-score) or `q99 - q01 + 1e-6` (quantiles), so a constant
+//! column trains as 0 (-1 with quantiles) and any deviation at inference is multiplied
+//! by about 1e6. The file is kept as openpi writes it; [`flat_columns`] names those
+//! columns so `convert --norm-stats` can warn.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -303,4 +309,84 @@ pub fn norm_stats_document(arrays: &BTreeMap<String, RunningStats>) -> Value {
 pub fn write_document(path: &Path, doc: &Value) -> Result<()> {
     let text = serde_json::to_string_pretty(doc).expect("JSON values serialize");
     crate::fs::write_atomic(path, text.as_bytes())
+}
+
+/// openpi's epsilon in `transforms.Normalize` / `Unnormalize`: `(x - mean) / (std + 1e-6)`,
+/// `(x - q01) / (q99 - q01 + 1e-6) * 2 - 1`.
+pub const OPENPI_NORMALIZE_EPS: f64 = 1e-6;
+
+/// A column of a `norm_stats.json` document whose std is at or under
+/// [`OPENPI_NORMALIZE_EPS`] x max(1, |mean|): zero variance up to the rounding of
+/// `E[x²] - E[x]²` (a constant column's std comes out 0 or at floating-point noise).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FlatColumn {
+    /// The document's key (`state`, `actions`).
+    pub key: String,
+    /// Column index.
+    pub index: usize,
+    /// Column name (`state[3]` when none is given).
+    pub name: String,
+    /// Its mean.
+    pub mean: f64,
+    /// Its std.
+    pub std: f64,
+    /// `q99 - q01`.
+    pub quantile_range: f64,
+}
+
+impl FlatColumn {
+    /// One line: the column, its statistics, what openpi does with it and what to do.
+    pub fn warning(&self) -> String {
+        format!(
+            "norm_stats.json: {} column {} '{}' has zero variance (mean {}, std {:e}, q99 - q01 \
+             {:e}); the file is kept as openpi writes it, and openpi's Normalize divides by std \
+             + 1e-6 (quantiles: q99 - q01 + 1e-6), so the column trains as a constant and a \
+             deviation d at inference becomes d x {:.1e}; drop the column from the training \
+             columns or fix its statistics",
+            self.key,
+            self.index,
+            self.name,
+            self.mean,
+            self.std,
+            self.quantile_range,
+            1.0 / (self.std + OPENPI_NORMALIZE_EPS)
+        )
+    }
+}
+
+/// The zero-variance columns of a `norm_stats.json` document, key by key in document
+/// order; `names` gives column names per key (missing ones are `key[i]`).
+pub fn flat_columns(doc: &Value, names: &BTreeMap<String, Vec<String>>) -> Vec<FlatColumn> {
+    let floats = |v: &Value, field: &str| -> Vec<f64> {
+        v.get(field)
+            .and_then(Value::as_array)
+            .map(|a| a.iter().filter_map(Value::as_f64).collect())
+            .unwrap_or_default()
+    };
+    let mut out = Vec::new();
+    let Some(stats) = doc.get("norm_stats").and_then(Value::as_object) else {
+        return out;
+    };
+    for (key, v) in stats {
+        let (mean, std) = (floats(v, "mean"), floats(v, "std"));
+        let (q01, q99) = (floats(v, "q01"), floats(v, "q99"));
+        for (i, (&m, &s)) in mean.iter().zip(&std).enumerate() {
+            if s > OPENPI_NORMALIZE_EPS * m.abs().max(1.0) {
+                continue;
+            }
+            out.push(FlatColumn {
+                key: key.clone(),
+                index: i,
+                name: names
+                    .get(key)
+                    .and_then(|n| n.get(i))
+                    .cloned()
+                    .unwrap_or_else(|| format!("{key}[{i}]")),
+                mean: m,
+                std: s,
+                quantile_range: q99.get(i).zip(q01.get(i)).map_or(0.0, |(a, b)| a - b),
+            });
+        }
+    }
+    out
 }

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use dexjoco_formats::openpi::{RunningStats, norm_stats_document};
 
 use crate::error::StatsError;
+use crate::health::{EpisodeFiles, Health};
 use crate::measures::mean_std;
 
 /// Bins of the per-dimension histograms.
@@ -253,6 +254,10 @@ pub struct DatasetStats {
     /// openpi's `norm_stats.json` document of the dataset-wide arrays.
     #[serde(skip)]
     pub norm_stats: serde_json::Value,
+    /// What would go wrong at training time (flat dimensions, static leading frames,
+    /// length outliers, duplicates, replay outcomes and flags).
+    #[serde(default)]
+    pub health: Health,
 }
 
 /// The episodes that do not fit their task's layout: per task and array, the width most
@@ -324,8 +329,26 @@ impl DatasetStats {
 
     /// Computes the statistics, naming each task's state columns after its spec in
     /// `specs` (generic names for a task not there). Fails when there are no episodes,
-    /// or when an array's width differs between episodes of one task.
+    /// or when an array's width differs between episodes of one task. The health
+    /// section counts every episode as a recording without videos
+    /// ([`Self::compute_with_files`] reads what their folders hold).
     pub fn compute_with_tasks(episodes: &[Episode], specs: &TaskSet) -> Result<Self, StatsError> {
+        Self::compute_with_files(episodes, &[], specs)
+    }
+
+    /// [`Self::compute_with_tasks`], with `files[i]` what episode `i`'s folder holds
+    /// (its replay record and videos, for the health section).
+    pub fn compute_with_files(
+        episodes: &[Episode],
+        files: &[EpisodeFiles],
+        specs: &TaskSet,
+    ) -> Result<Self, StatsError> {
+        let mut stats = Self::compute_arrays(episodes, specs)?;
+        stats.health = Health::compute(&stats, episodes, files);
+        Ok(stats)
+    }
+
+    fn compute_arrays(episodes: &[Episode], specs: &TaskSet) -> Result<Self, StatsError> {
         let Some(lengths) = LengthStats::from_lengths(episodes.iter().map(Episode::len).collect())
         else {
             return Err(StatsError::Empty {
@@ -422,11 +445,12 @@ impl DatasetStats {
             arrays,
             mixed_width_arrays,
             norm_stats,
+            health: Health::default(),
         })
     }
 
     /// A short Markdown summary: totals, per-task counts and lengths, the instructions
-    /// per task.
+    /// per task, then the health section.
     pub fn to_markdown(&self) -> String {
         use std::fmt::Write as _;
         let fmt_std = |s: Option<f64>| s.map_or_else(|| "n/a".into(), |s| format!("{s:.1}"));
@@ -467,6 +491,8 @@ impl DatasetStats {
                 let _ = writeln!(s, "| {} | {cell} | {n} |", t.task);
             }
         }
+        s.push('\n');
+        s.push_str(&self.health.to_markdown());
         s
     }
 }

@@ -10,6 +10,9 @@
 //!   regime x policy, as Markdown, LaTeX (the paper's Table 2 layout) and CSV.
 //! - [`DatasetStats`] summarizes episodes: counts, lengths, per-dimension distributions
 //!   and openpi-style normalization statistics.
+//! - [`Health`] (part of [`DatasetStats`]) finds what would go wrong at training time:
+//!   flat dimensions, static leading frames, length outliers, duplicates, failed and
+//!   flagged replays.
 //! - [`ReplayStats`] reads an augment report: replay success rates per task.
 //! - [`ReplayProvenance`] reads where a dataset's replays were made (CPU and program
 //!   versions, from each `replay.json`) and warns when it mixes places.
@@ -21,6 +24,9 @@
 mod dataset;
 mod error;
 pub mod evaltree;
+mod health;
+mod health_files;
+mod health_report;
 mod language;
 pub mod measures;
 mod output;
@@ -34,6 +40,12 @@ pub use dataset::{
     quantile_sorted, width_outliers,
 };
 pub use error::StatsError;
+pub use health::{
+    ALL_TASKS, DuplicateGroup, Duplicates, EpisodeFiles, EpisodeFrames, FlatDimension, Flatness,
+    Health, LEROBOT_EPS, LengthDistribution, NEAR_CONSTANT_REL, OPENPI_EPS, Outcomes,
+    StaticLeading, flat_dimensions,
+};
+pub use health_files::arrays_sha256;
 pub use language::{
     EXAMPLE_MARKER, Instruction, JsPair, LanguageInput, LanguageOptions, LanguageReport,
     MANIFEST_FILE, NONE_OUTPUT, Precision, Trial, format_p, infer_expected,

@@ -17,7 +17,9 @@ use std::process::{Child, ChildStdin, Command, Stdio};
 
 use serde::{Deserialize, Serialize};
 
+mod depth;
 mod versions;
+pub use depth::{DepthVideoWriter, decode_gray12};
 pub use versions::{EncoderVersions, encoder_versions};
 
 /// Errors of video encoding and decoding; each names the file.
@@ -45,9 +47,7 @@ pub enum VideoError {
         message: String,
     },
     /// A frame of the wrong size was given.
-    #[error(
-        "'{path}': frame {frame} has {found} bytes, expected {expected} ({width}x{height} RGB)"
-    )]
+    #[error("'{path}': frame {frame} has {found} bytes, expected {expected} ({width}x{height})")]
     FrameSize {
         /// The video file.
         path: PathBuf,
@@ -154,6 +154,8 @@ pub struct VideoWriter {
     path: PathBuf,
     tmp: PathBuf,
     spec: VideoSpec,
+    /// Bytes of one raw input frame.
+    frame_bytes: usize,
     frames: usize,
 }
 
@@ -170,16 +172,7 @@ impl VideoWriter {
         spec: VideoSpec,
         gop: Option<u32>,
     ) -> Result<Self, VideoError> {
-        let path = path.into();
-        let name = path
-            .file_name()
-            .map_or_else(|| "video".into(), |n| n.to_string_lossy().into_owned());
-        let tmp = path.with_file_name(format!(".{name}.partial.mp4"));
         let mut cmd = Command::new(ffmpeg_program());
-        cmd.args(["-hide_banner", "-loglevel", "error", "-nostdin", "-y"])
-            .args(["-f", "rawvideo", "-pix_fmt", "rgb24"])
-            .args(["-s", &format!("{}x{}", spec.width, spec.height)])
-            .args(["-framerate", &spec.fps.to_string(), "-i", "-"]);
         match spec.codec {
             Codec::H264 { crf } => {
                 cmd.args([
@@ -209,7 +202,32 @@ impl VideoWriter {
         if let Some(g) = gop {
             cmd.args(["-g", &g.max(1).to_string()]);
         }
-        cmd.args(["-pix_fmt", "yuv420p", "-r", &spec.fps.to_string()])
+        cmd.args(["-pix_fmt", "yuv420p"]);
+        let frame_bytes = spec.width as usize * spec.height as usize * 3;
+        Self::start(path.into(), spec, "rgb24", frame_bytes, cmd)
+    }
+
+    /// Starts `cmd` (ffmpeg with its encoder and output pixel format set) reading raw
+    /// frames of `input_pix_fmt`, `frame_bytes` each, from its stdin, writing an mp4 to a
+    /// temporary file beside `path`.
+    pub(crate) fn start(
+        path: PathBuf,
+        spec: VideoSpec,
+        input_pix_fmt: &str,
+        frame_bytes: usize,
+        encoder: Command,
+    ) -> Result<Self, VideoError> {
+        let name = path
+            .file_name()
+            .map_or_else(|| "video".into(), |n| n.to_string_lossy().into_owned());
+        let tmp = path.with_file_name(format!(".{name}.partial.mp4"));
+        let mut cmd = Command::new(encoder.get_program());
+        cmd.args(["-hide_banner", "-loglevel", "error", "-nostdin", "-y"])
+            .args(["-f", "rawvideo", "-pix_fmt", input_pix_fmt])
+            .args(["-s", &format!("{}x{}", spec.width, spec.height)])
+            .args(["-framerate", &spec.fps.to_string(), "-i", "-"])
+            .args(encoder.get_args())
+            .args(["-r", &spec.fps.to_string()])
             .args([
                 "-fflags",
                 "+bitexact",
@@ -231,6 +249,7 @@ impl VideoWriter {
             path,
             tmp,
             spec,
+            frame_bytes,
             frames: 0,
         })
     }
@@ -242,7 +261,7 @@ impl VideoWriter {
 
     /// Appends one RGB8 frame (rows top to bottom).
     pub fn write_frame(&mut self, rgb: &[u8]) -> Result<(), VideoError> {
-        let expected = self.spec.width as usize * self.spec.height as usize * 3;
+        let expected = self.frame_bytes;
         if rgb.len() != expected {
             return Err(VideoError::FrameSize {
                 path: self.path.clone(),

@@ -7,6 +7,11 @@
 //! - `data/<camera>`: uint8 (T, H, W, 3) RGB frames decoded from the source video,
 //!   chunks (1, H, W, 3).
 //! - `meta/episode_ends`: int64, cumulative exclusive ends, uncompressed.
+//! - with `--privileged-state`: `data/privileged_state` float64 (T, P), its column
+//!   names in its `.zattrs` (`names`).
+//! - when an episode is a replay with a record: the labels of
+//!   [`super::episode_labels`] as per-episode arrays `meta/success`, `meta/first_success`
+//!   ... and the whole records in `meta/.zattrs` (`episodes`).
 //! - data arrays use Diffusion Policy's default compressor, Blosc(lz4, clevel 5, no
 //!   shuffle).
 //! - with `videos`: `videos/<episode index>/<camera index>.mp4` beside the store (each
@@ -22,8 +27,10 @@ use serde_json::json;
 use zarrs::array::{Array, ArrayMetadata, ArrayMetadataOptions, CodecOptions};
 use zarrs::filesystem::FilesystemStore;
 
+use super::episode_labels::write_zarr_labels;
 use super::{DatasetWriter, PreparedEpisode, VideoPart, place_video, write_json};
 use crate::error::{DatasetError, ZarrWriteError};
+use crate::raw::ReplayLabel;
 use crate::zarr_v2::{self, Blosc};
 
 /// The store's folder name inside the output folder.
@@ -33,7 +40,7 @@ pub const REPLAY_BUFFER: &str = "replay_buffer.zarr";
 const CHUNK_BYTES: usize = 2_000_000;
 
 /// Array names the cameras may not take.
-const RESERVED: [&str; 3] = ["action", "state", "timestamp"];
+const RESERVED: [&str; 4] = ["action", "state", "timestamp", "privileged_state"];
 
 /// A zarrs error on the store at `path`, as [`DatasetError::Zarr`].
 fn zarr_err(path: &Path, e: impl Into<ZarrWriteError>) -> DatasetError {
@@ -131,9 +138,14 @@ pub struct ZarrWriter {
     action: Series,
     state: Series,
     timestamp: Series,
+    /// `data/privileged_state` (`--privileged-state`), with its column names.
+    privileged: Option<(Series, Vec<String>)>,
     images: Vec<Images>,
+    /// `data/<camera>_depth` (`--depth`), in camera-name order.
+    depth: Vec<DepthArray>,
     episode_ends: Vec<i64>,
     episode_ids: Vec<String>,
+    labels: Vec<Option<ReplayLabel>>,
     videos: bool,
     codec: CodecOptions,
     meta: ArrayMetadataOptions,
@@ -186,17 +198,28 @@ impl ZarrWriter {
             })
         };
         let images = image_arrays(&store, &zarr, first)?;
+        let depth = DepthArray::all(&store, &zarr, first)?;
+        let privileged = match &first.privileged {
+            Some(p) => Some((
+                series("privileged_state", p.width(), false)?,
+                first.privileged_names.clone(),
+            )),
+            None => None,
+        };
         Ok(Self {
             action: series("action", first.action.width(), false)?,
             state: series("state", first.state.width(), false)?,
             timestamp: series("timestamp", 1, true)?,
+            privileged,
             root,
             zarr: zarr.clone(),
             store: store.clone(),
             fps: first.fps,
             images,
+            depth,
             episode_ends: Vec::new(),
             episode_ids: Vec::new(),
+            labels: Vec::new(),
             videos,
             codec: CodecOptions::default().with_store_empty_chunks(true),
             meta: ArrayMetadataOptions::default().with_include_zarrs_metadata(false),
@@ -299,11 +322,173 @@ fn image_arrays(
     Ok(images)
 }
 
+/// `data/<camera>_depth`: float32 (T, H, W) metres from the camera's depth archive,
+/// chunks (1, H, W), Blosc as the other data arrays.
+struct DepthArray {
+    name: String,
+    array: Array<FilesystemStore>,
+    height: usize,
+    width: usize,
+}
+
+/// Why a depth array could not be written.
+enum DepthWriteError {
+    Zarr(ZarrWriteError),
+    Dataset(DatasetError),
+}
+
+impl From<crate::error::FormatError> for DepthWriteError {
+    fn from(e: crate::error::FormatError) -> Self {
+        Self::Dataset(DatasetError::Episode {
+            at: Location::default().into(),
+            message: e.to_string(),
+        })
+    }
+}
+
+impl DepthWriteError {
+    fn in_store(self, zarr: &Path) -> DatasetError {
+        match self {
+            Self::Zarr(e) => zarr_err(zarr, e),
+            Self::Dataset(e) => e,
+        }
+    }
+}
+
+impl DepthArray {
+    /// The depth arrays of `first`'s depth parts, (0, H, W) in chunks of one frame.
+    fn all(
+        store: &Arc<FilesystemStore>,
+        zarr: &Path,
+        first: &PreparedEpisode,
+    ) -> Result<Vec<Self>, DatasetError> {
+        let mut out = Vec::new();
+        for d in &first.depth {
+            let name = format!("{}_depth", d.name);
+            if RESERVED.contains(&name.as_str()) || first.videos.iter().any(|v| v.name == name) {
+                return Err(DatasetError::episode(
+                    &first.id,
+                    format!("depth array name '{name}' is taken (rename the camera)"),
+                ));
+            }
+            let (h, w) = (d.height as u64, d.width as u64);
+            let array = Array::new_with_metadata(
+                store.clone(),
+                &format!("/data/{name}"),
+                metadata(zarr, &[0, h, w], &[1, h, w], "<f4", true)?,
+            )
+            .map_err(|e| zarr_err(zarr, e))?;
+            out.push(Self {
+                name,
+                array,
+                height: d.height,
+                width: d.width,
+            });
+        }
+        Ok(out)
+    }
+
+    /// Checks that `ep` has the store's depth cameras, of the same sizes.
+    fn check(arrays: &[Self], ep: &PreparedEpisode) -> Result<(), DatasetError> {
+        let want: Vec<String> = arrays.iter().map(|a| a.name.clone()).collect();
+        let have: Vec<String> = ep
+            .depth
+            .iter()
+            .map(|d| format!("{}_depth", d.name))
+            .collect();
+        if want != have {
+            return Err(DatasetError::episode(
+                &ep.id,
+                format!("depth arrays {have:?} differ from the store's {want:?}"),
+            ));
+        }
+        for (a, d) in arrays.iter().zip(&ep.depth) {
+            if (d.width, d.height) != (a.width, a.height) {
+                return Err(DatasetError::episode(
+                    &ep.id,
+                    format!(
+                        "depth of camera '{}': {}x{} differs from the store's {}x{}",
+                        d.name, d.width, d.height, a.width, a.height
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Streams the kept frames of `part`'s archive into frames `start..` of the array.
+    fn write(
+        &mut self,
+        part: &super::DepthPart,
+        ep: &PreparedEpisode,
+        start: u64,
+        codec: &CodecOptions,
+    ) -> Result<(), DepthWriteError> {
+        let (h, w) = (self.height as u64, self.width as u64);
+        let n = ep.len();
+        let mut kept = 0u64;
+        let at = || {
+            Location::episode(&ep.id)
+                .field(format!("depth of camera {}", part.name))
+                .path(&part.path)
+        };
+        let result = crate::npz::for_each_depth_frame(&part.path, |k, frame| {
+            if k < part.skip || kept as usize >= n {
+                return Ok(());
+            }
+            let t = start + kept;
+            self.array
+                .set_shape(vec![t + 1, h, w])
+                .map_err(|e| DepthWriteError::Zarr(e.into()))?;
+            self.array
+                .store_chunk_opt(&[t, 0, 0], frame, codec)
+                .map_err(|e| DepthWriteError::Zarr(e.into()))?;
+            kept += 1;
+            Ok(())
+        });
+        match result {
+            Err(DepthWriteError::Dataset(DatasetError::Episode { message, .. })) => {
+                return Err(DepthWriteError::Dataset(DatasetError::Episode {
+                    at: at().into(),
+                    message,
+                }));
+            }
+            Err(e) => return Err(e),
+            Ok(_) => {}
+        }
+        if kept as usize != n {
+            return Err(DepthWriteError::Dataset(DatasetError::Episode {
+                at: at().into(),
+                message: format!("{kept} depth frames after the trimmed start, expected {n}"),
+            }));
+        }
+        Ok(())
+    }
+
+    /// Sets the final shape and writes the metadata.
+    fn finish(
+        mut self,
+        zarr: &Path,
+        total: u64,
+        meta: &ArrayMetadataOptions,
+    ) -> Result<(), DatasetError> {
+        let (h, w) = (self.height as u64, self.width as u64);
+        self.array
+            .set_shape(vec![total, h, w])
+            .map_err(|e| zarr_err(zarr, e))?;
+        self.array
+            .store_metadata_opt(meta)
+            .map_err(|e| zarr_err(zarr, e))
+    }
+}
+
 impl DatasetWriter for ZarrWriter {
     /// Checks that `ep` can join this store (fps, widths, cameras).
     fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), DatasetError> {
+        ep.check_privileged(self.privileged.as_ref().map_or(&[], |(_, n)| n))?;
         let want: Vec<&str> = self.images.iter().map(|c| c.name.as_str()).collect();
         ep.check_layout(self.fps, self.action.width, self.state.width, &want)?;
+        DepthArray::check(&self.depth, ep)?;
         for (v, img) in ep.videos.iter().zip(&self.images) {
             if (v.info.width, v.info.height) != (img.width, img.height) {
                 return Err(DatasetError::episode(
@@ -333,6 +518,9 @@ impl DatasetWriter for ZarrWriter {
         let fps = f64::from(self.fps);
         let ts: Vec<f64> = (0..n).map(|k| k as f64 / fps).collect();
         self.timestamp.push(&ts, &self.codec).map_err(&err)?;
+        if let (Some((series, _)), Some(p)) = (self.privileged.as_mut(), &ep.privileged) {
+            series.push(p.as_slice(), &self.codec).map_err(&err)?;
+        }
 
         let index = self.episode_ends.len();
         for (c, part) in ep.videos.iter().enumerate() {
@@ -348,8 +536,13 @@ impl DatasetWriter for ZarrWriter {
                 let _ = fs_err::remove_file(&part.path);
             }
         }
+        for (d, part) in self.depth.iter_mut().zip(&ep.depth) {
+            d.write(part, &ep, start, &self.codec)
+                .map_err(|e| e.in_store(&self.zarr))?;
+        }
         self.episode_ends.push((start as usize + n) as i64);
         self.episode_ids.push(ep.id);
+        self.labels.push(ep.label);
         Ok(())
     }
 
@@ -367,7 +560,11 @@ impl DatasetWriter for ZarrWriter {
         let zarr = &this.zarr;
         let total = this.frames() as u64;
         let cameras: Vec<String> = this.images.iter().map(|i| i.name.clone()).collect();
-        for s in [this.action, this.state, this.timestamp] {
+        let (privileged, names) = this.privileged.unzip();
+        let series = [this.action, this.state, this.timestamp]
+            .into_iter()
+            .chain(privileged);
+        for s in series {
             s.finish(&this.codec, &this.meta)
                 .map_err(|e| zarr_err(zarr, e))?;
         }
@@ -379,6 +576,9 @@ impl DatasetWriter for ZarrWriter {
             img.array
                 .store_metadata_opt(&this.meta)
                 .map_err(|e| zarr_err(zarr, e))?;
+        }
+        for d in this.depth {
+            d.finish(zarr, total, &this.meta)?;
         }
         let n = this.episode_ends.len() as u64;
         let array = Array::new_with_metadata(
@@ -394,6 +594,13 @@ impl DatasetWriter for ZarrWriter {
             array
                 .store_array_subset_opt(&array.subset_all(), &this.episode_ends[..], &this.codec)
                 .map_err(|e| zarr_err(zarr, e))?;
+        }
+        write_zarr_labels(zarr, &this.episode_ids, &this.labels)?;
+        if let Some(names) = names {
+            write_json(
+                &zarr.join("data/privileged_state/.zattrs"),
+                &json!({ "names": names }),
+            )?;
         }
         if this.videos {
             let map = json!({

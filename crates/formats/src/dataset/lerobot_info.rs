@@ -115,6 +115,8 @@ pub enum VideoMeta {
     V3(VideoMetaV3),
     /// LeRobot v2.1.
     V21(VideoMetaV21),
+    /// A depth map (LeRobot v3.0), as lerobot 0.6.1 describes it.
+    Depth(super::depth::DepthVideoMeta),
 }
 
 /// A LeRobot v3.0 video feature's `info`.
@@ -231,7 +233,12 @@ impl Features {
         for c in cameras {
             let feature = Feature {
                 dtype: DType::Video,
-                shape: vec![u64::from(c.height), u64::from(c.width), 3],
+                // Depth maps (gray) have one channel.
+                shape: vec![
+                    u64::from(c.height),
+                    u64::from(c.width),
+                    if c.pix_fmt.starts_with("gray") { 1 } else { 3 },
+                ],
                 names: Some(["height", "width", "channels"].map(String::from).to_vec()),
                 info: Some(video(c)),
             };
@@ -242,6 +249,31 @@ impl Features {
             features.push((k.to_owned(), scalar(DType::Int64)));
         }
         Self(features)
+    }
+}
+
+impl Features {
+    /// These features with the privileged state (`--privileged-state`, float32 with one
+    /// name per column) after `observation.state`; unchanged when `names` is empty.
+    #[must_use]
+    pub fn with_privileged(mut self, names: &[String]) -> Self {
+        if names.is_empty() {
+            return self;
+        }
+        let at = self
+            .0
+            .iter()
+            .position(|(k, _)| k == "observation.state")
+            .map_or(self.0.len(), |i| i + 1);
+        let feature = Feature {
+            dtype: DType::Float32,
+            shape: vec![names.len() as u64],
+            names: Some(names.to_vec()),
+            info: None,
+        };
+        self.0
+            .insert(at, (super::PRIVILEGED_KEY.to_owned(), feature));
+        self
     }
 }
 

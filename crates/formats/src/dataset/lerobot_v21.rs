@@ -13,10 +13,11 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use serde_json::{Value, json};
 
+use super::episode_labels::label_columns;
 use super::lerobot_info::{
     CameraSpec, Features, Info, InfoVersion, Tasks, VideoMeta, VideoMetaV21, check_episode,
     stats_json, train_split,
@@ -24,8 +25,9 @@ use super::lerobot_info::{
 use super::lerobot_v3::{CHUNKS_SIZE, data_columns, index_stats};
 use super::parquet as pq;
 use super::stats::{FeatureStats, aggregate};
-use super::{DatasetWriter, PreparedEpisode, place_video, write_json};
+use super::{DatasetWriter, PRIVILEGED_KEY, PreparedEpisode, place_video, write_json};
 use crate::error::DatasetError;
+use crate::raw::ReplayLabel;
 
 /// Writes a LeRobot v2.1 dataset into `root` (a fresh folder).
 pub struct V21Writer {
@@ -34,11 +36,15 @@ pub struct V21Writer {
     fps: u32,
     action_names: Vec<String>,
     state_names: Vec<String>,
+    privileged_names: Vec<String>,
     cameras: Vec<CameraSpec>,
     episodes: fs_err::File,
     episodes_stats: fs_err::File,
     /// Per episode, its statistics (kept for stats.json; a few hundred numbers each).
     stats: Vec<BTreeMap<String, FeatureStats>>,
+    /// Per episode, its `episodes.jsonl` line and replay record (the labels are added
+    /// to the lines at the end, when some episode has a record).
+    lines: Vec<(Value, Option<ReplayLabel>)>,
     tasks: Tasks,
     frames: usize,
 }
@@ -60,13 +66,16 @@ fn jsonl_line(file: &mut fs_err::File, value: &Value) -> Result<(), DatasetError
 }
 
 /// The `huggingface` schema metadata the v2.1 loader builds its features from.
-fn hf_metadata(action: usize, state: usize) -> String {
+fn hf_metadata(action: usize, state: usize, privileged: usize) -> String {
     let seq = |n: usize| json!({"feature": {"dtype": "float32", "_type": "Value"}, "length": n, "_type": "Sequence"});
     let value = |t: &str| json!({"dtype": t, "_type": "Value"});
     // serde_json keeps insertion order (its `preserve_order`, which zarrs turns on).
     let mut features = serde_json::Map::new();
     features.insert("action".into(), seq(action));
     features.insert("observation.state".into(), seq(state));
+    if privileged > 0 {
+        features.insert(PRIVILEGED_KEY.into(), seq(privileged));
+    }
     features.insert("timestamp".into(), value("float32"));
     for k in ["frame_index", "episode_index", "index", "task_index"] {
         features.insert(k.into(), value("int64"));
@@ -94,9 +103,11 @@ impl V21Writer {
             fps: first.fps,
             action_names: first.action_names.clone(),
             state_names: first.state_names.clone(),
+            privileged_names: first.privileged_names.clone(),
             cameras: CameraSpec::of(first),
             root,
             stats: Vec::new(),
+            lines: Vec::new(),
             tasks: Tasks::default(),
             frames: 0,
         })
@@ -115,7 +126,8 @@ impl V21Writer {
                     video_is_depth_map: false,
                     has_audio: false,
                 })
-            });
+            })
+            .with_privileged(&self.privileged_names);
         let episodes = self.stats.len();
         Info {
             version: InfoVersion::V21 {
@@ -138,9 +150,35 @@ impl V21Writer {
     }
 }
 
+impl V21Writer {
+    /// Rewrites `episodes.jsonl` with the label columns ([`label_columns`]) in every line
+    /// when some episode has a replay record (lerobot 0.6.1's v2.1 -> v3.0 script carries
+    /// a line's keys into the v3.0 episode metadata).
+    fn add_labels(&mut self, meta: &Path) -> Result<(), DatasetError> {
+        let labels: Vec<Option<&ReplayLabel>> =
+            self.lines.iter().map(|(_, l)| l.as_ref()).collect();
+        let columns = label_columns(&labels);
+        if columns.is_empty() {
+            return Ok(());
+        }
+        let mut file = fs_err::File::create(meta.join("episodes.jsonl"))?;
+        for (i, (line, _)) in self.lines.iter().enumerate() {
+            let mut line = line.clone();
+            let obj = line.as_object_mut().expect("an object");
+            for (name, values) in &columns {
+                obj.insert(name.clone(), values.json(i));
+            }
+            jsonl_line(&mut file, &line)?;
+        }
+        file.flush()?;
+        Ok(())
+    }
+}
+
 impl DatasetWriter for V21Writer {
     /// Checks that `ep` can join this dataset (layout, video size, codec and pixel format).
     fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), DatasetError> {
+        ep.check_privileged(&self.privileged_names)?;
         check_episode(
             ep,
             self.fps,
@@ -178,7 +216,11 @@ impl DatasetWriter for V21Writer {
             columns,
             HashMap::from([(
                 "huggingface".to_owned(),
-                hf_metadata(self.action_names.len(), self.state_names.len()),
+                hf_metadata(
+                    self.action_names.len(),
+                    self.state_names.len(),
+                    self.privileged_names.len(),
+                ),
             )]),
         );
         let path = self
@@ -195,10 +237,9 @@ impl DatasetWriter for V21Writer {
             place_video(part, &dst)?;
         }
 
-        jsonl_line(
-            &mut self.episodes,
-            &json!({"episode_index": index, "tasks": [ep.instruction], "length": n}),
-        )?;
+        let line = json!({"episode_index": index, "tasks": [ep.instruction], "length": n});
+        jsonl_line(&mut self.episodes, &line)?;
+        self.lines.push((line, ep.label.clone()));
         let mut st = serde_json::Map::new();
         for (key, s) in &stats {
             st.insert(
@@ -228,6 +269,7 @@ impl DatasetWriter for V21Writer {
         self.episodes.flush()?;
         self.episodes_stats.flush()?;
         let meta = self.root.join("meta");
+        self.add_labels(&meta)?;
         let mut tasks = fs_err::File::create(meta.join("tasks.jsonl"))?;
         for (i, t) in self.tasks.list().iter().enumerate() {
             jsonl_line(&mut tasks, &json!({"task_index": i, "task": t}))?;

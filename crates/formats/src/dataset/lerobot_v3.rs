@@ -7,14 +7,17 @@ use std::path::{Path, PathBuf};
 use parquet::arrow::ArrowWriter;
 use serde_json::Value;
 
+use super::depth::DepthVideoMeta;
+use super::episode_labels::label_columns;
 use super::lerobot_info::{
     CameraSpec, Features, Info, InfoVersion, Tasks, VideoMeta, VideoMetaV3, check_episode,
     stats_json, train_split,
 };
 use super::parquet::{self as pq, parquet_err};
 use super::stats::{FeatureStats, aggregate, column_stats};
-use super::{DatasetWriter, PreparedEpisode, write_json};
+use super::{DatasetWriter, PRIVILEGED_KEY, PreparedEpisode, write_json};
 use crate::error::DatasetError;
+use crate::raw::ReplayLabel;
 
 /// Episodes per chunk folder.
 pub const CHUNKS_SIZE: usize = 1000;
@@ -77,7 +80,7 @@ pub(crate) fn data_columns(
     task_index: usize,
 ) -> Vec<(String, arrow_array::ArrayRef)> {
     let n = ep.len();
-    vec![
+    let mut cols = vec![
         (
             "action".to_owned(),
             pq::f32_vectors(ep.action.as_slice(), ep.action.width()),
@@ -86,6 +89,14 @@ pub(crate) fn data_columns(
             "observation.state".to_owned(),
             pq::f32_vectors(ep.state.as_slice(), ep.state.width()),
         ),
+    ];
+    if let Some(p) = &ep.privileged {
+        cols.push((
+            PRIVILEGED_KEY.to_owned(),
+            pq::f32_vectors(p.as_slice(), p.width()),
+        ));
+    }
+    cols.extend([
         (
             "timestamp".to_owned(),
             pq::f32_column(timestamps.iter().copied()),
@@ -106,7 +117,8 @@ pub(crate) fn data_columns(
             "task_index".to_owned(),
             pq::i64_column(std::iter::repeat_n(task_index as i64, n)),
         ),
-    ]
+    ]);
+    cols
 }
 
 #[derive(Debug, Default)]
@@ -128,6 +140,7 @@ struct EpisodeRow {
     to: usize,
     videos: Vec<(usize, usize, f64, f64)>,
     stats: BTreeMap<String, FeatureStats>,
+    label: Option<ReplayLabel>,
 }
 
 struct DataFile {
@@ -142,7 +155,11 @@ pub struct V3Writer {
     fps: u32,
     action_names: Vec<String>,
     state_names: Vec<String>,
+    privileged_names: Vec<String>,
+    /// The colour cameras, then the depth ones (`<camera>_depth`).
     cameras: Vec<CameraSpec>,
+    /// How many of `cameras` are colour cameras.
+    colour: usize,
     data: Option<DataFile>,
     data_index: (usize, usize),
     videos: Vec<VideoFile>,
@@ -182,7 +199,9 @@ impl V3Writer {
     ) -> Result<Self, DatasetError> {
         let root = root.into();
         fs_err::create_dir_all(root.join("meta"))?;
-        let cameras = CameraSpec::of(first);
+        let mut cameras = CameraSpec::of(first);
+        let colour = cameras.len();
+        cameras.extend(super::depth::camera_specs(first));
         Ok(Self {
             videos: cameras.iter().map(|_| VideoFile::default()).collect(),
             root,
@@ -190,7 +209,9 @@ impl V3Writer {
             fps: first.fps,
             action_names: first.action_names.clone(),
             state_names: first.state_names.clone(),
+            privileged_names: first.privileged_names.clone(),
             cameras,
+            colour,
             data: None,
             data_index: (0, 0),
             episodes: Vec::new(),
@@ -238,7 +259,8 @@ impl V3Writer {
         let fps = f64::from(self.fps);
         let vcap = (self.options.video_file_mb * 1e6) as u64;
         let mut videos = Vec::new();
-        for (i, part) in ep.videos.iter().enumerate() {
+        let depth = super::depth::encoded_parts(ep, &self.cameras[self.colour..])?;
+        for (i, part) in ep.videos.iter().chain(depth).enumerate() {
             if !self.videos[i].parts.is_empty() && self.videos[i].bytes + part.bytes >= vcap {
                 self.close_video(i)?;
                 let (c, f) = next_index((self.videos[i].chunk, self.videos[i].file));
@@ -355,6 +377,12 @@ impl V3Writer {
         ];
         cols.extend(self.video_columns());
         cols.extend(stats_columns(rows, feature_keys));
+        let labels: Vec<Option<&ReplayLabel>> = rows.iter().map(|r| r.label.as_ref()).collect();
+        cols.extend(
+            label_columns(&labels)
+                .into_iter()
+                .map(|(name, values)| (name, values.to_arrow())),
+        );
         cols.push((
             "meta/episodes/chunk_index".into(),
             pq::i64_column(rows.iter().map(|_| 0)),
@@ -404,6 +432,9 @@ impl V3Writer {
             ("action".into(), false),
             ("observation.state".into(), false),
         ];
+        if !self.privileged_names.is_empty() {
+            v.push((PRIVILEGED_KEY.into(), false));
+        }
         v.extend(self.cameras.iter().map(|c| (c.key.clone(), true)));
         for k in [
             "timestamp",
@@ -420,6 +451,9 @@ impl V3Writer {
     fn info(&self) -> Info {
         let features =
             Features::lerobot(&self.action_names, &self.state_names, &self.cameras, |c| {
+                if c.pix_fmt == super::depth::DEPTH_PIX_FMT {
+                    return VideoMeta::Depth(DepthVideoMeta::new(c.width, c.height, self.fps));
+                }
                 let encoded = !c.copied;
                 VideoMeta::V3(VideoMetaV3 {
                     height: c.height,
@@ -438,7 +472,8 @@ impl V3Writer {
                     has_audio: false,
                     is_depth_map: false,
                 })
-            });
+            })
+            .with_privileged(&self.privileged_names);
         Info {
             version: InfoVersion::V3 {
                 data_files_size_in_mb: (self.options.data_file_mb.round() as u64).max(1),
@@ -494,11 +529,12 @@ fn stats_columns(
 impl DatasetWriter for V3Writer {
     /// Checks that `ep` can join this dataset (layout, and videos that stream-copy).
     fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), DatasetError> {
+        ep.check_privileged(&self.privileged_names)?;
         check_episode(
             ep,
             self.fps,
             (self.action_names.len(), self.state_names.len()),
-            &self.cameras,
+            &self.cameras[..self.colour],
             |c, v| {
                 format!(
                     "camera '{}': {}x{} {} {} cannot join the dataset's {}x{} {} {} video by stream copy (use --reencode)",
@@ -513,7 +549,8 @@ impl DatasetWriter for V3Writer {
                     c.pix_fmt
                 )
             },
-        )
+        )?;
+        super::depth::encoded_parts(ep, &self.cameras[self.colour..]).map(drop)
     }
 
     /// Appends one episode: its rows to the current data file (one row group), its video
@@ -539,6 +576,7 @@ impl DatasetWriter for V3Writer {
             to: from + n,
             videos,
             stats,
+            label: ep.label,
         });
         self.frames += n;
         Ok(())

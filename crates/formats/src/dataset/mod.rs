@@ -11,9 +11,12 @@
 //! with and appends [`PreparedEpisode`]s of that layout; selecting, trimming, encoding
 //! and measuring episodes is the caller's (`dexjoco-convert`). [`lerobot_info`] holds the
 //! typed `info.json` both LeRobot versions write, [`stats`] the statistics as lerobot
-//! computes them, `parquet` the column builders.
+//! computes them, `parquet` the column builders, [`episode_labels`] the replays' outcome and
+//! randomization columns.
 
+pub mod depth;
 pub mod diffusion_policy;
+pub mod episode_labels;
 pub mod lerobot_info;
 pub mod lerobot_v21;
 pub mod lerobot_v3;
@@ -36,6 +39,10 @@ pub use lerobot_v3::{
     CHUNKS_SIZE, DEFAULT_DATA_FILE_MB, DEFAULT_VIDEO_FILE_MB, V3Options, V3Writer,
 };
 pub use lerobot_v21::V21Writer;
+
+/// The LeRobot feature key of the privileged state (`--privileged-state`): outside
+/// `observation.*`, so lerobot's policies do not take it as an input.
+pub const PRIVILEGED_KEY: &str = "privileged.state";
 
 /// A dataset being written: episodes of one layout appended in order, then finished.
 pub trait DatasetWriter: std::fmt::Debug {
@@ -150,6 +157,10 @@ pub struct DepthPart {
     pub width: usize,
     /// Frame height in pixels.
     pub height: usize,
+    /// For LeRobot v3.0: the kept frames quantized and encoded as lerobot stores depth
+    /// (a temporary file, see [`depth::encode_part`]); None for formats that read the
+    /// archive itself.
+    pub video: Option<VideoPart>,
 }
 
 impl PreparedEpisode {
@@ -177,6 +188,22 @@ impl PreparedEpisode {
         if names != cameras {
             return bad(format!(
                 "cameras {names:?} differ from the dataset's {cameras:?} (map cameras to shared names)"
+            ));
+        }
+        Ok(())
+    }
+
+    /// Checks that this episode's privileged state (`--privileged-state`) has the
+    /// dataset's columns `names` (empty: the dataset has none).
+    pub fn check_privileged(&self, names: &[String]) -> Result<(), DatasetError> {
+        if self.privileged_names != names {
+            return Err(DatasetError::episode(
+                &self.id,
+                format!(
+                    "privileged state columns {:?} differ from the dataset's {names:?} \
+                     (--privileged-state needs tasks with the same state objects)",
+                    self.privileged_names
+                ),
             ));
         }
         Ok(())
