@@ -18,6 +18,7 @@ const BEHAVIOUR_ENV: &[&str] = &[
     "DEXJOCO_FIRST_FRAME_TIMEOUT",
     dexjoco_augment::FAULT_ENV,
     dexjoco_augment::STALL_ENV,
+    dexjoco_augment::RENDER_DEFECT_ENV,
     "SLURM_ARRAY_TASK_ID",
     "SLURM_ARRAY_TASK_COUNT",
     "SLURM_ARRAY_TASK_MIN",

@@ -13,7 +13,9 @@ Prints JSON: lerobot's depth keys, per camera: the codes of the dataset's depth 
 largest difference), every item's depth as LeRobotDataset returns it against lerobot's own
 dequantize(quantize(archive)) in mm (mismatches) and against the archive (largest error in
 mm, and pixels beyond half a code step plus the mm rounding), the stored statistics; and
-Diffusion Policy's data/<camera>_depth (dtype, shape, chunks, bitwise equal to the archives).
+Diffusion Policy's data/<camera>_depth (dtype, shape, chunks, bitwise equal to the archives);
+and, when the dataset has them, each episode's outcome/randomization columns and every item's
+privileged.state with its names.
 """
 
 import json
@@ -74,6 +76,14 @@ for name, archives in cameras.items():
     cam["source_min_mm"] = float(source.min()) * 1000.0
     cam["source_max_mm"] = float(source.max()) * 1000.0
     out["cameras"][name] = cam
+
+# The labels (episode metadata columns) and the privileged state, when the dataset has them.
+cols = [k for k in ds.meta.episodes.column_names if k.startswith(("outcome/", "randomization/"))]
+out["labels"] = [{k: ds.meta.episodes[i][k] for k in cols} for i in range(ds.meta.total_episodes)]
+if "privileged.state" in ds.meta.features:
+    out["privileged_names"] = ds.meta.features["privileged.state"]["names"]
+    out["privileged"] = [ds[i]["privileged.state"].tolist() for i in range(len(ds))]
+    out["episode_index"] = [int(ds[i]["episode_index"]) for i in range(len(ds))]
 
 sys.path.insert(0, dp_dir)
 from diffusion_policy.common.replay_buffer import ReplayBuffer  # noqa: E402

@@ -1,10 +1,14 @@
-//! `convert --depth` end to end on real depth: augment renders two replays of the sample
-//! demo with `--depth` (32 px, 12 frames), convert carries the archives into LeRobot
-//! v3.0 and Diffusion Policy, and the real readers read them back: lerobot 0.6.1
-//! (`meta.depth_keys`, every item's depth against lerobot's own quantize/dequantize of the
-//! archive, the video's codes against `quantize_depth`) and Diffusion Policy's
-//! `ReplayBuffer` (bit for bit). LeRobot v2.1 refuses `--depth`; an episode without its
-//! archive is left out and named.
+//! A dataset that tells the truth, end to end (issue #27): augment renders two replays of
+//! the sample demo with `--depth` (32 px, 12 frames), a blank run injected into the second
+//! one's front camera (the render checks' test hook); convert leaves the flagged replay
+//! out by default, and with `--include-failed --include-flagged --depth
+//! --privileged-state` carries outcomes, flags, randomization draws, depth and the
+//! privileged state into LeRobot v3.0 and Diffusion Policy; the real readers read each
+//! back: lerobot 0.6.1 (episode columns against each `replay.json`, `privileged.state`
+//! against the replayed state, `meta.depth_keys`, every item's depth against lerobot's
+//! own quantize/dequantize of the archive, the video's codes against `quantize_depth`) and
+//! Diffusion Policy's `ReplayBuffer` (depth bit for bit). LeRobot v2.1 refuses `--depth`;
+//! an episode without its archive is left out and named; `stats --dataset` counts the flag.
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -13,10 +17,14 @@ mod common;
 
 const CAMERAS: [&str; 2] = ["front", "third_person"];
 
+/// The defect injected: frames 3-5 of the second replay's front camera drawn black.
+const DEFECT: &str = "r01:blank:front:3-5";
+
 fn run(args: &[&str]) -> Output {
     common::dexjoco()
         .current_dir(dexjoco_testkit::workspace_root())
         .env("DEXJOCO_LOG", "warn")
+        .env(dexjoco_augment::RENDER_DEFECT_ENV, DEFECT)
         .args(args)
         .output()
         .unwrap()
@@ -32,6 +40,7 @@ fn convert(input: &Path, out: &Path, format: &str) -> Output {
         "convert",
         input.to_str().unwrap(),
         "--depth",
+        "--privileged-state",
         "--include-failed",
         "--include-flagged",
         "--format",
@@ -126,6 +135,7 @@ fn check_readers(v3: &Path, dp: &Path, replays: &[PathBuf]) {
     }
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let got = dexjoco_testkit::run_python_json("depth_check.py", &args);
+    check_labels(&got, replays);
     assert_eq!(
         got["depth_keys"],
         serde_json::json!([
@@ -175,11 +185,104 @@ fn check_readers(v3: &Path, dp: &Path, replays: &[PathBuf]) {
     }
 }
 
+/// Each episode's outcome and randomization columns are its replay record's, and its
+/// privileged state is the replayed state's columns after the proprioception, named
+/// from the task spec.
+fn check_labels(got: &serde_json::Value, replays: &[PathBuf]) {
+    let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
+    let proprio = spec.setup.proprio_dim();
+    let layout = spec.state_layout();
+    let names: Vec<String> = (proprio..layout.width())
+        .map(|c| layout.column_name(c))
+        .collect();
+    assert_eq!(got["privileged_names"], serde_json::json!(names));
+    let labels = got["labels"].as_array().unwrap();
+    assert_eq!(labels.len(), replays.len());
+    let mut rows = got["privileged"].as_array().unwrap().iter();
+    for (e, (l, dir)) in labels.iter().zip(replays).enumerate() {
+        let rec: serde_json::Value =
+            serde_json::from_slice(&fs_err::read(dir.join("replay.json")).unwrap()).unwrap();
+        assert_eq!(l["outcome/success"], rec["success"], "{e}: {l}");
+        assert_eq!(l["outcome/extended"], rec["extended"], "{e}: {l}");
+        assert_eq!(l["outcome/steps"], rec["steps"], "{e}: {l}");
+        let flags: Vec<&str> = rec["flags"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| f["check"].as_str().unwrap())
+            .collect();
+        assert_eq!(l["outcome/flags"], serde_json::json!(flags), "{e}: {l}");
+        assert_eq!(flags, if e == 1 { vec!["blank_frame"] } else { vec![] });
+        let sample = &rec["sample"];
+        assert_eq!(l["randomization/seed"], sample["seed"], "{e}: {l}");
+        assert_eq!(l["randomization/table"], sample["table"], "{e}: {l}");
+        assert_eq!(
+            l["randomization/camera_azimuth"], sample["camera"]["azimuth"],
+            "{e}: {l}"
+        );
+        let state = dexjoco_formats::raw::read_raw_episode(dir, spec)
+            .unwrap()
+            .episode;
+        let state = state.array("state").unwrap();
+        for k in 0..state.len() {
+            let want: Vec<f32> = state.row(k)[proprio..].iter().map(|v| *v as f32).collect();
+            let row: Vec<f32> = rows
+                .next()
+                .unwrap()
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap() as f32)
+                .collect();
+            assert_eq!(row, want, "episode {e} frame {k}");
+        }
+    }
+    assert!(rows.next().is_none());
+}
+
+/// Without `--include-flagged` the flagged replay is left out and named (exit code 3);
+/// `stats --dataset` counts it in its health section.
+fn check_flagged_left_out(aug: &Path, tmp: &Path) {
+    let out = run(&[
+        "-q",
+        "convert",
+        aug.to_str().unwrap(),
+        "--include-failed",
+        "--out",
+        tmp.join("default").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
+    let all = format!("{}{}", text(&out.stdout), text(&out.stderr));
+    assert!(
+        all.contains("blank_frame on front, frames 3-5") && all.contains("--include-flagged"),
+        "{all}"
+    );
+    let out = run(&[
+        "stats",
+        "--dataset",
+        aug.to_str().unwrap(),
+        "--out",
+        tmp.join("stats").to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stats: serde_json::Value = serde_json::from_slice(
+        &fs_err::read(tmp.join("stats/dataset/dataset_stats.json")).unwrap(),
+    )
+    .unwrap();
+    let o = &stats["health"]["outcomes"][0];
+    assert_eq!(
+        (&o["replays"], &o["flagged"]),
+        (&serde_json::json!(2), &serde_json::json!(1)),
+        "{o}"
+    );
+}
+
 #[test]
-fn depth_reaches_lerobot_and_diffusion_policy_as_rendered() {
+fn a_labelled_depth_and_privileged_dataset_reaches_lerobot_and_diffusion_policy() {
     let tmp = tempfile::tempdir().unwrap();
     let aug = tmp.path().join("aug");
     let replays = augment_with_depth(&aug);
+    check_flagged_left_out(&aug, tmp.path());
     let v3 = tmp.path().join("v3");
     let out = convert(&aug, &v3, "lerobot-v3");
     assert!(out.status.success(), "convert v3: {}", text(&out.stderr));
