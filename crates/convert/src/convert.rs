@@ -154,7 +154,9 @@ where
     if options.depth && options.format == OutputFormat::LeRobotV21 {
         return Err(ConvertError::Unsupported {
             format: options.format.name(),
-            message: "--depth is not supported: openpi's lerobot (v2.1) has no depth decoding                       (lerobot 0.6.1 reads depth from v3.0 only); use --format lerobot-v3 or                       diffusion-policy"
+            message: "--depth is not supported: openpi's lerobot (v2.1) has no depth decoding \
+                          (lerobot 0.6.1 reads depth from v3.0 only); use --format lerobot-v3 \
+                          or diffusion-policy"
                 .into(),
         });
     }
