@@ -197,6 +197,7 @@ impl DirLock {
         let bytes = owner.to_bytes();
         for attempt in 0..50 {
             if create_exclusive(&path, &bytes)? {
+                remove_stale_temporaries(&path);
                 let heartbeat = Heartbeat::start(path.clone(), bytes, HEARTBEAT);
                 return Ok(Self {
                     path,
@@ -314,6 +315,33 @@ fn locked(dir: &Path, owner: LockOwner) -> FormatError {
 
 /// What names a lock file's temporary while it is written (`<lock>.tmp-<pid>-<n>`).
 const LOCK_TEMP_MARK: &str = ".tmp-";
+
+/// Removes the temporaries of lock `path` (`<lock>.tmp-<pid>-<n>`) that a process killed
+/// between writing and linking them left: one naming an owner that no longer runs
+/// ([`LockOwner::is_alive`], as for a lock), or unreadable for [`UNREADABLE_GRACE`].
+/// Best effort: called by the lock's new holder.
+fn remove_stale_temporaries(path: &Path) {
+    let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
+        return;
+    };
+    let prefix = format!("{}{LOCK_TEMP_MARK}", name.to_string_lossy());
+    let Ok(entries) = fs_err::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        if !e.file_name().to_string_lossy().starts_with(&prefix) {
+            continue;
+        }
+        let stale = match read_lock(&e.path()) {
+            Ok(Found::Owner(owner, _)) => !owner.is_alive(),
+            Ok(Found::Unreadable { old, .. }) => old,
+            _ => false,
+        };
+        if stale {
+            let _ = fs_err::remove_file(e.path());
+        }
+    }
+}
 
 /// Creates `path` holding `bytes`, complete before it becomes visible; `Ok(false)` when
 /// it exists.
@@ -532,6 +560,28 @@ mod tests {
         let live = DirLock::live_locks(dir.path()).unwrap();
         assert_eq!(live.len(), 1);
         assert!(live[0].file.ends_with(".lock-shard-2-of-4"));
+    }
+
+    #[test]
+    fn a_temporary_left_by_a_killed_process_is_removed_by_the_next_holder() {
+        // Seen in the kill tests: an ingest killed between writing its lock's temporary
+        // and linking it left `.lock.tmp-<pid>-0` in the store.
+        let dir = tempfile::tempdir().unwrap();
+        let mut dead = LockOwner::current();
+        dead.pid = u32::MAX - 1;
+        dead.started = None;
+        let left = dir
+            .path()
+            .join(format!(".lock{LOCK_TEMP_MARK}{}-0", dead.pid));
+        fs_err::write(&left, dead.to_bytes()).unwrap();
+        let me = LockOwner::current();
+        let live = dir
+            .path()
+            .join(format!(".lock{LOCK_TEMP_MARK}{}-7", me.pid));
+        fs_err::write(&live, me.to_bytes()).unwrap();
+        let _lock = DirLock::acquire(dir.path()).unwrap();
+        assert!(!left.exists(), "the dead process's temporary is removed");
+        assert!(live.exists(), "a live writer's temporary is left alone");
     }
 
     #[test]
