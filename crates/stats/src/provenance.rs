@@ -11,8 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::StatsError;
 
-/// The record file in each replay folder.
-const REPLAY_RECORD: &str = "replay.json";
+use dexjoco_formats::raw::REPLAY_RECORD;
 
 /// One place replays were made, and how many.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]

@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::{Codec, VideoError, VideoSpec, VideoWriter, ffmpeg_program, probe, run};
+use crate::{Codec, VideoError, VideoSpec, VideoWriter, decode_raw, ffmpeg_program};
 
 /// The largest 12-bit code.
 pub const DEPTH_CODE_MAX: u16 = 4095;
@@ -74,26 +74,7 @@ impl DepthVideoWriter {
 
 /// Decodes every frame of a gray12le video to its 12-bit codes, one `Vec` per frame.
 pub fn decode_gray12(path: &Path) -> Result<Vec<Vec<u16>>, VideoError> {
-    let info = probe(path)?;
-    let p = path.to_string_lossy();
-    let raw = run(
-        ffmpeg_program(),
-        &[
-            "-v", "error", "-nostdin", "-i", &p, "-f", "rawvideo", "-pix_fmt", "gray12le", "-",
-        ],
-        path,
-    )?;
-    let size = info.width as usize * info.height as usize * 2;
-    if size == 0 || raw.len() % size != 0 {
-        return Err(VideoError::Failed {
-            program: "ffmpeg".into(),
-            path: path.into(),
-            message: format!(
-                "decoded {} bytes, not a whole number of {size}-byte frames",
-                raw.len()
-            ),
-        });
-    }
+    let (raw, size) = decode_raw(path, "gray12le", 2)?;
     Ok(raw
         .chunks_exact(size)
         .map(|f| {
@@ -132,7 +113,7 @@ mod tests {
             writer.write_codes(f).unwrap();
         }
         assert_eq!(writer.finish().unwrap(), 5);
-        let info = probe(&path).unwrap();
+        let info = crate::probe(&path).unwrap();
         assert_eq!(
             (info.codec.as_str(), info.pix_fmt.as_str()),
             ("hevc", "gray12le")

@@ -427,16 +427,27 @@ pub fn probe(path: &Path) -> Result<VideoInfo, VideoError> {
 
 /// Decodes every frame to RGB8 (rows top to bottom), one `Vec` per frame.
 pub fn decode_rgb(path: &Path) -> Result<Vec<Vec<u8>>, VideoError> {
+    let (raw, size) = decode_raw(path, "rgb24", 3)?;
+    Ok(raw.chunks_exact(size).map(<[u8]>::to_vec).collect())
+}
+
+/// Decodes every frame of `path` into one buffer of `pix_fmt` (`bytes_per_pixel` bytes a
+/// pixel); returns it and the size of one frame in bytes, checked to divide it.
+pub(crate) fn decode_raw(
+    path: &Path,
+    pix_fmt: &str,
+    bytes_per_pixel: usize,
+) -> Result<(Vec<u8>, usize), VideoError> {
     let info = probe(path)?;
     let p = path.to_string_lossy();
     let raw = run(
         ffmpeg_program(),
         &[
-            "-v", "error", "-nostdin", "-i", &p, "-f", "rawvideo", "-pix_fmt", "rgb24", "-",
+            "-v", "error", "-nostdin", "-i", &p, "-f", "rawvideo", "-pix_fmt", pix_fmt, "-",
         ],
         path,
     )?;
-    let size = info.width as usize * info.height as usize * 3;
+    let size = info.width as usize * info.height as usize * bytes_per_pixel;
     if size == 0 || raw.len() % size != 0 {
         return Err(VideoError::Failed {
             program: "ffmpeg".into(),
@@ -447,7 +458,7 @@ pub fn decode_rgb(path: &Path) -> Result<Vec<Vec<u8>>, VideoError> {
             ),
         });
     }
-    Ok(raw.chunks_exact(size).map(<[u8]>::to_vec).collect())
+    Ok((raw, size))
 }
 
 /// Streams decoded RGB8 frames of a video from an ffmpeg process, one at a time, so a
