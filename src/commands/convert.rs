@@ -128,7 +128,7 @@ fn warn_flat_norm_stats(dataset: &std::path::Path) {
 /// Reads one episode through the one reader (arrays, cameras from `videos/`).
 fn read_episode(source: &Source, tasks: &TaskSet) -> Result<InputEpisode, ConvertError> {
     let episode = source
-        .read(tasks)
+        .read_checked(tasks)
         .map_err(|e| ConvertError::Input {
             path: source.path.clone(),
             message: e.to_string(),

@@ -32,7 +32,7 @@ pub fn run(global: &GlobalArgs, args: ExportArgs) -> anyhow::Result<ExitStatus> 
     for (source, file) in &planned {
         // A bad episode is left out and named; the others are written.
         let read = source
-            .read(tasks)
+            .read_checked(tasks)
             .map_err(anyhow::Error::from)
             .and_then(|r| {
                 let task = tasks.get(&r.episode.task).with_context(|| {

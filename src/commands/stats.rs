@@ -46,16 +46,34 @@ pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
     let mut json = serde_json::Map::new();
     let mut summaries = Vec::new();
 
+    let mut statuses = Vec::new();
     if let Some(input) = &language_eval {
-        write_language_eval(input.as_deref(), &out, language, &mut json, &mut summaries)?;
+        let s = write_language_eval(input.as_deref(), &out, language, &mut json, &mut summaries)?;
+        statuses.push(s);
     }
     if let Some(input) = &success_table {
-        write_success_table(input.as_deref(), &out, &mut json, &mut summaries)?;
+        statuses.push(write_success_table(
+            input.as_deref(),
+            &out,
+            &mut json,
+            &mut summaries,
+        )?);
     }
-    let mut status = ExitStatus::Success;
     if let Some(path) = &dataset {
-        status = write_dataset_stats(path, &tasks, global.quiet, &out, &mut json, &mut summaries)?;
+        statuses.push(write_dataset_stats(
+            path,
+            &tasks,
+            global.quiet,
+            &out,
+            &mut json,
+            &mut summaries,
+        )?);
     }
+    let status = if statuses.contains(&ExitStatus::Partial) {
+        ExitStatus::Partial
+    } else {
+        ExitStatus::Success
+    };
 
     if as_json {
         outln!(
@@ -68,15 +86,28 @@ pub fn run(global: &GlobalArgs, args: StatsArgs) -> anyhow::Result<ExitStatus> {
     Ok(status)
 }
 
+/// Names each run folder left out (exit 3 follows).
+fn report_left_out(left_out: &[dexjoco_stats::evaltree::LeftOutRun]) -> ExitStatus {
+    for l in left_out {
+        errln!("left out: '{}': {}", l.path.display(), l.reason);
+    }
+    if left_out.is_empty() {
+        ExitStatus::Success
+    } else {
+        ExitStatus::Partial
+    }
+}
+
 /// The language evaluation of `input` (the shipped example when `None`): written under
-/// `out/language-eval`, added to the JSON object and the Markdown summaries.
+/// `out/language-eval`, added to the JSON object and the Markdown summaries. Partial when
+/// run folders were left out.
 fn write_language_eval(
     input: Option<&Path>,
     out: &Path,
     options: LanguageOptions,
     json: &mut serde_json::Map<String, serde_json::Value>,
     summaries: &mut Vec<String>,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<ExitStatus> {
     let path = match input {
         Some(p) => p.to_path_buf(),
         None => example_input("language-eval")?,
@@ -102,17 +133,24 @@ fn write_language_eval(
         "## Language evaluation\n\n{}",
         report.to_markdown()
     ));
-    Ok(())
+    if !input.left_out.is_empty() {
+        json.insert(
+            "language_eval_left_out".into(),
+            serde_json::to_value(&input.left_out)?,
+        );
+    }
+    Ok(report_left_out(&input.left_out))
 }
 
 /// The success-rate table of the runs under `input` (the shipped example when `None`):
-/// written under `out/success-table`, added to the JSON object and the summaries.
+/// written under `out/success-table`, added to the JSON object and the summaries. Partial
+/// when run folders were left out.
 fn write_success_table(
     input: Option<&Path>,
     out: &Path,
     json: &mut serde_json::Map<String, serde_json::Value>,
     summaries: &mut Vec<String>,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<ExitStatus> {
     let path = match input {
         Some(p) => p.to_path_buf(),
         None => example_input("success-table")?,
@@ -149,7 +187,7 @@ fn write_success_table(
     }
     md.push_str(&table.to_markdown());
     summaries.push(md);
-    Ok(())
+    Ok(report_left_out(&table.left_out))
 }
 
 /// The statistics of the dataset at `path`, whose tasks are among `tasks` (and its

@@ -42,6 +42,51 @@ pub fn usage(message: String, hint: impl Into<String>) -> anyhow::Error {
     .into()
 }
 
+/// The rule of every command that writes, applied before anything is written: an output
+/// that is, holds or lies inside one of the command's inputs (links resolved) is a usage
+/// error (exit 2) naming both paths ([`dexjoco_formats::fs::first_overlap`]).
+pub fn outputs_apart(outputs: &[&Path], inputs: &[&Path]) -> anyhow::Result<()> {
+    match dexjoco_formats::fs::first_overlap(outputs, inputs) {
+        None => Ok(()),
+        Some((out, input, how)) => Err(usage(
+            format!(
+                "the output '{}' {} the input '{}'{}",
+                out.display(),
+                how.words(),
+                input.display(),
+                resolved_note(out, input),
+            ),
+            "a command never writes into, over or around what it reads: choose an output \
+             folder apart from every input (--out, or --work-dir for the default outputs)",
+        )),
+    }
+}
+
+/// ` (links resolved: 'A' and 'B')` when a link makes the two paths meet, else nothing.
+fn resolved_note(out: &Path, input: &Path) -> String {
+    use dexjoco_formats::fs::resolve;
+    let (ro, ri) = (resolve(out), resolve(input));
+    let plain = |p: &Path| {
+        std::env::current_dir()
+            .map(|d| d.join(p))
+            .unwrap_or_else(|_| p.to_path_buf())
+    };
+    if ro == plain(out) && ri == plain(input) {
+        String::new()
+    } else {
+        format!(" (links resolved: '{}' and '{}')", ro.display(), ri.display())
+    }
+}
+
+/// What a command reads: its inputs and the other paths it was given.
+pub fn reads<'a>(inputs: &'a [PathBuf], others: &[Option<&'a Path>]) -> Vec<&'a Path> {
+    inputs
+        .iter()
+        .map(PathBuf::as_path)
+        .chain(others.iter().flatten().copied())
+        .collect()
+}
+
 /// The spec of a known task, or a usage error naming the known ones and `--tasks-dir`.
 pub fn known_task<'a>(tasks: &'a TaskSet, id: &str) -> anyhow::Result<&'a TaskSpec> {
     tasks.get(id).ok_or_else(|| {

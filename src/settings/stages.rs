@@ -27,15 +27,18 @@ impl IngestSettings {
             timestep_tolerance,
             json,
         } = args;
+        let tasks_dir = tasks.tasks_dir.clone();
         let tasks = task_set(&tasks)?;
         if let Some(t) = &task {
             known_task(&tasks, t)?;
         }
         non_negative("--quat-tolerance", quat_tolerance)?;
         non_negative("--timestep-tolerance", timestep_tolerance)?;
+        let store = out.unwrap_or_else(|| global.work_dir.join("ingest"));
+        outputs_apart(&[&store], &reads(&inputs, &[tasks_dir.as_deref()]))?;
         Ok(Self {
             inputs,
-            store: out.unwrap_or_else(|| global.work_dir.join("ingest")),
+            store,
             options: IngestOptions {
                 force: overwrite,
                 task,
@@ -98,9 +101,11 @@ impl ExportSettings {
                 "give episode folders or stores made by `dexjoco-data ingest`",
             )?;
         }
+        let out = out.unwrap_or_else(|| global.work_dir.join("export"));
+        outputs_apart(&[&out], &reads(&inputs, &[tasks.tasks_dir.as_deref()]))?;
         Ok(Self {
             inputs,
-            out: out.unwrap_or_else(|| global.work_dir.join("export")),
+            out,
             container: match to {
                 ExportFormat::Mcap => &McapLog,
             },
@@ -193,6 +198,13 @@ impl AugmentSettings {
             ));
         }
         check_egl_choice(&egl_devices)?;
+        let out = out.unwrap_or_else(|| global.work_dir.join("augment"));
+        let others = [
+            scene_dir.as_deref(),
+            camera_pool.as_deref(),
+            tasks.tasks_dir.as_deref(),
+        ];
+        outputs_apart(&[&out], &reads(&inputs, &others))?;
         let (workers, egl_devices) = render_workers(global.jobs, egl_devices);
         Ok(Self {
             workers,
@@ -201,7 +213,7 @@ impl AugmentSettings {
             dry_run,
             config: AugmentConfig {
                 inputs,
-                out: out.unwrap_or_else(|| global.work_dir.join("augment")),
+                out,
                 replays,
                 tasks_dir: tasks.tasks_dir,
                 seed: global.seed,
@@ -298,6 +310,7 @@ impl ConvertSettings {
             norm_stats,
             tasks,
         } = args;
+        let tasks_dir = tasks.tasks_dir.clone();
         let tasks = task_set(&tasks)?;
         let inputs = convert_inputs(inputs, input_flag, global)?;
         let (format, format_dir) = match format {
@@ -314,6 +327,10 @@ impl ConvertSettings {
             ));
         }
         let out = out.unwrap_or_else(|| global.work_dir.join("convert").join(format_dir));
+        outputs_apart(
+            &[&out],
+            &reads(&inputs, &[config.as_deref(), tasks_dir.as_deref()]),
+        )?;
         let mut selection = match &config {
             None => Selection::default(),
             Some(p) if p.is_dir() => Selection::from_reference_dir(p)?,
@@ -401,6 +418,7 @@ impl StatsSettings {
             json,
             tasks,
         } = args;
+        let tasks_dir = tasks.tasks_dir.clone();
         let tasks = task_set(&tasks)?;
         if language_eval.is_none() && success_table.is_none() && dataset.is_none() {
             return Err(usage(
@@ -451,33 +469,52 @@ impl StatsSettings {
                 "give an existing file or folder (see `dexjoco-data stats --help`)",
             )?;
         }
-        if !(alpha > 0.0 && alpha < 1.0) {
-            return Err(usage(
-                format!("--alpha {alpha} is not in (0, 1)"),
-                "for example --alpha 0.01",
-            ));
-        }
-        if !(0.0..=1.0).contains(&nmi_weak) {
-            return Err(usage(
-                format!("--nmi-weak {nmi_weak} is not in [0, 1]"),
-                "for example --nmi-weak 0.1",
-            ));
-        }
+        let out = out.unwrap_or_else(|| global.work_dir.join("stats"));
+        let dataset = dataset.map(|d| d.unwrap_or_else(|| global.work_dir.join("ingest")));
+        let given: Vec<PathBuf> = [&language_eval, &success_table]
+            .into_iter()
+            .flatten()
+            .flatten()
+            .chain(&dataset)
+            .cloned()
+            .collect();
+        outputs_apart(&[&out], &reads(&given, &[tasks_dir.as_deref()]))?;
         Ok(Self {
             language_eval,
             success_table,
-            dataset: dataset.map(|d| d.unwrap_or_else(|| global.work_dir.join("ingest"))),
-            out: out.unwrap_or_else(|| global.work_dir.join("stats")),
-            language: dexjoco_stats::LanguageOptions {
-                alpha,
-                nmi_weak,
-                js_base: match js_base {
-                    JsBaseArg::Two => dexjoco_stats::LogBase::Two,
-                    JsBaseArg::E => dexjoco_stats::LogBase::E,
-                },
-            },
+            dataset,
+            out,
+            language: language_options(alpha, nmi_weak, js_base)?,
             json,
             tasks,
         })
     }
+}
+
+/// The language analysis' options, checked.
+fn language_options(
+    alpha: f64,
+    nmi_weak: f64,
+    js_base: JsBaseArg,
+) -> anyhow::Result<dexjoco_stats::LanguageOptions> {
+    if !(alpha > 0.0 && alpha < 1.0) {
+        return Err(usage(
+            format!("--alpha {alpha} is not in (0, 1)"),
+            "for example --alpha 0.01",
+        ));
+    }
+    if !(0.0..=1.0).contains(&nmi_weak) {
+        return Err(usage(
+            format!("--nmi-weak {nmi_weak} is not in [0, 1]"),
+            "for example --nmi-weak 0.1",
+        ));
+    }
+    Ok(dexjoco_stats::LanguageOptions {
+        alpha,
+        nmi_weak,
+        js_base: match js_base {
+            JsBaseArg::Two => dexjoco_stats::LogBase::Two,
+            JsBaseArg::E => dexjoco_stats::LogBase::E,
+        },
+    })
 }

@@ -60,6 +60,18 @@ impl RenderCommandSettings {
                 "add --task <id> to render a task of the folder, or leave --tasks-dir out",
             ));
         }
+        let out = out
+            .clone()
+            .unwrap_or_else(|| global.work_dir.join("render"));
+        let read: Vec<&Path> = [
+            scene.as_deref(),
+            scene_dir.as_deref(),
+            tasks.tasks_dir.as_deref(),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        outputs_apart(&[&out], &read)?;
         Ok(Self {
             scene: scene.clone(),
             task: task.clone(),
@@ -75,9 +87,7 @@ impl RenderCommandSettings {
             },
             steps: *steps,
             video_fps: video.then(|| fps.unwrap_or(DEFAULT_VIDEO_FPS)),
-            out: out
-                .clone()
-                .unwrap_or_else(|| global.work_dir.join("render")),
+            out,
             overwrite: *overwrite,
             quiet: global.quiet,
         })
@@ -126,6 +136,8 @@ impl BenchRenderSettings {
         } else {
             presets.clone()
         };
+        let out = global.work_dir.join("bench");
+        outputs_apart(&[&out], &reads(scenes, &[]))?;
         Ok(Self {
             scenes: scenes.clone(),
             frames: *frames,
@@ -133,7 +145,7 @@ impl BenchRenderSettings {
             presets,
             camera: camera.clone(),
             geometries: geometry.iter().map(|g| g.geometry()).collect(),
-            out: global.work_dir.join("bench"),
+            out,
             quiet: global.quiet,
         })
     }
@@ -202,12 +214,15 @@ impl BenchAugmentSettings {
         };
         workers.sort_unstable();
         workers.dedup();
+        let inputs = if inputs.is_empty() {
+            vec![sample_data()?]
+        } else {
+            inputs.clone()
+        };
+        let out = global.work_dir.join("bench");
+        outputs_apart(&[&out], &reads(&inputs, &[scene_dir.as_deref()]))?;
         Ok(Self {
-            inputs: if inputs.is_empty() {
-                vec![sample_data()?]
-            } else {
-                inputs.clone()
-            },
+            inputs,
             scene_dir: scene_dir.clone(),
             replays: *replays,
             max_frames: *max_frames,
@@ -221,7 +236,7 @@ impl BenchAugmentSettings {
             first_frame_timeout: deadline.duration(),
             seed: global.seed,
             quiet: global.quiet,
-            out: global.work_dir.join("bench"),
+            out,
         })
     }
 }
@@ -297,6 +312,11 @@ impl ScriptedSettings {
             overwrite,
             tasks,
         } = args;
+        let read: Vec<&Path> = [scene_dir.as_deref(), tasks.tasks_dir.as_deref()]
+            .into_iter()
+            .flatten()
+            .collect();
+        outputs_apart(&[out], &read)?;
         // An unknown task is a usage error (exit 2), as in every command.
         let tasks = task_set(tasks)?;
         let spec = known_task(&tasks, task)?.clone();
@@ -382,9 +402,19 @@ impl CamerasSettings {
         if let Some(a) = azimuth {
             options.azimuth = (a[0], a[1]);
         }
+        let out = out.unwrap_or_else(|| {
+            global
+                .work_dir
+                .join("cameras")
+                .join(format!("{}.json", spec.id))
+        });
+        let read: Vec<&Path> = [scene_dir.as_deref(), tasks.tasks_dir.as_deref()]
+            .into_iter()
+            .flatten()
+            .collect();
+        outputs_apart(&[&out], &read)?;
         Ok(Self {
-            out: out
-                .unwrap_or_else(|| global.work_dir.join("cameras").join(format!("{task}.json"))),
+            out,
             task: spec,
             scene: SceneSource::from_option(scene_dir),
             options,

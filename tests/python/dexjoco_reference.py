@@ -14,8 +14,14 @@ Used as a library (`make_env`, `replay`, `replay_job`, `record`) or from the com
 
     python dexjoco_reference.py replay --task T --episode DIR --out OUT.npz [--extend N]
         [--nudge M]
-    python dexjoco_reference.py batch --jobs JOBS.json --out DIR
+    python dexjoco_reference.py batch --jobs JOBS.json --out DIR [--tag TAG]
+    python dexjoco_reference.py summarize --jobs JOBS.json --out DIR --primary TAG
+        [--members TAG,...]
     python dexjoco_reference.py record --task T --episode DIR --out DIR
+
+Every command runs under the arithmetic `$DEXJOCO_REFERENCE_ARITHMETIC` names (default
+`avx2`, see `reference_arithmetic.py`): numpy's SIMD loops and OpenBLAS's kernels pinned
+so the reference computes the same bits on every CPU.
 
 writes the reference replay script's own trajectory (`scripts/replay_demos_zarr.py`'s
 `_replay_single_demo`) as arrays: `state` (steps x width, the observation before each
@@ -34,6 +40,8 @@ import shutil
 import sys
 import time
 from pathlib import Path
+
+import reference_arithmetic  # before numpy: pins its SIMD loops and OpenBLAS's kernels
 
 import numpy as np
 
@@ -220,7 +228,12 @@ def record(task: str, episode: Path, out: Path) -> dict:
         t["observations"] = {"state": t["observations"]["state"]}
     folder = module._write_demo_zarr_and_videos(trajectory, task, 1, out, 30)
     succeeded = [bool(t["infos"].get("succeed", False)) for t in trajectory]
-    return {"folder": folder, "succeed": bool(succeed), "first_success": _first(np.array(succeeded))}
+    return {
+        "folder": folder,
+        "succeed": bool(succeed),
+        "first_success": _first(np.array(succeeded)),
+        "arithmetic": reference_arithmetic.NAME,
+    }
 
 
 def read_episode(folder: Path):
@@ -246,42 +259,84 @@ def nudged(actions: np.ndarray, metres: float) -> np.ndarray:
     return out
 
 
-def replay_job(job: dict, out_dir: Path) -> dict:
-    """One parity job: the reference replay of a raw episode, plain and with each nudge;
-    arrays to `out_dir/<name>.npz`, a summary returned."""
+def replay_job(job: dict, out_dir: Path, tag: str = "") -> dict:
+    """One parity job under this process's arithmetic: the reference replay of a raw
+    episode, plain and with each of the job's nudges; arrays to
+    `out_dir/<name>[-<tag>].npz` (`state_k`, `succeed_k`, `terminated_k`), the runs'
+    verdicts returned."""
     actions, state0 = read_episode(Path(job["episode"]))
     cap = job.get("step_cap")
-    arrays, summary = {}, {"name": job["name"], "task": job["task"], "runs": []}
+    arrays = {}
+    runs = []
     for k, metres in enumerate([0.0] + list(job.get("nudges", []))):
         acts = nudged(actions, metres) if metres else actions
         state, succeed, terminated = replay(job["task"], acts, state0, job.get("extend", 0))
         arrays[f"state_{k}"], arrays[f"succeed_{k}"] = state, succeed
         arrays[f"terminated_{k}"] = terminated
-        summary["runs"].append(
+        runs.append(
             {
+                "arithmetic": reference_arithmetic.NAME,
                 "nudge": metres,
                 "steps": int(len(state)),
                 "first_success": _first(succeed),
                 "first_failure": _first(failures(succeed, terminated, cap)),
             }
         )
-    np.savez(out_dir / f"{job['name']}.npz", **arrays)
-    summary["blocks"] = state_blocks(job["task"])
+    np.savez(_npz(out_dir, job["name"], tag), **arrays)
+    return {"name": job["name"], "task": job["task"], "tag": tag, "runs": runs}
+
+
+def _npz(out_dir: Path, name: str, tag: str) -> Path:
+    return out_dir / (f"{name}-{tag}.npz" if tag else f"{name}.npz")
+
+
+def summarize_job(job: dict, out_dir: Path, primary: str, members: list[str]) -> dict:
+    """Compares the runs `replay_job` saved for one job: the primary run (`primary`'s
+    plain replay) against the ensemble of the reference's own perturbations (the
+    primary's nudged runs and each member tag's plain run, under other arithmetic), and
+    our trajectory (`job["ours"]`) against the primary. The ensemble measures where the
+    reference's own trajectory is chaotic: our state is compared with the primary's only
+    until 10 steps before the first ensemble run departs from it by 1e-6 (the calm part)."""
+    cap = job.get("step_cap")
+    saved = {tag: np.load(_npz(out_dir, job["name"], tag)) for tag in [primary, *members]}
+    runs = []
+    for tag, arrays in saved.items():
+        count = sum(1 for key in arrays.files if key.startswith("state_"))
+        for k in range(count if tag == primary else 1):
+            runs.append((tag, k, arrays))
+    base = saved[primary]
     # Nothing after a failure compares: the reference's hanoi env freezes, then resets
     # itself 3 s of wall-clock time later (a teleoperation convenience).
-    end = summary["runs"][0]["first_failure"]
-    end = None if end is None else end + 1
-    if "state_1" in arrays:
-        summary["self"] = compare(arrays["state_1"][:end], arrays["state_0"][:end], summary["blocks"])
+    first_failure = _first(failures(base["succeed_0"], base["terminated_0"], cap))
+    end = None if first_failure is None else first_failure + 1
+    reference = base["state_0"][:end]
+    blocks = state_blocks(job["task"])
+    summary = {"name": job["name"], "task": job["task"], "blocks": blocks, "runs": []}
+    departures = []
+    for tag, k, arrays in runs:
+        succeed, terminated = arrays[f"succeed_{k}"], arrays[f"terminated_{k}"]
+        run = {
+            "tag": tag,
+            "nudge": float(job.get("nudges", [])[k - 1]) if k else 0.0,
+            "first_success": _first(succeed),
+            "first_failure": _first(failures(succeed, terminated, cap)),
+        }
+        if (tag, k) != (primary, 0):
+            diff = compare(arrays[f"state_{k}"][:end], reference, blocks)
+            run["departs"] = diff["first_step_over_tol"]
+            run["max_diff"] = diff["max_diff"]
+            if diff["first_step_over_tol"] is not None:
+                departures.append(diff["first_step_over_tol"])
+        summary["runs"].append(run)
+    summary["self"] = {"max_diff": max((r.get("max_diff", 0.0) for r in summary["runs"]), default=0.0)}
     if job.get("ours"):
         ours = read_states(Path(job["ours"]))[:end]
-        summary["ours"] = compare(ours, arrays["state_0"][:end], summary["blocks"])
-        # Until 10 steps before the nudged reference departs from itself by more than
-        # 1e-6: the part of the trajectory that is not chaotic (a rounding difference can
-        # set off the same contact event a step or two earlier than the nudge does).
-        departs = summary.get("self", {}).get("first_step_over_tol")
-        calm = len(ours) if departs is None else max(0, departs - CALM_MARGIN)
-        summary["ours"]["max_diff_while_calm"] = compare(ours[:calm], arrays["state_0"][:calm], summary["blocks"])["max_diff"]
+        summary["ours"] = compare(ours, reference, blocks)
+        # Until 10 steps before the first ensemble run departs from the primary by more
+        # than 1e-6: the part of the trajectory that is not chaotic (a rounding
+        # difference can set off the same contact event a step or two earlier).
+        calm = len(ours) if not departures else max(0, min(departures) - CALM_MARGIN)
+        summary["ours"]["max_diff_while_calm"] = compare(ours[:calm], reference[:calm], blocks)["max_diff"]
         summary["ours"]["calm_steps"] = int(min(calm, len(ours)))
     return summary
 
@@ -338,14 +393,25 @@ def _cli(argv=None):
     rec.add_argument("--out", type=Path, required=True, help="folder for the recording's folder")
     b = sub.add_parser("batch", help="replay the jobs of a JSON list (name, task, episode, extend, nudges)")
     b.add_argument("--jobs", type=Path, required=True)
-    b.add_argument("--out", type=Path, required=True, help="folder for <name>.npz")
+    b.add_argument("--out", type=Path, required=True, help="folder for <name>[-<tag>].npz")
+    b.add_argument("--tag", default="", help="names this run's arrays (one per arithmetic)")
+    s = sub.add_parser("summarize", help="compare the runs batch saved (primary, ensemble, ours)")
+    s.add_argument("--jobs", type=Path, required=True)
+    s.add_argument("--out", type=Path, required=True, help="the folder batch wrote to")
+    s.add_argument("--primary", required=True, help="the tag of the primary runs")
+    s.add_argument("--members", default="", help="tags whose plain run joins the ensemble")
     args = parser.parse_args(argv)
     if args.command == "record":
         print(json.dumps(record(args.task, args.episode, args.out)))
         return
     if args.command == "batch":
         jobs = json.loads(args.jobs.read_text())
-        print(json.dumps([replay_job(job, args.out) for job in jobs]))
+        print(json.dumps([replay_job(job, args.out, args.tag) for job in jobs]))
+        return
+    if args.command == "summarize":
+        jobs = json.loads(args.jobs.read_text())
+        members = [m for m in args.members.split(",") if m]
+        print(json.dumps([summarize_job(job, args.out, args.primary, members) for job in jobs]))
         return
     actions, state0 = read_episode(args.episode)
     if args.nudge:
@@ -355,6 +421,7 @@ def _cli(argv=None):
     print(
         json.dumps(
             {
+                "arithmetic": reference_arithmetic.NAME,
                 "steps": int(len(state)),
                 "first_success": _first(succeed),
                 "first_termination_without_success": _first(terminated & ~succeed),

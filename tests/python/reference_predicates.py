@@ -29,6 +29,8 @@ import argparse
 import json
 from pathlib import Path
 
+import reference_arithmetic  # noqa: F401  before numpy: pins its SIMD loops and OpenBLAS's
+
 import mujoco
 import numpy as np
 

@@ -72,8 +72,10 @@ pub(crate) fn check_fields(episode: &Episode) -> Result<(), String> {
 }
 
 /// Reads every input episode and its task spec, through the one episode reader
-/// ([`dexjoco_formats::episodes`]). A path that cannot be listed, an episode that cannot
-/// be read, an unknown task or a missing field skips that input or episode only.
+/// ([`dexjoco_formats::episodes`]) with the checks every door applies (names, shapes,
+/// finite values, frame rate, timestamps: `Source::read_checked`). A path that cannot be
+/// listed, an episode that cannot be read or fails a check, an unknown task or a missing
+/// field skips that input or episode only.
 /// Nothing under `exclude` (the run's own `--out`) is read as input, so an output folder
 /// inside an input folder is never replayed again.
 pub(crate) fn read_sources(
@@ -93,7 +95,7 @@ pub(crate) fn read_sources(
             }
         };
         for found in found {
-            let episode = match found.read(tasks) {
+            let episode = match found.read_checked(tasks) {
                 Ok(r) => r.episode,
                 Err(e) => {
                     skip(&found.path, e.to_string());

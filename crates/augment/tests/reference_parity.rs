@@ -2,13 +2,19 @@
 //! the reference replay script (`scripts/replay_demos_zarr.py`, its environments run
 //! headless under MuJoCo 3.17.0 by `tests/python/dexjoco_reference.py`) and by our
 //! `TaskEnv`, on the reference scenes, for all 11 tasks: a demonstration planned by
-//! `scripted` from one seeded reset, and the deliberately wrong plans. Each
-//! demonstration that succeeds is also replayed through `augment` (issue #26). Same success and failure verdicts on the same step (within
-//! the extension where the reference's own success step moves when its arm targets are
-//! nudged by 1e-9 m), and a state trajectory no further from the reference's than the
-//! reference's own under that nudge.
+//! `scripted` from one seeded reset, and the deliberately wrong plans. Each demonstration
+//! that succeeds is also replayed through `augment` (issue #26).
+//!
+//! The reference's arithmetic depends on the CPU (numpy's SIMD loops, OpenBLAS's
+//! kernels) and contact turns last bits into other success steps, so the harness pins it
+//! (`tests/python/reference_arithmetic.py`; `$DEXJOCO_REFERENCE_ARITHMETIC` picks another
+//! setting) and measures the reference's own chaos with an ensemble: its replays nudged
+//! by +-1e-9 m and under two other arithmetic settings. Where every run of the ensemble
+//! gives the same verdict, ours must be the same step; where the reference is chaotic,
+//! within the extension of its runs' steps. Our state must equal the reference's to
+//! rounding until its own runs depart from it (issue #33).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use std::collections::BTreeMap;
 
@@ -99,91 +105,178 @@ fn plan_all(wanted: &[(&str, Variant)]) -> Vec<Case> {
     planned.into_iter().map(|(_, c)| c).collect()
 }
 
-/// Runs the reference replays of `jobs` in two processes (the machine's two cores).
-fn replay_reference(jobs: &[Value], dir: &Path) -> Vec<Value> {
-    let halves: Vec<&[Value]> = jobs.chunks(jobs.len().div_ceil(2)).collect();
+/// The arithmetic settings of the reference side that every x86-64 CPU with AVX2 runs
+/// (`tests/python/reference_arithmetic.py`); the two that differ from the primary's run
+/// each episode plainly as members of the ensemble.
+const EVERY_CPU: [&str; 3] = ["avx2", "sandybridge", "baseline"];
+
+/// The reference's runs: the primary (the arithmetic the harness pins, or the one
+/// `$DEXJOCO_REFERENCE_ARITHMETIC` names) and its ensemble, the reference's own
+/// perturbations that measure its chaos: the primary's replays with the arm targets
+/// nudged by +-[`NUDGE`], and plain replays under two other arithmetic settings (another
+/// rounding of the same computation, as another CPU would give). Four processes (two at a
+/// time, the machine's two cores); one summary per job, in order.
+fn replay_reference(jobs: &[Value], dir: &Path) -> (String, Vec<Value>) {
+    let primary = dexjoco_testkit::reference_arithmetic();
+    let members: Vec<&str> = EVERY_CPU
+        .iter()
+        .copied()
+        .filter(|a| *a != primary)
+        .take(2)
+        .collect();
+    let write = |name: &str, jobs: &[Value]| {
+        let file = dir.join(name);
+        fs_err::write(&file, serde_json::to_vec(jobs).unwrap()).unwrap();
+        file
+    };
+    let batch = |file: PathBuf, arithmetic: String, tag: String| {
+        let out = dir.to_owned();
+        move || {
+            dexjoco_testkit::run_reference_python_as(
+                "dexjoco_reference.py",
+                &[
+                    "batch",
+                    "--jobs",
+                    file.to_str().unwrap(),
+                    "--out",
+                    out.to_str().unwrap(),
+                    "--tag",
+                    &tag,
+                ],
+                &arithmetic,
+            );
+        }
+    };
+    let all = write("jobs.json", jobs);
+    let halves: Vec<PathBuf> = jobs
+        .chunks(jobs.len().div_ceil(2))
+        .enumerate()
+        .map(|(i, half)| write(&format!("jobs-{i}.json"), half))
+        .collect();
+    let plain: Vec<Value> = jobs
+        .iter()
+        .map(|j| {
+            let mut j = j.clone();
+            j["nudges"] = serde_json::json!([]);
+            j
+        })
+        .collect();
+    let plain = write("jobs-plain.json", &plain);
     std::thread::scope(|s| {
-        let handles: Vec<_> = halves
-            .iter()
-            .enumerate()
-            .map(|(i, half)| {
-                let file = dir.join(format!("jobs-{i}.json"));
-                fs_err::write(&file, serde_json::to_vec(half).unwrap()).unwrap();
-                let out = dir.to_owned();
-                s.spawn(move || {
-                    let stdout = dexjoco_testkit::run_reference_python(
-                        "dexjoco_reference.py",
-                        &[
-                            "batch",
-                            "--jobs",
-                            file.to_str().unwrap(),
-                            "--out",
-                            out.to_str().unwrap(),
-                        ],
-                    );
-                    serde_json::from_str::<Vec<Value>>(&stdout).unwrap()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap())
-            .collect()
-    })
+        for half in &halves {
+            s.spawn(batch(half.clone(), primary.clone(), "primary".into()));
+        }
+    });
+    std::thread::scope(|s| {
+        for m in &members {
+            s.spawn(batch(plain.clone(), m.to_string(), m.to_string()));
+        }
+    });
+    let stdout = dexjoco_testkit::run_reference_python_as(
+        "dexjoco_reference.py",
+        &[
+            "summarize",
+            "--jobs",
+            all.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+            "--primary",
+            "primary",
+            "--members",
+            &members.join(","),
+        ],
+        &primary,
+    );
+    (primary, serde_json::from_str(&stdout).unwrap())
 }
 
 fn step(v: &Value) -> Option<usize> {
     v.as_u64().map(|s| s as usize)
 }
 
-/// Our verdict step against the reference's: the same, or within the extension where the
-/// nudged reference's own step moved.
-fn verdict_agrees(ours: Option<usize>, plain: Option<usize>, nudged: Option<usize>) -> bool {
-    match (ours, plain) {
-        (None, None) => true,
-        (Some(o), Some(p)) if plain == nudged => o == p,
-        (Some(o), Some(p)) => o.abs_diff(p) <= EXTEND,
-        _ => false,
+/// Our verdict step against the reference ensemble's (`runs[0]` the primary): where
+/// every run of the ensemble agrees, the same step (or no verdict); where the reference
+/// is chaotic (its own runs disagree), within the extension of the steps its runs gave,
+/// or no verdict where one of its runs gave none too.
+fn verdict_agrees(ours: Option<usize>, ensemble: &[Option<usize>]) -> bool {
+    if ensemble.iter().all(|s| *s == ensemble[0]) {
+        return ours == ensemble[0];
+    }
+    let steps: Vec<usize> = ensemble.iter().flatten().copied().collect();
+    match ours {
+        None => steps.len() < ensemble.len(),
+        Some(o) => {
+            let (lo, hi) = (steps.iter().min().unwrap(), steps.iter().max().unwrap());
+            o + EXTEND >= *lo && o <= hi + EXTEND
+        }
     }
 }
 
 /// Checks one case against the reference's summary; returns its table row and problems.
 fn check(c: &Case, s: &Value, problems: &mut Vec<String>) -> String {
-    let (plain, nudged) = (&s["runs"][0], &s["runs"][1]);
-    let (ref_success, ref_nudged) = (
-        step(&plain["first_success"]),
-        step(&nudged["first_success"]),
-    );
-    let ref_failure = step(&plain["first_failure"]);
-    if !verdict_agrees(c.first_success, ref_success, ref_nudged) {
+    let runs = s["runs"].as_array().unwrap();
+    let successes: Vec<Option<usize>> = runs.iter().map(|r| step(&r["first_success"])).collect();
+    let failures: Vec<Option<usize>> = runs.iter().map(|r| step(&r["first_failure"])).collect();
+    if !verdict_agrees(c.first_success, &successes) {
         problems.push(format!(
-            "{}: success at {:?}, the reference's at {ref_success:?} (nudged {ref_nudged:?})",
-            c.name, c.first_success
+            "{}: success at {:?}, the reference's at {:?} (its ensemble: {successes:?})",
+            c.name, c.first_success, successes[0]
         ));
     }
-    if !verdict_agrees(c.first_failure, ref_failure, step(&nudged["first_failure"])) {
+    if !verdict_agrees(c.first_failure, &failures) {
         problems.push(format!(
-            "{}: failure at {:?}, the reference's at {ref_failure:?}",
-            c.name, c.first_failure
+            "{}: failure at {:?}, the reference's at {:?} (its ensemble: {failures:?})",
+            c.name, c.first_failure, failures[0]
         ));
+    }
+    if c.name.ends_with("_demo") && c.first_success.is_some() {
+        let failing: Vec<String> = runs
+            .iter()
+            .filter(|r| r["first_success"].is_null())
+            .map(describe_run)
+            .collect();
+        if !failing.is_empty() {
+            let why = FRAGILE_IN_REFERENCE.iter().find(|(n, _)| *n == c.name);
+            println!(
+                "{}: the reference does not succeed in {}: {}",
+                c.name,
+                failing.join(", "),
+                why.map_or("not explained", |(_, why)| why)
+            );
+            if successes[0].is_none() && why.is_none() {
+                problems.push(format!(
+                    "{}: our plan succeeds, the reference's replay of it does not ({})",
+                    c.name, failing[0]
+                ));
+            }
+        }
     }
     let ours = s["ours"]["max_diff"].as_f64().unwrap();
     let own = s["self"]["max_diff"].as_f64().unwrap();
     let calm = s["ours"]["max_diff_while_calm"].as_f64().unwrap();
-    if calm > CALM && !DEPARTS_EARLY.contains(&c.name.as_str()) {
+    if calm > CALM {
         problems.push(format!(
-            "{}: state {calm:.3e} from the reference's before the reference departs from itself",
+            "{}: state {calm:.3e} from the reference's before the reference's own runs depart from it",
             c.name
         ));
     }
     let show = |v: Option<usize>| v.map_or("-".to_owned(), |s| s.to_string());
+    let verdicts: Vec<Option<usize>> = successes
+        .iter()
+        .zip(&failures)
+        .map(|(s, f)| s.or(*f))
+        .collect();
     format!(
         "| {} | {} | {} | {} | {} | {:.1e} ({} steps) | {:.1e} | {:.1e} |",
         c.name,
         show(c.first_success.or(c.first_failure)),
-        show(ref_success.or(ref_failure)),
-        show(ref_nudged.or(step(&nudged["first_failure"]))),
-        if c.first_success.or(c.first_failure) == ref_success.or(ref_failure) {
+        show(verdicts[0]),
+        verdicts[1..]
+            .iter()
+            .map(|v| show(*v))
+            .collect::<Vec<_>>()
+            .join(", "),
+        if c.first_success.or(c.first_failure) == verdicts[0] {
             "yes"
         } else {
             "no"
@@ -195,10 +288,26 @@ fn check(c: &Case, s: &Value, problems: &mut Vec<String>) -> String {
     )
 }
 
-/// Episodes where our state departs from the reference's (above 1e-6) before the
-/// reference nudged by 1e-9 m departs from itself: not explained yet (reported in
-/// docs/reference-parity.md; the verdicts agree).
-const DEPARTS_EARLY: &[&str] = &["bimanual_assembly_demo"];
+/// One run of the reference's ensemble in words.
+fn describe_run(r: &Value) -> String {
+    let nudge = r["nudge"].as_f64().unwrap_or(0.0);
+    if nudge == 0.0 {
+        format!("the {} arithmetic", r["tag"].as_str().unwrap_or("?"))
+    } else {
+        format!("the primary nudged by {nudge:+e} m")
+    }
+}
+
+/// Demonstrations whose plan succeeds on our side but whose replay in the reference
+/// code does not succeed under every arithmetic setting, and why.
+const FRAGILE_IN_REFERENCE: &[(&str, &str)] = &[(
+    "bimanual_assembly_demo",
+    "the let-go peg stands on the hole's flat bottom on one contact point (a cylinder's \
+     flat end on a box, multi-point collision off) and rocks, lifting off for one step \
+     at each swing; whether the reference counts 30 steps of contact in a row within \
+     the 30-step extension is decided by rounding (succeeds at 1016 to 1047 or not at all \
+     across the arithmetic settings: docs/reference-parity.md)",
+)];
 
 /// Tasks whose planner does not yet succeed on this reset of the reference scene (issue
 /// #26 reports what resists); every other task's plan must succeed here.
@@ -282,7 +391,7 @@ fn every_task_replays_as_the_reference_replays_it() {
         write_replay_zarr(&recording, &recorded).unwrap();
         jobs.push(serde_json::json!({
             "name": c.name, "task": c.spec.id, "episode": recording, "extend": EXTEND,
-            "step_cap": c.spec.step_cap, "nudges": [NUDGE], "ours": recording,
+            "step_cap": c.spec.step_cap, "nudges": [NUDGE, -NUDGE], "ours": recording,
         }));
     }
     for c in cases.iter().filter(|c| c.name.ends_with("_demo")) {
@@ -294,12 +403,20 @@ fn every_task_replays_as_the_reference_replays_it() {
         );
     }
     replay_through_augment(&cases, dir.path());
-    let summaries = replay_reference(&jobs, dir.path());
+    let (primary, summaries) = replay_reference(&jobs, dir.path());
     let mut problems = Vec::new();
+    let members: Vec<String> = summaries[0]["runs"].as_array().unwrap()[1..]
+        .iter()
+        .map(describe_run)
+        .collect();
     println!(
-        "| episode | ours: success (or failure) step | reference | reference, nudged {NUDGE:e} m | same step | \
-         max state difference until 10 steps before the nudged reference departs by 1e-6 | max state difference | \
-         the reference's own under the nudge |"
+        "The reference under the {primary} arithmetic; its ensemble: {}.",
+        members.join("; ")
+    );
+    println!(
+        "| episode | ours: success (or failure) step | reference | the reference's ensemble | same step | \
+         max state difference until 10 steps before the first ensemble run departs by 1e-6 | max state difference | \
+         the ensemble's own |"
     );
     println!("|---|---:|---:|---:|---|---:|---:|---:|");
     for (c, s) in cases.iter().zip(&summaries) {

@@ -134,11 +134,30 @@ impl Selection {
             path: path.to_path_buf(),
             message,
         };
-        if path.extension().is_some_and(|e| e == "toml") {
-            toml::from_str(&text).map_err(|e| bad(e.to_string()))
+        let sel: Self = if path.extension().is_some_and(|e| e == "toml") {
+            toml::from_str(&text).map_err(|e| bad(e.to_string()))?
         } else {
-            serde_norway::from_str(&text).map_err(|e| bad(e.to_string()))
+            serde_norway::from_str(&text).map_err(|e| bad(e.to_string()))?
+        };
+        sel.check_names(path)
+    }
+
+    /// The selection when every output camera name is a name, not a path: it names the
+    /// dataset's video folders and files ([`dexjoco_core::safe_name`]).
+    fn check_names(self, path: &Path) -> Result<Self, ConvertError> {
+        let all = std::iter::once(("default", &self.default))
+            .chain(self.tasks.iter().map(|(t, s)| (t.as_str(), s)));
+        for (task, selection) in all {
+            for camera in selection.cameras.keys() {
+                dexjoco_core::safe_name("output camera name", camera).map_err(|e| {
+                    ConvertError::Config {
+                        path: path.to_path_buf(),
+                        message: format!("cameras of {task}: {e}"),
+                    }
+                })?;
+            }
         }
+        Ok(self)
     }
 
     /// Reads the DexJoCo reference converter's config folder as it is:
@@ -186,7 +205,7 @@ impl Selection {
         let instructions: Option<BTreeMap<String, String>> =
             read(dir.join("language_instructions.yaml"))?;
         sel.instructions = instructions.unwrap_or_default();
-        Ok(sel)
+        sel.check_names(&dir.join("selected_data.yaml"))
     }
 }
 

@@ -7,7 +7,8 @@
 //! - rotations in the DexJoCo convention; [`synth`]: valid synthetic episodes;
 //! - [`Progress`]: how every stage reports long work; [`available_cores`]: the default
 //!   worker count;
-//! - [`CoreError`] and [`Location`]: errors that name file, episode, field and frame.
+//! - [`CoreError`] and [`Location`]: errors that name file, episode, field and frame;
+//! - [`safe_name`]: what a name from input data may be as a file name.
 //!
 //! This crate stays light: no MuJoCo, Arrow or Zarr. Formats convert into these types
 //! once, in `dexjoco-formats`.
@@ -15,6 +16,7 @@
 mod episode;
 mod error;
 mod layout;
+mod names;
 mod parallelism;
 mod progress;
 mod rotation;
@@ -28,6 +30,7 @@ pub use layout::{
     ArmSetup, ArrayLayout, DEXJOCO_FPS, FieldSlice, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM,
     ROTVEC_POSE_DIM, TABLE_OFFSET_RANGE,
 };
+pub use names::{MAX_NAME_BYTES, UnsafeName, safe_name};
 pub use parallelism::available_cores;
 pub use progress::{NoProgress, Progress};
 pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};

@@ -28,10 +28,10 @@
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
-use dexjoco_core::{Episode, TaskSet};
+use dexjoco_core::{Episode, Location, TaskSet};
 
 use crate::container::{EpisodeContainer, ReadEpisode, ReadOptions};
-use crate::error::{Result, io_err};
+use crate::error::{FormatError, ProblemCode, Result, io_err};
 use crate::manifest::{MANIFEST, Manifest, SourceKind};
 use crate::mcap::McapLog;
 use crate::raw::{REPLAY_ZARR, RawFolder};
@@ -166,10 +166,70 @@ impl Source {
     }
 
     /// Reads the episode with its container; `options` can fix the task of raw folders
-    /// and hand over an MCAP file's bytes.
+    /// and hand over an MCAP file's bytes. The names the episode brings (its id, task and
+    /// camera names) are checked to be names, never paths ([`dexjoco_core::safe_name`]):
+    /// they become folder and file names downstream.
     pub fn read_with(&self, tasks: &TaskSet, options: ReadOptions<'_>) -> Result<ReadEpisode> {
-        self.kind.container().read(&self.path, tasks, options)
+        let read = self.kind.container().read(&self.path, tasks, options)?;
+        check_names(&self.path, &read.episode)?;
+        Ok(read)
     }
+
+    /// Reads the episode ([`Self::read`]) and applies the checks every command applies
+    /// whichever door an episode comes in by ([`crate::validate::integrity`]: shapes
+    /// against its task, finite values, frame rate, timestamps; tolerances as `ingest`'s
+    /// defaults). A bad episode is an error naming file, episode, field and frame, with
+    /// the count of further problems.
+    pub fn read_checked(&self, tasks: &TaskSet) -> Result<ReadEpisode> {
+        let read = self.read(tasks)?;
+        let task = tasks.get(&read.episode.task).ok_or_else(|| {
+            crate::container::unknown_task(
+                &Location::default().path(&self.path).field("task"),
+                &read.episode.task,
+                tasks,
+            )
+        })?;
+        let mut problems = crate::validate::integrity(
+            &read.episode,
+            task,
+            &self.path,
+            &crate::ValidationOptions::default(),
+        );
+        if problems.is_empty() {
+            return Ok(read);
+        }
+        let more = problems.len() - 1;
+        let mut first = problems.swap_remove(0);
+        if more > 0 {
+            first
+                .message
+                .push_str(&format!(" (and {more} more problem(s))"));
+        }
+        Err(FormatError::Input(Box::new(first)))
+    }
+}
+
+/// The names an episode brings, each a safe file name ([`dexjoco_core::safe_name`]).
+fn check_names(path: &Path, ep: &Episode) -> Result<()> {
+    let at = Location::default().path(path);
+    let names = [
+        ("episode id", "id", ep.id.as_str()),
+        ("task id", "task", &ep.task),
+    ]
+    .into_iter()
+    .chain(
+        ep.cameras
+            .iter()
+            .map(|c| ("camera name", "cameras", c.name.as_str())),
+    );
+    for (what, field, name) in names {
+        dexjoco_core::safe_name(what, name).map_err(|e| {
+            let mut at = at.clone().field(field);
+            at.episode = (what != "episode id").then(|| ep.id.clone());
+            FormatError::input(ProblemCode::UnsafeName, &at, e.to_string())
+        })?;
+    }
+    Ok(())
 }
 
 /// Reads the one episode at `path` (a raw episode folder or an MCAP file) by the default

@@ -45,6 +45,10 @@ pub enum ProblemCode {
     TooLong,
     /// The same content was already given in this run (the first copy is kept).
     Duplicate,
+    /// A name from the data (episode id, task, camera) that cannot be a file name: a
+    /// path, `..`, a hidden name, a control character, too long
+    /// ([`dexjoco_core::safe_name`]).
+    UnsafeName,
 }
 
 impl ProblemCode {
@@ -68,6 +72,7 @@ impl ProblemCode {
             Self::TableOffsetOutOfRange => "table_offset_out_of_range",
             Self::TooLong => "too_long",
             Self::Duplicate => "duplicate",
+            Self::UnsafeName => "unsafe_name",
         }
     }
 }

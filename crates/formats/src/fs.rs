@@ -398,6 +398,56 @@ pub fn overlaps(a: &Path, b: &Path) -> bool {
     a.starts_with(&b) || b.starts_with(&a)
 }
 
+/// How an output path meets an input path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Overlap {
+    /// The same path.
+    Same,
+    /// The output holds the input.
+    Holds,
+    /// The output lies inside the input.
+    Inside,
+}
+
+impl Overlap {
+    /// How `output` meets `input` (links resolved), when it does.
+    pub fn of(output: &Path, input: &Path) -> Option<Self> {
+        let (o, i) = (resolve(output), resolve(input));
+        if o == i {
+            Some(Self::Same)
+        } else if i.starts_with(&o) {
+            Some(Self::Holds)
+        } else if o.starts_with(&i) {
+            Some(Self::Inside)
+        } else {
+            None
+        }
+    }
+
+    /// In words: `is`, `holds`, `lies inside`.
+    pub fn words(self) -> &'static str {
+        match self {
+            Self::Same => "is",
+            Self::Holds => "holds",
+            Self::Inside => "lies inside",
+        }
+    }
+}
+
+/// The rule every command that writes applies before it writes anything: no output is,
+/// holds or lies inside what the command reads (links resolved). Returns the first
+/// `(output, input, how)` that breaks it.
+pub fn first_overlap<'a>(
+    outputs: &[&'a Path],
+    inputs: &[&'a Path],
+) -> Option<(&'a Path, &'a Path, Overlap)> {
+    outputs.iter().find_map(|o| {
+        inputs
+            .iter()
+            .find_map(|i| Overlap::of(o, i).map(|how| (*o, *i, how)))
+    })
+}
+
 /// Whether `inner` is `outer` or lies inside it (after [`resolve`]).
 pub fn is_within(inner: &Path, outer: &Path) -> bool {
     resolve(inner).starts_with(resolve(outer))

@@ -19,6 +19,8 @@
 //! - [`npz`]: numpy `.npz` depth archives (`videos/<camera>_depth.npz`), streamed.
 //! - [`openpi`]: openpi's `norm_stats.json`, the one implementation of normalization
 //!   statistics (convert and stats both use it).
+//! - [`validate`]: the checks of an episode against its task: the integrity checks every
+//!   reader applies whichever door the episode comes in by, and `ingest`'s full check.
 //! - [`manifest`]: the episode store's `manifest.json` and per-episode entries.
 //! - [`fs`]: atomic file writes, whole-folder replacement, tree copies; [`lock`]: one
 //!   writer per output folder.
@@ -36,6 +38,7 @@ pub mod mcap;
 pub mod npz;
 pub mod openpi;
 pub mod raw;
+pub mod validate;
 pub mod zarr_v2;
 
 pub use container::{EpisodeContainer, EpisodeMeta, ReadEpisode, ReadOptions};
@@ -44,3 +47,4 @@ pub use error::{DatasetError, FormatError, Problem, ProblemCode, Result};
 pub use fs::write_atomic;
 pub use lock::{DirLock, LOCK_FILE, LockOwner};
 pub use manifest::{ENTRY_FILE, MANIFEST, Manifest, ManifestEntry, SourceKind, Status};
+pub use validate::ValidationOptions;

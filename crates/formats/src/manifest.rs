@@ -132,11 +132,14 @@ impl Manifest {
         });
     }
 
-    /// The landed episodes' folders under `store`, in manifest order.
+    /// The landed episodes' folders under `store`, in manifest order. A recorded path
+    /// that would leave the store (absolute, or with a `..` or a name that is not a safe
+    /// file name: [`dexjoco_core::safe_name`]) is not followed: a manifest names folders
+    /// of its own store only.
     pub fn landed_dirs(&self, store: &Path) -> Vec<PathBuf> {
         self.episodes
             .iter()
-            .filter(|e| e.status == Status::Ok)
+            .filter(|e| e.status == Status::Ok && within_store(&e.path))
             .map(|e| store.join(&e.path))
             .collect()
     }
@@ -149,4 +152,15 @@ impl Manifest {
         }
         m
     }
+}
+
+/// Whether a path a manifest records stays inside its store: relative, each component a
+/// safe file name.
+fn within_store(path: &Path) -> bool {
+    path.components().all(|c| match c {
+        std::path::Component::Normal(n) => n
+            .to_str()
+            .is_some_and(|n| dexjoco_core::safe_name("store path", n).is_ok()),
+        _ => false,
+    }) && path.components().next().is_some()
 }

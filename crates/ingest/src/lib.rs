@@ -2,7 +2,8 @@
 //! their task specs and land them in the episode store.
 //!
 //! - [`validate`]: checks of an episode against its [`TaskSpec`](dexjoco_core::TaskSpec):
-//!   widths, finite values, timestamps, unit quaternions, hand ranges, dh, step cap.
+//!   widths, finite values, timestamps, unit quaternions, hand ranges, dh, step cap
+//!   ([`dexjoco_formats::validate`], where the integrity part every reader applies lives).
 //! - [`Store`]: the canonical store (raw layout + `manifest.json`) and the pipeline that
 //!   lands good episodes atomically and quarantines bad inputs with their reasons.
 //!
@@ -13,10 +14,9 @@
 mod error;
 mod input;
 mod store;
-mod validate;
 
+pub use dexjoco_formats::validate::{ValidationOptions, validate};
 pub use error::{IngestError, Result};
 pub use store::{
     IngestOptions, IngestSummary, Outcome, QUARANTINE, REASON_FILE, STAGING, SourceReport, Store,
 };
-pub use validate::{ValidationOptions, validate};

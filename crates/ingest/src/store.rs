@@ -35,7 +35,7 @@ use sha2::{Digest, Sha256};
 use crate::input::{hash_source, hex16, keep_quarantined_copy, name_problems};
 
 use crate::error::{IngestError, Result};
-use crate::validate::{ValidationOptions, validate};
+use dexjoco_formats::validate::{ValidationOptions, validate};
 
 /// Folder of rejected inputs.
 pub const QUARANTINE: &str = "quarantine";

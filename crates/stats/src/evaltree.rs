@@ -270,21 +270,55 @@ fn read_run(dir: &Path, root: &Path, name: RunName) -> Result<Run, StatsError> {
     })
 }
 
+/// A run folder that could not be read (a bad marker file, a misnamed episode folder, an
+/// episode number given twice): left out of the analysis and named, never stopping it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LeftOutRun {
+    /// The run folder.
+    pub path: PathBuf,
+    /// Why it was left out.
+    pub reason: String,
+}
+
+/// `; left out: <folder> (<reason>)...` for a message, or nothing.
+pub(crate) fn left_out_note(left_out: &[LeftOutRun]) -> String {
+    if left_out.is_empty() {
+        return String::new();
+    }
+    let list: Vec<String> = left_out
+        .iter()
+        .map(|l| format!("'{}' ({})", l.path.display(), l.reason))
+        .collect();
+    format!("; left out: {}", list.join(", "))
+}
+
 /// Finds every run folder under `root` (the root itself included): a folder named
-/// `<task>[_rand_<x>]_seed<s>` that holds episode folders or a marker file. Sorted by path.
-pub fn find_runs(root: &Path) -> Result<Vec<Run>, StatsError> {
+/// `<task>[_rand_<x>]_seed<s>` that holds episode folders or a marker file. Sorted by
+/// path. A run folder that cannot be read is left out and returned with its reason (one
+/// bad folder is one bad folder); a root that cannot be listed is an error.
+pub fn find_runs(root: &Path) -> Result<(Vec<Run>, Vec<LeftOutRun>), StatsError> {
     if !root.is_dir() {
         return Err(StatsError::invalid(root, "not a folder"));
     }
     let mut runs = Vec::new();
+    let mut left_out = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
         let name = dir.file_name().map(|n| n.to_string_lossy().into_owned());
         if let Some(run_name) = name.as_deref().and_then(RunName::parse) {
-            let run = read_run(&dir, root, run_name)?;
-            if !run.episodes.is_empty() || run.marker.is_some() {
-                runs.push(run);
-                continue;
+            match read_run(&dir, root, run_name) {
+                Ok(run) if !run.episodes.is_empty() || run.marker.is_some() => {
+                    runs.push(run);
+                    continue;
+                }
+                Ok(_) => {}
+                Err(e) => {
+                    left_out.push(LeftOutRun {
+                        path: dir.clone(),
+                        reason: e.to_string(),
+                    });
+                    continue;
+                }
             }
         }
         for (entry, path, is_dir) in sorted_entries(&dir)?.into_iter().rev() {
@@ -294,7 +328,8 @@ pub fn find_runs(root: &Path) -> Result<Vec<Run>, StatsError> {
         }
     }
     runs.sort_by(|a, b| a.dir.cmp(&b.dir));
-    Ok(runs)
+    left_out.sort_by(|a, b| a.path.cmp(&b.path));
+    Ok((runs, left_out))
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@ use dexjoco_core::TaskSpec;
 use serde::{Deserialize, Serialize};
 
 use crate::error::StatsError;
-use crate::evaltree::{DEFAULT_REGIME, Run, find_runs};
+use crate::evaltree::{DEFAULT_REGIME, LeftOutRun, Run, find_runs};
 use crate::measures::{MeanStd, mean_std};
 
 /// The display name of a task: its spec's (the paper's) for DexJoCo tasks, else the id
@@ -103,6 +103,10 @@ pub struct SuccessTable {
     pub averages: Vec<AverageCell>,
     /// Things worth knowing (markers disagreeing with episode folders, gaps).
     pub warnings: Vec<String>,
+    /// Run folders that could not be read (a bad marker file...), each with its reason:
+    /// left out of the table.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub left_out: Vec<LeftOutRun>,
 }
 
 impl SuccessTable {
@@ -111,13 +115,15 @@ impl SuccessTable {
     /// directly in it). Each run's rate comes from its `success_rate_<n>_<episodes>.txt`
     /// marker when present, else from counting its success and failure episode folders.
     pub fn load(root: &Path) -> Result<Self, StatsError> {
-        let runs = find_runs(root)?;
+        let (runs, left_out) = find_runs(root)?;
         if runs.is_empty() {
             return Err(StatsError::Empty {
                 path: root.to_path_buf(),
-                message: "no run folders (<task>[_rand_full]_seed<s>/ with episode folders or a \
-                          success_rate_<n>_<episodes>.txt marker) found"
-                    .into(),
+                message: format!(
+                    "no run folders (<task>[_rand_full]_seed<s>/ with episode folders or a \
+                     success_rate_<n>_<episodes>.txt marker) found{}",
+                    crate::evaltree::left_out_note(&left_out)
+                ),
             });
         }
         let mut warnings = Vec::new();
@@ -153,6 +159,7 @@ impl SuccessTable {
             cells,
             averages,
             warnings,
+            left_out,
         })
     }
 

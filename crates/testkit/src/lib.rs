@@ -7,7 +7,8 @@
 //!   `../shared/dexjoco-upstream`.
 //! - [`reference_python`], [`run_reference_python`], [`reference_code_dir`]: the DexJoCo
 //!   reference code (`../shared/third_party/dexjoco-8d23b0f`) and the venv with its pins
-//!   that runs its environments (`tests/python/dexjoco_reference.py` drives them).
+//!   that runs its environments (`tests/python/dexjoco_reference.py` drives them), under
+//!   a pinned arithmetic setting ([`reference_arithmetic`]).
 //! - [`hostile`]: generated hostile inputs (mutated files) and a bounded, deterministic
 //!   runner that checks a parser neither panics nor hangs on them.
 
@@ -93,10 +94,28 @@ pub fn reference_code_dir() -> PathBuf {
 /// and `DEXJOCO_UPSTREAM` set for `dexjoco_reference.py`; returns stdout, panicking with
 /// stderr when it fails.
 pub fn run_reference_python(script: &str, args: &[&str]) -> String {
+    run_reference_python_as(script, args, &reference_arithmetic())
+}
+
+/// [`run_reference_python`] under a named arithmetic setting of the reference side
+/// (`tests/python/reference_arithmetic.py`: numpy's SIMD loops and OpenBLAS's kernels).
+pub fn run_reference_python_as(script: &str, args: &[&str], arithmetic: &str) -> String {
     let mut cmd = Command::new(reference_python());
     cmd.env("DEXJOCO_REFERENCE_CODE", reference_code_dir())
-        .env("DEXJOCO_UPSTREAM", upstream_dir());
+        .env("DEXJOCO_UPSTREAM", upstream_dir())
+        .env("DEXJOCO_REFERENCE_ARITHMETIC", arithmetic);
     run_script(cmd, script, args)
+}
+
+/// The arithmetic setting the reference side runs under: `$DEXJOCO_REFERENCE_ARITHMETIC`,
+/// default `avx2` (numpy without its AVX-512 loops, OpenBLAS's Haswell kernels: the same
+/// bits on every CPU with AVX2 and FMA; `tests/python/reference_arithmetic.py` lists the
+/// settings, docs/testing.md how to run the parity tests under each).
+pub fn reference_arithmetic() -> String {
+    std::env::var("DEXJOCO_REFERENCE_ARITHMETIC")
+        .ok()
+        .filter(|s| !s.is_empty())
+        .unwrap_or_else(|| "avx2".to_owned())
 }
 
 /// Runs a Python script of `tests/python/` (or any path) with arguments in the test venv;

@@ -67,6 +67,14 @@ impl TaskSpec {
     /// exist), the graph has no cycle, the state width matches the layout, objects named
     /// by placements and derived poses exist, ranges and counts are sensible.
     pub fn validate(&self) -> Result<(), TaskSpecError> {
+        // The id and the camera names become file and folder names.
+        crate::safe_name("task id", &self.id).map_err(|e| self.invalid("id", e.to_string()))?;
+        for (i, c) in self.cameras.iter().enumerate() {
+            crate::safe_name("camera key", &c.key)
+                .map_err(|e| self.invalid(&format!("cameras[{i}].key"), e.to_string()))?;
+            crate::safe_name("camera name", &c.camera)
+                .map_err(|e| self.invalid(&format!("cameras[{i}].camera"), e.to_string()))?;
+        }
         self.validate_nodes()?;
         self.validate_state()?;
         if let Some(h) = &self.reset.hand_qpos

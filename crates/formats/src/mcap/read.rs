@@ -107,8 +107,19 @@ pub fn read_episode_mcap(path: &Path, bytes: &[u8], tasks: &TaskSet) -> Result<T
     let mut notes = topics.unused_topic_notes(task);
 
     let get = |k: &str| md.get(k).map(String::as_str);
+    let id = get("episode_id").unwrap_or_default();
+    if !id.is_empty() {
+        // The id names the episode's folders and files later on: a name, not a path.
+        dexjoco_core::safe_name("episode id", id).map_err(|e| {
+            FormatError::input(
+                ProblemCode::UnsafeName,
+                &md_at.clone().field("episode_id"),
+                e.to_string(),
+            )
+        })?;
+    }
     let mut episode = Episode {
-        id: get("episode_id").unwrap_or_default().to_owned(),
+        id: id.to_owned(),
         task: task.id.clone(),
         // An empty prompt is no instruction of its own: the task's applies.
         prompt: get("prompt")

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::StatsError;
-use crate::evaltree::{Entered, Run, find_runs};
+use crate::evaltree::{Entered, LeftOutRun, Run, find_runs};
 
 /// The output label of an episode in which no digit was entered.
 pub const NONE_OUTPUT: &str = "none";
@@ -59,6 +59,10 @@ pub struct LanguageInput {
     pub trials: Vec<Trial>,
     /// Things worth knowing that did not stop the reading.
     pub warnings: Vec<String>,
+    /// Run folders of an evaluation tree that could not be read, each with its reason
+    /// (left out of the analysis).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub left_out: Vec<LeftOutRun>,
 }
 
 /// The answer an instruction label asks for, when it is a number, a number word, or a
@@ -155,12 +159,14 @@ impl LanguageInput {
     /// answer; a failure folder without digits is an error.
     pub fn from_tree(root: &Path) -> Result<Self, StatsError> {
         let manifest = read_manifest(root)?;
-        let runs = find_runs(root)?;
+        let (runs, left_out) = find_runs(root)?;
         if runs.is_empty() {
             return Err(StatsError::Empty {
                 path: root.to_path_buf(),
-                message: "no run folders (<task>_seed<s>/ holding episode_XX_* folders) found"
-                    .into(),
+                message: format!(
+                    "no run folders (<task>_seed<s>/ holding episode_XX_* folders) found{}",
+                    crate::evaltree::left_out_note(&left_out)
+                ),
             });
         }
         let mut warnings = Vec::new();
@@ -201,7 +207,9 @@ impl LanguageInput {
             }
             instructions.push(instruction);
         }
-        Self::finish(root, instructions, trials, warnings)
+        let mut input = Self::finish(root, instructions, trials, warnings)?;
+        input.left_out = left_out;
+        Ok(input)
     }
 
     /// Reads a tidy CSV with a header: `instruction`, `expected` (or `expected_answer`),
@@ -385,6 +393,7 @@ impl LanguageInput {
             instructions,
             trials,
             warnings,
+            left_out: Vec::new(),
         })
     }
 }

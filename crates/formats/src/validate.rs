@@ -1,14 +1,20 @@
-//! Validation of an episode against its task: dimensions, finite values, timestamps,
-//! unit quaternions, hand target ranges, step cap, table offset. Every check reports its
-//! first offending frame and how many more there are, naming file, episode, field and frame.
+//! Validation of an episode against its task. Every check reports its first offending
+//! frame and how many more there are, naming file, episode, field and frame.
+//!
+//! - [`integrity`]: what every command checks whichever door an episode comes in by
+//!   (`ingest`, or `augment`, `convert` and `export` reading an MCAP log or a raw folder
+//!   directly, through [`crate::Source::read_checked`]): array shapes against the task's
+//!   layout, finite values, a finite positive frame rate, timestamps that increase at it;
+//! - [`validate`]: `ingest`'s full check: the integrity checks, plus unit quaternions,
+//!   hand target ranges, the step cap and the table offset.
 
 use std::path::Path;
 
+use crate::error::{Problem, ProblemCode};
 use dexjoco_core::{
     ArmSetup, Episode, HAND_CTRL_RANGES, HAND_DOF, Location, POSE_DIM, PrivilegedKind,
     TABLE_OFFSET_RANGE, TaskSpec,
 };
-use dexjoco_formats::{Problem, ProblemCode};
 
 /// Tolerances of the checks.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -53,6 +59,14 @@ struct Findings<'a> {
 }
 
 impl<'a> Findings<'a> {
+    fn new(ep: &'a Episode, source: &Path) -> Self {
+        Self {
+            base: Location::default().path(source),
+            episode: &ep.id,
+            list: Vec::new(),
+        }
+    }
+
     fn add(&mut self, code: ProblemCode, field: String, frame: Option<usize>, detail: String) {
         if let Some((_, more)) = self
             .list
@@ -90,14 +104,51 @@ pub fn validate(
     source: &Path,
     opts: &ValidationOptions,
 ) -> Vec<Problem> {
-    let mut f = Findings {
-        base: Location::default().path(source),
-        episode: &ep.id,
-        list: Vec::new(),
-    };
+    let mut f = Findings::new(ep, source);
+    if integrity_checks(ep, task, opts, &mut f) {
+        if ep.len() > task.step_cap {
+            f.add(
+                ProblemCode::TooLong,
+                Episode::ACTION.into(),
+                Some(task.step_cap),
+                format!(
+                    "{} frames exceed the step cap {} of {}",
+                    ep.len(),
+                    task.step_cap,
+                    task.id
+                ),
+            );
+        }
+        check_action(ep, task.setup, opts, &mut f);
+        check_state(ep, task, opts, &mut f);
+    }
+    f.finish()
+}
+
+/// The checks every reader applies to an episode whatever door it came in by: array
+/// shapes and lengths against the task, finite values, the frame rate and the
+/// timestamps (see the module documentation); returns every problem found.
+pub fn integrity(
+    ep: &Episode,
+    task: &TaskSpec,
+    source: &Path,
+    opts: &ValidationOptions,
+) -> Vec<Problem> {
+    let mut f = Findings::new(ep, source);
+    integrity_checks(ep, task, opts, &mut f);
+    f.finish()
+}
+
+/// The integrity checks into `f`; true when the arrays are whole and finite (the
+/// value checks can run).
+fn integrity_checks(
+    ep: &Episode,
+    task: &TaskSpec,
+    opts: &ValidationOptions,
+    f: &mut Findings<'_>,
+) -> bool {
     let setup = task.setup;
     let frames = ep.len();
-
     // Dimensions and lengths first: later checks index columns.
     let widths = [
         (Episode::ACTION, setup.action_dim()),
@@ -152,19 +203,8 @@ pub fn validate(
         );
         shapes_ok = false;
     }
-    if frames > task.step_cap {
-        f.add(
-            ProblemCode::TooLong,
-            Episode::ACTION.into(),
-            Some(task.step_cap),
-            format!(
-                "{frames} frames exceed the step cap {} of {}",
-                task.step_cap, task.id
-            ),
-        );
-    }
     if !shapes_ok {
-        return f.finish();
+        return false;
     }
 
     // Finite values everywhere.
@@ -186,13 +226,10 @@ pub fn validate(
     }
     if any_nan {
         // Range checks on NaN data only repeat the finding.
-        return f.finish();
+        return false;
     }
-
-    check_timestamps(ep, opts, &mut f);
-    check_action(ep, setup, opts, &mut f);
-    check_state(ep, task, opts, &mut f);
-    f.finish()
+    check_timestamps(ep, opts, f);
+    true
 }
 
 fn column(name: &str, width: usize, c: usize) -> String {
@@ -207,11 +244,16 @@ fn check_timestamps(ep: &Episode, opts: &ValidationOptions, f: &mut Findings<'_>
     let ts = ep.array(Episode::TIMESTAMP).expect("checked").as_slice();
     let dt = 1.0 / ep.fps;
     if !(ep.fps.is_finite() && ep.fps > 0.0) {
+        let why = if ep.fps.is_finite() {
+            "is not positive"
+        } else {
+            "is not finite"
+        };
         f.add(
             ProblemCode::Timestamps,
-            Episode::TIMESTAMP.into(),
+            "fps".into(),
             None,
-            format!("frame rate {} is not positive", ep.fps),
+            format!("frame rate {} {why}", ep.fps),
         );
         return;
     }
