@@ -74,7 +74,11 @@ fn resolved_note(out: &Path, input: &Path) -> String {
     if ro == plain(out) && ri == plain(input) {
         String::new()
     } else {
-        format!(" (links resolved: '{}' and '{}')", ro.display(), ri.display())
+        format!(
+            " (links resolved: '{}' and '{}')",
+            ro.display(),
+            ri.display()
+        )
     }
 }
 

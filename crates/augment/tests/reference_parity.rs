@@ -299,15 +299,25 @@ fn describe_run(r: &Value) -> String {
 }
 
 /// Demonstrations whose plan succeeds on our side but whose replay in the reference
-/// code does not succeed under every arithmetic setting, and why.
-const FRAGILE_IN_REFERENCE: &[(&str, &str)] = &[(
-    "bimanual_assembly_demo",
-    "the let-go peg stands on the hole's flat bottom on one contact point (a cylinder's \
-     flat end on a box, multi-point collision off) and rocks, lifting off for one step \
-     at each swing; whether the reference counts 30 steps of contact in a row within \
-     the 30-step extension is decided by rounding (succeeds at 1016 to 1047 or not at all \
-     across the arithmetic settings: docs/reference-parity.md)",
-)];
+/// code does not succeed in every run of the ensemble, and why (measured; printed with
+/// the table). Only a plan listed here may fail in the reference's primary run.
+const FRAGILE_IN_REFERENCE: &[(&str, &str)] = &[
+    (
+        "bimanual_assembly_demo",
+        "the let-go peg stands on the hole's flat bottom on one contact point (a cylinder's \
+         flat end on a box, multi-point collision off) and rocks, lifting off for one step \
+         at each swing; whether the reference counts 30 steps of contact in a row within \
+         the 30-step extension is decided by rounding (succeeds at 1016 to 1047 or not at \
+         all across the arithmetic settings: docs/reference-parity.md)",
+    ),
+    (
+        "bimanual_microwave_cook_demo",
+        "the recording ends on the start button's first touch, so its last target (repeated \
+         by the extension) presses no deeper than that touch; where a perturbation has moved \
+         the arm's path or the microwave by a millimetre or two, the fingertip stops 1.4 mm \
+         short of the button (measured under the avx512 setting nudged by -1e-9 m)",
+    ),
+];
 
 /// Tasks whose planner does not yet succeed on this reset of the reference scene (issue
 /// #26 reports what resists); every other task's plan must succeed here.
