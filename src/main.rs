@@ -36,6 +36,8 @@ fn main() -> ExitCode {
         Command::Cameras(args) => commands::cameras::run(&cli.global, args),
         Command::Convert(args) => commands::convert::run(&cli.global, args),
         Command::Stats(args) => commands::stats::run(&cli.global, args),
+        Command::Eval(args) => commands::eval::run(&cli.global, args),
+        Command::EvalWorker(args) => commands::eval::run_worker(&args),
         Command::Scripted(args) => settings::ScriptedSettings::resolve(&args, &cli.global)
             .and_then(commands::scripted::run),
     };

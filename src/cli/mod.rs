@@ -1,12 +1,14 @@
 //! Every clap definition of the `dexjoco-data` command line: this file holds the
 //! top level (global options, subcommands, shared value types); `stages` the pipeline
-//! commands (ingest, export, scripted, augment, cameras, convert, stats); `tools` doctor,
-//! render and bench. Commands (`src/commands/`) turn these into settings
+//! commands (ingest, export, scripted, augment, cameras, convert, stats); `eval` the
+//! policy evaluation; `tools` doctor, render and bench. Commands (`src/commands/`) turn these into settings
 //! (`src/settings/`); neither is imported here, so the modules form no circle.
 
+mod eval;
 mod stages;
 mod tools;
 
+pub use eval::*;
 pub use stages::*;
 pub use tools::*;
 
@@ -27,6 +29,7 @@ Examples:
   dexjoco-data convert                        # augment output -> LeRobot v3.0
   dexjoco-data convert dexjoco-work/ingest --out ds/ --overwrite
   dexjoco-data stats --language-eval
+  dexjoco-data eval --task click_mouse --episodes 10 --port 8000   # a policy served by openpi
 
 Stages chain through the work folder (default ./dexjoco-work, one subfolder per stage),
 so `augment`, `convert` and `stats` need no paths; every path can be overridden.
@@ -119,6 +122,12 @@ pub enum Command {
     Convert(ConvertArgs),
     /// Dataset statistics, success tables and the language-generalization analysis.
     Stats(StatsArgs),
+    /// Evaluate a trained policy in the task environments through openpi's websocket
+    /// policy server, as the DexJoCo reference client does (deterministic by default).
+    Eval(EvalArgs),
+    /// A worker process of `eval` (started by it).
+    #[command(hide = true)]
+    EvalWorker(EvalWorkerArgs),
 }
 
 /// Rendering quality presets.

@@ -7,6 +7,7 @@ pub mod bench_convert;
 pub mod cameras;
 pub mod convert;
 pub mod doctor;
+pub mod eval;
 pub mod export;
 pub mod ingest;
 pub mod render;

@@ -3,7 +3,8 @@
 //! `resolve` destructures the whole arguments struct, so a new flag that is not handled
 //! here fails to compile.
 //!
-//! `stages.rs`: the pipeline stages (ingest, export, augment, convert, stats);
+//! `stages.rs`: the pipeline stages (ingest, export, augment, convert, stats); `eval.rs`:
+//! the policy evaluation;
 //! `tools.rs`: the other commands (render, bench, doctor, scripted, cameras); here what
 //! they share (task sets, usage errors, EGL device choice, worker counts).
 
@@ -26,9 +27,11 @@ use crate::cli::{
 };
 use crate::exit::{CliError, ExitStatus};
 
+mod eval;
 mod stages;
 mod tools;
 
+pub use eval::*;
 pub use stages::*;
 pub use tools::*;
 

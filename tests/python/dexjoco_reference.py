@@ -8,7 +8,8 @@ the `dexjoco` package in the cache (never in the project), with the scene folder
 camera pools of `$DEXJOCO_UPSTREAM` linked in and the one line MuJoCo 3.17.0 needs
 adapted (`mj_fullM(model, M, data.qM)` became `mj_fullM(model, data, M)` in 3.5). At
 import time, for this process only: the 30 Hz pacing sleep is a no-op and the renderer
-returns a 1x1 black image (no OpenGL context; physics and success logic are untouched).
+returns a 1x1 black image (no OpenGL context; physics and success logic are untouched;
+`DEXJOCO_REFERENCE_RENDER=1` keeps the reference's own EGL renderer).
 
 Used as a library (`make_env`, `replay`, `replay_job`, `record`) or from the command line:
 
@@ -148,7 +149,10 @@ def _load():
     time.sleep = lambda _seconds: None  # the envs pace themselves to 30 Hz
     import dexjoco.sim.rendering as rendering
 
-    rendering.MujocoRenderer = _HeadlessRenderer
+    # `DEXJOCO_REFERENCE_RENDER=1`: the reference's own renderer (EGL), for the tests
+    # that compare its images.
+    if os.environ.get("DEXJOCO_REFERENCE_RENDER") != "1":
+        rendering.MujocoRenderer = _HeadlessRenderer
     _disable_multiccd_on_load()
     from dexjoco.tasks.mappings import CONFIG_MAPPING
 

@@ -2,11 +2,11 @@
 //! randomization draws from, loaded once and shared by every unit that renders the task.
 
 use dexjoco_core::TaskSpec;
-use dexjoco_sim::{Scene, SceneSource, load_task_scene};
+use dexjoco_sim::{Scene, load_task_scene};
 
-use crate::config::{AugmentConfig, TABLE_GEOM};
+use crate::config::AugmentConfig;
 use crate::error::{AugmentError, sim_err};
-use crate::randomize::{CameraPool, TableLibrary, builtin_pool};
+use dexjoco_sim::randomize::{CameraPool, TABLE_GEOM, TableLibrary};
 
 /// A task's scene and what randomization needs of it, shared by every worker thread.
 pub(crate) struct TaskAssets {
@@ -44,9 +44,14 @@ impl TaskAssets {
     }
 
     /// The randomization of replay `r` of the episode `key` (`<task>/<episode>`).
-    pub(crate) fn sample(&self, seed: u64, key: &str, r: usize) -> crate::randomize::VisualSample {
-        crate::randomize::VisualSample::sample(
-            crate::randomize::replay_seed(seed, key, r),
+    pub(crate) fn sample(
+        &self,
+        seed: u64,
+        key: &str,
+        r: usize,
+    ) -> dexjoco_sim::randomize::VisualSample {
+        dexjoco_sim::randomize::VisualSample::sample(
+            dexjoco_sim::randomize::replay_seed(seed, key, r),
             &self.pool,
             &self.table,
             self.nlight,
@@ -55,22 +60,11 @@ impl TaskAssets {
 }
 
 fn pool_for(config: &AugmentConfig, spec: &TaskSpec) -> Result<CameraPool, AugmentError> {
-    if let Some(p) = &config.camera_pool {
-        return CameraPool::load(p);
-    }
-    if let SceneSource::Dir(dir) = &config.scene {
-        let file = match spec.setup {
-            dexjoco_core::ArmSetup::SingleArm => "replay_cameras.json",
-            dexjoco_core::ArmSetup::Bimanual => "replay_cameras_2.json",
-        };
-        // The reference pools sit beside its `xmls/` folder.
-        for cand in [dir.join(file), dir.join("..").join(file)] {
-            if cand.is_file() {
-                return CameraPool::load(&cand);
-            }
-        }
-    }
-    Ok(builtin_pool(spec.setup))
+    Ok(CameraPool::for_task(
+        config.camera_pool.as_deref(),
+        &config.scene,
+        spec.setup,
+    )?)
 }
 
 /// Loads a task's scene, camera pool and table looks.

@@ -11,7 +11,7 @@ use serde::Serialize;
 use crate::config::AugmentConfig;
 use crate::dry_run::Trajectory;
 use crate::error::{AugmentError, sim_err};
-use crate::randomize::apply_visuals;
+use dexjoco_sim::randomize::apply_visuals;
 
 /// The light geometry against the full one on a replay's views.
 #[derive(Debug, Clone, Serialize)]

@@ -14,8 +14,6 @@ pub const REPORT_JSON: &str = "augment_report.json";
 pub const REPORT_MD: &str = "augment_report.md";
 /// The per-replay record inside each replay folder (written last, before the rename).
 pub(crate) const RECORD: &str = dexjoco_formats::raw::REPLAY_RECORD;
-/// The table-top geom randomized by texture, in every DexJoCo scene.
-pub(crate) const TABLE_GEOM: &str = "table_visual";
 /// Work in progress: each replay is written here whole, then renamed into place.
 pub(crate) const STAGING: &str = ".staging";
 /// First frames of the replays' third-person views, for the contact sheet.

@@ -20,7 +20,7 @@ use crate::inputs::{Source, read_sources};
 use crate::physics::{action_row, new_env, recorded_frames, replay};
 use crate::plan::{existing_replays, owned_replays};
 use crate::profile::{EncoderClock, StageTimes, timed};
-use crate::randomize::{VisualSample, apply_visuals};
+use dexjoco_sim::randomize::{VisualSample, apply_visuals};
 
 /// One task's share of a planned run.
 #[derive(Debug, Clone, Serialize)]

@@ -62,14 +62,10 @@ pub enum AugmentError {
         /// Why no context opened there.
         reason: String,
     },
-    /// A camera pool file is malformed.
-    #[error("camera pool '{}': {message}", path.display())]
-    Pool {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong.
-        message: String,
-    },
+    /// The scene's randomization (its camera pool, table looks, dynamics entries) cannot
+    /// be used.
+    #[error(transparent)]
+    Randomization(#[from] dexjoco_sim::SimError),
 }
 
 /// Maps an I/O error with the file it concerns.

@@ -17,7 +17,7 @@ use sha2::{Digest, Sha256};
 use crate::config::{AugmentConfig, SETTINGS_FILE};
 use crate::error::AugmentError;
 use crate::provenance::ToolVersions;
-use crate::randomize::CameraPool;
+use dexjoco_sim::randomize::CameraPool;
 
 /// Format name of the settings file.
 const FORMAT: &str = "dexjoco-data/augment-settings";
@@ -401,7 +401,7 @@ mod tests {
 
     #[test]
     fn differences_name_the_setting_and_both_values() {
-        let pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
+        let pool = dexjoco_sim::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
         let task = || [("t".to_owned(), hashes("s", &[]), &pool, "x".to_owned())];
         let a = OutputSettings::of(&config(64), task());
         let b = OutputSettings::of(&config(224), task());
@@ -424,8 +424,8 @@ mod tests {
     /// changes any one of them is refused, naming it.
     #[test]
     fn every_byte_changing_setting_is_named() {
-        let pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
-        let other_pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::Bimanual);
+        let pool = dexjoco_sim::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
+        let other_pool = dexjoco_sim::randomize::builtin_pool(dexjoco_core::ArmSetup::Bimanual);
         let scenes = tempfile::tempdir().unwrap();
         let base = config(64);
         let files = [("robot.xml", "sha256:1"), ("mesh.stl", "sha256:2")];
@@ -507,7 +507,7 @@ mod tests {
 
     #[test]
     fn one_scene_folder_named_two_ways_is_one_setting() {
-        let pool = crate::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
+        let pool = dexjoco_sim::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
         let dir = tempfile::tempdir().unwrap();
         fs_err::create_dir(dir.path().join("xmls")).unwrap();
         let task = || [("t".to_owned(), hashes("s", &[]), &pool, "x".to_owned())];

@@ -16,7 +16,8 @@
 //! folders staged and renamed whole; the records of dropped replays), `checks` (the render
 //! checks of every frame and stored array, and their test hook), `report` (report and
 //! contact sheet), `run` (the orchestration), `compare` (light against full geometry);
-//! `randomize`, `dynamics` and `camera_pool` the randomization.
+//! `camera_pool` builds camera pools; the randomization itself (`randomize`,
+//! `dynamics`) lives in `dexjoco-sim`, shared with `eval`.
 
 mod assets;
 mod camera_pool;
@@ -24,7 +25,6 @@ mod checks;
 mod compare;
 mod config;
 mod dry_run;
-mod dynamics;
 mod error;
 mod fingerprint;
 mod inputs;
@@ -32,7 +32,6 @@ mod physics;
 mod plan;
 mod profile;
 mod provenance;
-mod randomize;
 mod render;
 mod report;
 mod run;
@@ -48,17 +47,19 @@ pub use config::{
     AugmentConfig, CONTACT_SHEET, DEFAULT_EXTEND_STEPS, REPORT_JSON, REPORT_MD, SETTINGS_FILE,
     Shard, THIRD_PERSON, replay_name,
 };
+pub use dexjoco_sim::dynamics::{
+    DynamicsValue, apply_dynamics, dynamics_seed, read_dynamics, sample_dynamics,
+};
+pub use dexjoco_sim::randomize::{
+    CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,
+    replay_seed,
+};
 pub use dry_run::{DryRun, PlannedTask, dry_run, render_only};
-pub use dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, read_dynamics, sample_dynamics};
 pub use error::AugmentError;
 pub use fingerprint::{OutputSettings, TaskInputs};
 pub use inputs::SkippedInput;
 pub use profile::StageTimes;
 pub use provenance::{Provenance, ToolVersions};
-pub use randomize::{
-    CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,
-    replay_seed,
-};
 pub use report::{AugmentReport, EpisodeOutcome, FailedUnit, FlaggedReplay, MadeOn, ReplayRecord};
 pub use run::{augment, augment_with};
 pub use worker::{

@@ -20,16 +20,16 @@ use crate::assets::TaskAssets;
 use crate::checks::ReplayChecks;
 use crate::checks::inject::{Defects, ReplayDefects};
 use crate::config::{AugmentConfig, replay_name};
-use crate::dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, sample_dynamics};
 use crate::error::{AugmentError, io_err, sim_err, video_err};
 use crate::inputs::Source;
 use crate::physics::{Physics, PhysicsSummary, new_env, replay};
 use crate::profile::{EncoderClock, StageTimes, timed};
-use crate::randomize::{VisualSample, apply_visuals};
 use crate::report::ReplayRecord;
 use crate::staging::{
     Outcome, commit_replay, replay_cameras, replay_episode, staging_dir, write_dropped,
 };
+use dexjoco_sim::dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, sample_dynamics};
+use dexjoco_sim::randomize::{VisualSample, apply_visuals};
 
 thread_local! {
     /// One renderer per worker thread, for the scene it last drew.
@@ -266,7 +266,7 @@ fn simulation_to_render(
     let id = &src.episode.id;
     let ep_key = job.key();
     let r = job.replays[0];
-    let seed = crate::randomize::replay_seed(config.seed, &ep_key, r);
+    let seed = dexjoco_sim::randomize::replay_seed(config.seed, &ep_key, r);
     let values = sample_dynamics(&src.spec, &assets.scene.model, dynamics_seed(seed))?;
     let model = apply_dynamics(&src.spec, &assets.scene.model, &values)?;
     let scene = Scene {
@@ -320,7 +320,7 @@ fn open_replays(
         }
         let videos = staging.join(raw::VIDEOS);
         fs_err::create_dir_all(&videos).map_err(io_err("create", &videos))?;
-        let seed = crate::randomize::replay_seed(config.seed, &ep_key, r);
+        let seed = dexjoco_sim::randomize::replay_seed(config.seed, &ep_key, r);
         let sample = assets.sample(config.seed, &ep_key, r);
         let dynamics = if config.dynamics {
             Some(sample_dynamics(

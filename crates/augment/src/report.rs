@@ -11,11 +11,11 @@ use dexjoco_sim::RenderSettings;
 use serde::{Deserialize, Serialize};
 
 use crate::config::{PREVIEWS, REPORT_JSON, REPORT_MD};
-use crate::dynamics::DynamicsValue;
 use crate::error::{AugmentError, io_err};
 use crate::inputs::SkippedInput;
 use crate::provenance::Provenance;
-use crate::randomize::VisualSample;
+use dexjoco_sim::dynamics::DynamicsValue;
+use dexjoco_sim::randomize::VisualSample;
 
 /// One replay in the report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -358,3 +358,18 @@ pub fn probe_egl() -> Result<EglProbe, SimError> {
         selected,
     })
 }
+
+/// Gives one of `processes` rendering processes its share of the cores for Mesa's
+/// llvmpipe, which otherwise gives each process a raster thread per core (N processes
+/// would oversubscribe the cores N times over). A value the user set is kept; other
+/// drivers ignore the variable.
+pub fn share_llvmpipe_threads(cmd: &mut std::process::Command, processes: usize) {
+    const LP_THREADS_ENV: &str = "LP_NUM_THREADS";
+    if std::env::var_os(LP_THREADS_ENV).is_none() {
+        let cores = dexjoco_core::available_cores();
+        cmd.env(
+            LP_THREADS_ENV,
+            (cores / processes.max(1)).max(1).to_string(),
+        );
+    }
+}

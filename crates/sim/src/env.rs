@@ -500,8 +500,7 @@ impl TaskEnv {
 fn raise_table(model: &mut MjModel, spec: &TaskSpec, dh: f64) -> f64 {
     let table = name_id(model, NameKind::Body, &spec.table.body).expect("resolved");
     model.body_pos_mut()[table][2] = dh;
-    for leg in &spec.table.legs {
-        let g = name_id(model, NameKind::Geom, leg).expect("resolved");
+    for g in table_legs(model, spec, table) {
         match spec.table.leg_style {
             LegStyle::Extend => model.geom_size_mut()[g][1] += dh,
             LegStyle::Half => {
@@ -512,6 +511,30 @@ fn raise_table(model: &mut MjModel, spec: &TaskSpec, dh: f64) -> f64 {
     }
     let top_site = name_id(model, NameKind::Site, &spec.table.top_site).expect("resolved");
     model.body_pos()[table][2] + model.site_pos()[top_site][2]
+}
+
+/// The table's leg geoms: the spec's named legs, and with `cylinder_legs` every visual
+/// cylinder of the table body (each once).
+fn table_legs(model: &MjModel, spec: &TaskSpec, table: usize) -> Vec<usize> {
+    let mut legs: Vec<usize> = spec
+        .table
+        .legs
+        .iter()
+        .map(|leg| name_id(model, NameKind::Geom, leg).expect("resolved"))
+        .collect();
+    if spec.table.cylinder_legs {
+        for g in 0..model.ffi().ngeom as usize {
+            let visual = model.geom_contype()[g] == 0 && model.geom_conaffinity()[g] == 0;
+            if model.geom_bodyid()[g] as usize == table
+                && model.geom_type()[g] == mujoco_rs::mujoco_c::_mjtGeomBase::mjGEOM_CYLINDER
+                && visual
+                && !legs.contains(&g)
+            {
+                legs.push(g);
+            }
+        }
+    }
+    legs
 }
 
 /// The reset of the robot on the edited model: home pose, the task's joint values, arm

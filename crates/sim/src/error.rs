@@ -52,6 +52,14 @@ pub enum SimError {
     /// A task spec cannot be used.
     #[error("task spec: {0}")]
     Spec(String),
+    /// A camera pool file is malformed or cannot be read.
+    #[error("camera pool '{}': {message}", path.display())]
+    Pool {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// A state or action row has the wrong width.
     #[error("{what} has {found} values, the task needs {expected}")]
     Width {

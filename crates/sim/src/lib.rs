@@ -15,12 +15,14 @@
 pub mod builtin;
 mod checker;
 mod control;
+pub mod dynamics;
 mod egl;
 mod env;
 mod error;
 mod feedback;
 mod geometry;
 pub mod primitives;
+pub mod randomize;
 mod render;
 mod scene;
 pub mod scripted;
@@ -32,7 +34,7 @@ pub use control::{
 };
 pub use egl::{
     EGL_DEVICE_ENV, EglDevice, EglProbe, gpu_devices, list_egl_devices, probe_egl, probe_renderer,
-    requested_egl_device,
+    requested_egl_device, share_llvmpipe_threads,
 };
 pub use env::{EnvOptions, Rollout, SceneSource, TaskEnv, load_task_scene};
 pub use error::SimError;

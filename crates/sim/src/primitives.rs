@@ -275,6 +275,9 @@ pub struct Keypad {
     pub failed: bool,
     /// The password was completed (latched; the buttons are hidden after it).
     pub unlocked: bool,
+    /// The digits of the buttons newly pressed on the last update, in button order,
+    /// right or wrong (the reference's `pressed_digits` of that step).
+    pub last: Vec<u8>,
     pressed: BTreeSet<usize>,
 }
 
@@ -287,6 +290,7 @@ impl Keypad {
         digit_of: impl Fn(usize) -> u8,
         password: &[u8],
     ) -> bool {
+        self.last.clear();
         if self.unlocked {
             return true;
         }
@@ -298,6 +302,7 @@ impl Keypad {
                 // the buttons are gone, so it is ignored.
                 break;
             }
+            self.last.push(digit_of(b));
             if password.get(self.index) == Some(&digit_of(b)) {
                 self.index += 1;
                 if self.index == password.len() {

@@ -56,8 +56,13 @@ impl EpisodeFolder {
         let entered = match suffix {
             None => Entered::NotRecorded,
             Some("no_password_input") => Entered::NoInput,
-            Some(d) if !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit()) => {
-                Entered::Digits(d.to_string())
+            // The reference client joins the digits pressed on each step with `_`
+            // (`1_2_3`: three presses): the entry is their concatenation.
+            Some(d)
+                if d.split('_')
+                    .all(|g| !g.is_empty() && g.bytes().all(|b| b.is_ascii_digit())) =>
+            {
+                Entered::Digits(d.replace('_', ""))
             }
             Some(_) => return None,
         };
@@ -341,6 +346,10 @@ mod tests {
         let e = EpisodeFolder::parse("episode_07_failure_23").unwrap();
         assert_eq!((e.index, e.success), (7, false));
         assert_eq!(e.entered, Entered::Digits("23".into()));
+        // Digits pressed on separate steps, as the reference client names them.
+        let e = EpisodeFolder::parse("episode_07_success_1_2_3").unwrap();
+        assert_eq!(e.entered, Entered::Digits("123".into()));
+        assert_eq!(EpisodeFolder::parse("episode_01_failure_1__2"), None);
         let e = EpisodeFolder::parse("episode_12_success").unwrap();
         assert!(e.success);
         assert_eq!(e.entered, Entered::NotRecorded);

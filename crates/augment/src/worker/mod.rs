@@ -30,10 +30,10 @@ use crate::error::AugmentError;
 use crate::profile::StageTimes;
 use crate::render::UnitJob;
 
+pub use dexjoco_sim::share_llvmpipe_threads;
 pub(crate) use executor::UnitResult;
 pub use executor::{DEFAULT_FIRST_FRAME_TIMEOUT, Executor, WorkerProcesses};
 pub(crate) use process::WorkerPool;
-pub use process::share_llvmpipe_threads;
 pub use serve::{FAULT_ENV, STALL_ENV, serve_worker};
 pub(crate) use threads::LocalInputs;
 

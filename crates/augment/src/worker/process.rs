@@ -68,7 +68,7 @@ impl Worker {
         if let Some(dev) = assigned {
             cmd.env(dexjoco_sim::EGL_DEVICE_ENV, dev.to_string());
         }
-        share_llvmpipe_threads(&mut cmd, busy);
+        dexjoco_sim::share_llvmpipe_threads(&mut cmd, busy);
         let mut child = cmd.spawn().map_err(|e| {
             AugmentError::Input(format!(
                 "cannot start a worker process '{}': {e}",
@@ -285,20 +285,5 @@ impl WorkerPool {
         let mut out: Vec<Option<Worker>> = self.workers.drain(..keep).map(Some).collect();
         out.resize_with(slots, || None);
         out
-    }
-}
-
-/// Gives one of `processes` rendering processes its share of the cores for Mesa's
-/// llvmpipe, which otherwise gives each process a raster thread per core (N processes
-/// would oversubscribe the cores N times over). A value the user set is kept; other
-/// drivers ignore the variable.
-pub fn share_llvmpipe_threads(cmd: &mut Command, processes: usize) {
-    const LP_THREADS_ENV: &str = "LP_NUM_THREADS";
-    if std::env::var_os(LP_THREADS_ENV).is_none() {
-        let cores = dexjoco_core::available_cores();
-        cmd.env(
-            LP_THREADS_ENV,
-            (cores / processes.max(1)).max(1).to_string(),
-        );
     }
 }

@@ -59,9 +59,14 @@ pub struct TableSpec {
     /// The site on the table top.
     #[serde(default = "default_table_top")]
     pub top_site: String,
-    /// Named visual leg geoms (legs are visual only; unnamed legs are left alone).
+    /// Named visual leg geoms (legs are visual only; unnamed legs are left alone unless
+    /// `cylinder_legs`).
     #[serde(default)]
     pub legs: Vec<String>,
+    /// Every visual cylinder geom of the table body is a leg too (named or not): the
+    /// DexJoCo reference environments' rule, whose scenes leave the legs unnamed.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub cylinder_legs: bool,
     /// How legs follow dh.
     #[serde(default)]
     pub leg_style: LegStyle,
@@ -81,6 +86,7 @@ impl Default for TableSpec {
             body: default_table_body(),
             top_site: default_table_top(),
             legs: Vec::new(),
+            cylinder_legs: false,
             leg_style: LegStyle::Extend,
         }
     }

@@ -86,6 +86,17 @@ pub fn task_from_path(dir: &Path, tasks: &TaskSet) -> Option<String> {
     None
 }
 
+/// The record `dexjoco-data eval` writes in each evaluated episode's folder, beside the
+/// rollout's `replay.zarr` (its `task` key names the task).
+pub const EVAL_RECORD: &str = "episode.json";
+
+/// The task an evaluated episode's record names, when the folder holds one.
+pub fn task_from_eval_record(dir: &Path) -> Option<String> {
+    let bytes = fs_err::read(dir.join(EVAL_RECORD)).ok()?;
+    let v: serde_json::Value = serde_json::from_slice(&bytes).ok()?;
+    v.get("task")?.as_str().map(str::to_owned)
+}
+
 /// Reads a raw episode folder (holding `replay.zarr`, optionally `videos/`) of `task`.
 /// Its prompt is its own instruction ([`INSTRUCTION_ATTRIBUTE`]), else the task's.
 ///
@@ -391,14 +402,15 @@ impl EpisodeContainer for RawFolder {
     }
 
     /// Reads the folder. Its task is, in order: `options.task`, the folder's store entry
-    /// (`.dexjoco-ingest.json`), its path ([`task_from_path`]); its id is the store
-    /// entry's, else the folder name.
+    /// (`.dexjoco-ingest.json`), an evaluated episode's record ([`EVAL_RECORD`]), its path
+    /// ([`task_from_path`]); its id is the store entry's, else the folder name.
     fn read(&self, dir: &Path, tasks: &TaskSet, options: ReadOptions<'_>) -> Result<ReadEpisode> {
         let entry = ManifestEntry::of_episode_dir(dir);
         let name = options
             .task
             .map(str::to_owned)
             .or_else(|| entry.as_ref().and_then(|e| e.task.clone()))
+            .or_else(|| task_from_eval_record(dir))
             .or_else(|| task_from_path(dir, tasks));
         let at = Location::default().path(dir);
         let task = match name.as_deref() {

@@ -67,6 +67,18 @@ pub struct SuccessChecker {
 }
 
 impl SuccessChecker {
+    /// The digits of keypad buttons newly pressed on the last step (the iPad task; empty
+    /// otherwise), in button order, right or wrong: the reference's `pressed_digits`.
+    pub fn keypad_presses(&self) -> Vec<u8> {
+        self.nodes
+            .iter()
+            .flat_map(|n| match n {
+                Compiled::Keypad { state, .. } => state.last.clone(),
+                _ => Vec::new(),
+            })
+            .collect()
+    }
+
     /// Compiles a spec for a model; every missing scene name is listed in the error.
     pub fn new(spec: &TaskSpec, model: &MjModel) -> Result<Self, SimError> {
         let g = compile::compile(spec, model)?;

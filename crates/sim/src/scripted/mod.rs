@@ -119,7 +119,7 @@ impl Recorder {
 
     /// Moves arm `arm`'s target in a straight line from its current target to `to` over
     /// `steps` steps, with orientation `quat` and hand targets `hand` (16, this arm's
-    /// action order); other arms hold. Stops early when `stop` says so.
+    /// action order); other arms hold their targets. Stops early when `stop` says so.
     pub fn move_to(
         &mut self,
         arm: usize,
@@ -137,7 +137,7 @@ impl Recorder {
                 from[1] + (to[1] - from[1]) * t,
                 from[2] + (to[2] - from[2]) * t,
             ];
-            let mut a = vec![0.0; self.env.spec().setup.action_dim()];
+            let mut a = self.others_held(arm);
             let o = arm * 23;
             a[o..o + 3].copy_from_slice(&p);
             a[o + 3..o + 7].copy_from_slice(&quat);
@@ -162,7 +162,7 @@ impl Recorder {
     ) -> Result<(), SimError> {
         let at = self.env.targets()[arm].0;
         for _ in 0..steps {
-            let mut a = vec![0.0; self.env.spec().setup.action_dim()];
+            let mut a = self.others_held(arm);
             let o = arm * 23;
             a[o..o + 3].copy_from_slice(&at);
             a[o + 3..o + 7].copy_from_slice(&quat);
@@ -172,6 +172,22 @@ impl Recorder {
             }
         }
         Ok(())
+    }
+
+    /// An action in which every arm but `arm` holds its current targets (pose and hand),
+    /// written out rather than left as the raw format's all-zero "hold": so that every
+    /// recorded action, and the `action_rotvec` a policy learns from, is a real target.
+    fn others_held(&self, arm: usize) -> Vec<f64> {
+        let mut a = vec![0.0; self.env.spec().setup.action_dim()];
+        for (b, (p, q)) in self.env.targets().into_iter().enumerate() {
+            if b != arm {
+                let o = b * 23;
+                a[o..o + 3].copy_from_slice(&p);
+                a[o + 3..o + 7].copy_from_slice(&q);
+                a[o + 7..o + 23].copy_from_slice(&self.hands[b]);
+            }
+        }
+        a
     }
 
     /// Arm `arm`'s current target (mocap) position and orientation.

@@ -1,18 +1,23 @@
-//! Visual randomization of one replay: third-person camera from a pose pool, lights and
-//! headlight, table material; sampled from the replay's own seed and applied to the
-//! abstract scene per render (the model is never edited, so physics is untouched).
+//! Visual randomization (augment's replays, eval's `--rand-full` episodes): third-person
+//! camera from a pose pool, lights and headlight, table material; sampled from a seed of
+//! its own and applied to the abstract scene per render (the model is never edited, so
+//! physics is untouched).
 
 use std::path::Path;
 
 use dexjoco_core::ArmSetup;
-use dexjoco_sim::mujoco_rs::prelude::{MjModel, MjtObjBase};
-use dexjoco_sim::{CameraView, Renderer};
+use mujoco_rs::prelude::{MjModel, MjtObjBase};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::error::AugmentError;
+use crate::env::SceneSource;
+use crate::error::SimError;
+use crate::render::{CameraView, Renderer};
+
+/// The table-top geom whose look randomization changes.
+pub const TABLE_GEOM: &str = "table_visual";
 
 /// Point every pool camera looks at (world frame, metres).
 pub const LOOKAT: [f64; 3] = [0.0, 0.0, 1.0];
@@ -88,9 +93,12 @@ impl CameraPool {
     /// Reads a pool file: JSON `{"rows": [[azimuth, elevation, distance, ...], ...]}` as
     /// `replay_cameras.json` of the DexJoCo reference. A rejection names the file and
     /// the field (`rows[3][2]`).
-    pub fn load(path: &Path) -> Result<Self, AugmentError> {
-        let bytes = fs_err::read(path).map_err(crate::error::io_err("read", path))?;
-        let bad = |field: &str, what: String| AugmentError::Pool {
+    pub fn load(path: &Path) -> Result<Self, SimError> {
+        let bytes = fs_err::read(path).map_err(|e| SimError::Pool {
+            path: path.into(),
+            message: e.to_string(),
+        })?;
+        let bad = |field: &str, what: String| SimError::Pool {
             path: path.into(),
             message: format!("field '{field}': {what}"),
         };
@@ -143,6 +151,34 @@ impl CameraPool {
             source: path.display().to_string(),
             poses,
         })
+    }
+}
+
+impl CameraPool {
+    /// The pool a task's random camera draws from: the file `explicit` when given, else
+    /// beside a scene folder (`replay_cameras.json` for one arm, `replay_cameras_2.json`
+    /// for two, in the folder or its parent, as the DexJoCo reference lays them out),
+    /// else the built-in pool of the setup.
+    pub fn for_task(
+        explicit: Option<&Path>,
+        scene: &SceneSource,
+        setup: ArmSetup,
+    ) -> Result<Self, SimError> {
+        if let Some(p) = explicit {
+            return Self::load(p);
+        }
+        if let SceneSource::Dir(dir) = scene {
+            let file = match setup {
+                ArmSetup::SingleArm => "replay_cameras.json",
+                ArmSetup::Bimanual => "replay_cameras_2.json",
+            };
+            for cand in [dir.join(file), dir.join("..").join(file)] {
+                if cand.is_file() {
+                    return Self::load(&cand);
+                }
+            }
+        }
+        Ok(builtin_pool(setup))
     }
 }
 
@@ -209,10 +245,10 @@ pub const PROCEDURAL_LOOKS: usize = 20;
 
 impl TableLibrary {
     /// The library of `model`'s table-top geom `geom_name`.
-    pub fn of_model(model: &MjModel, geom_name: &str) -> Result<Self, AugmentError> {
-        let geom = dexjoco_sim::name_id(model, dexjoco_core::NameKind::Geom, geom_name)
-            .ok_or_else(|| {
-                AugmentError::Input(format!("the scene has no table-top geom '{geom_name}'"))
+    pub fn of_model(model: &MjModel, geom_name: &str) -> Result<Self, SimError> {
+        let geom =
+            crate::name_id(model, dexjoco_core::NameKind::Geom, geom_name).ok_or_else(|| {
+                SimError::Spec(format!("the scene has no table-top geom '{geom_name}'"))
             })?;
         let nmat = model.ffi().nmat as usize;
         let mut entries = Vec::new();
@@ -468,7 +504,7 @@ mod tests {
         }
         let q = CameraPool::load(&dir.join("replay_cameras_2.json")).unwrap();
         assert!(q.poses.iter().all(|c| (c.distance - 2.4).abs() < 1e-5));
-        let bad = std::env::temp_dir().join("dexjoco-augment-bad-pool.json");
+        let bad = std::env::temp_dir().join("dexjoco-sim-bad-pool.json");
         fs_err::write(&bad, r#"{"rows": [[1.0, 2.0]]}"#).unwrap();
         let e = CameraPool::load(&bad).unwrap_err().to_string();
         assert!(e.contains("rows[0]"), "{e}");

@@ -1,17 +1,18 @@
-//! Dynamics randomization (`augment --dynamics`, the paper's "rand-dynamics"): per replay,
+//! Dynamics randomization (`augment --dynamics`, `eval --randomize-dynamics`, the paper's
+//! "rand-dynamics"): per replay or episode,
 //! the task spec's `[[dynamics]]` entries draw object masses, joint friction losses and
 //! stiffnesses, always from the scene's original values (never compounding), and are
 //! written into a copy of the model; the shared model is never edited.
 
 use dexjoco_core::{DynamicsRandomization, NameKind, TaskSpec};
-use dexjoco_sim::mujoco_rs::prelude::MjModel;
-use dexjoco_sim::name_id;
+use mujoco_rs::prelude::MjModel;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::error::AugmentError;
+use crate::checker::name_id;
+use crate::error::SimError;
 
 /// One drawn dynamics value.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -47,9 +48,9 @@ fn slot(
     model: &MjModel,
     spec: &TaskSpec,
     d: &DynamicsRandomization,
-) -> Result<(Slot, String), AugmentError> {
+) -> Result<(Slot, String), SimError> {
     let missing = |kind: &str, name: &str| {
-        AugmentError::Input(format!(
+        SimError::Spec(format!(
             "task '{}': the dynamics entry names {kind} '{name}', which the scene lacks",
             spec.id
         ))
@@ -93,7 +94,7 @@ pub fn sample_dynamics(
     spec: &TaskSpec,
     model: &MjModel,
     seed: u64,
-) -> Result<Vec<DynamicsValue>, AugmentError> {
+) -> Result<Vec<DynamicsValue>, SimError> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut out = Vec::with_capacity(spec.dynamics.len());
     for d in &spec.dynamics {
@@ -132,7 +133,7 @@ pub fn apply_dynamics(
     spec: &TaskSpec,
     model: &MjModel,
     values: &[DynamicsValue],
-) -> Result<MjModel, AugmentError> {
+) -> Result<MjModel, SimError> {
     let mut m = model.clone();
     for (d, v) in spec.dynamics.iter().zip(values) {
         let (s, _) = slot(model, spec, d)?;
@@ -146,7 +147,7 @@ pub fn apply_dynamics(
 }
 
 /// Reads the values `values` name back from a model (for checks).
-pub fn read_dynamics(spec: &TaskSpec, model: &MjModel) -> Result<Vec<f64>, AugmentError> {
+pub fn read_dynamics(spec: &TaskSpec, model: &MjModel) -> Result<Vec<f64>, SimError> {
     spec.dynamics
         .iter()
         .map(|d| slot(model, spec, d).map(|(s, _)| read(model, &s)))

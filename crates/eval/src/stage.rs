@@ -1,0 +1,178 @@
+//! What every episode of a run shares in one process: the task spec (with the config's
+//! iPad password), the scene, the randomization's camera pool and table looks, and the
+//! renderer with the cameras the policy and the videos see.
+
+use std::path::Path;
+
+use dexjoco_core::{Node, TaskSpec};
+use dexjoco_sim::dynamics::{dynamics_seed, sample_dynamics};
+use dexjoco_sim::randomize::{CameraPool, TABLE_GEOM, TableLibrary, VisualSample};
+use dexjoco_sim::{RenderQuality, RenderSettings, Renderer, Scene, SceneSource, load_task_scene};
+use dexjoco_video::{VideoError, VideoWriter};
+
+use crate::config::{EvalConfig, RANDOM_CAMERA};
+use crate::episode::{Draws, video_spec};
+use crate::error::{EvalError, sim_err};
+
+/// Where an env image key's camera is.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum View {
+    /// A camera of the scene, by id.
+    Fixed(usize),
+    /// The randomized third-person camera of the episode's draw.
+    Random,
+}
+
+/// The task's spec for a run: the built-in or `--tasks-dir` spec, with the config's
+/// password in its keypad.
+pub fn run_spec(config: &EvalConfig) -> Result<TaskSpec, EvalError> {
+    let tasks = dexjoco_core::TaskSet::with_dir(config.tasks_dir.as_deref())
+        .map_err(|e| EvalError::Usage(format!("--tasks-dir: {e}")))?;
+    let mut spec = tasks
+        .get(&config.task.task)
+        .ok_or_else(|| {
+            EvalError::Usage(format!(
+                "unknown task '{}' (known: {}); --tasks-dir adds tasks",
+                config.task.task,
+                tasks.ids().join(", ")
+            ))
+        })?
+        .clone();
+    if let Some(p) = &config.task.password {
+        let mut found = false;
+        for node in spec.nodes.values_mut() {
+            if let Node::Keypad { password, .. } = node {
+                password.clone_from(p);
+                found = true;
+            }
+        }
+        if !found {
+            tracing::warn!(
+                "the config gives a password, but task '{}' has no keypad: ignored",
+                spec.id
+            );
+        }
+    }
+    Ok(spec)
+}
+
+/// A run's shared state in one process.
+pub(crate) struct Stage {
+    pub(crate) config: EvalConfig,
+    pub(crate) spec: TaskSpec,
+    pub(crate) scene: Scene,
+    pub(crate) pool: Option<CameraPool>,
+    pub(crate) table: Option<TableLibrary>,
+    pub(crate) renderer: Renderer,
+    views: Vec<(String, View)>,
+}
+
+impl Stage {
+    /// Loads the scene and the randomization's assets, opens the renderer.
+    pub(crate) fn new(config: &EvalConfig) -> Result<Self, EvalError> {
+        let spec = run_spec(config)?;
+        let what = spec.id.clone();
+        let source = SceneSource::from_option(config.scene_dir.clone());
+        let scene = load_task_scene(&source, &spec).map_err(sim_err(&what))?;
+        let (pool, table) = if config.options.rand_full {
+            (
+                Some(CameraPool::for_task(None, &source, spec.setup).map_err(sim_err(&what))?),
+                Some(TableLibrary::of_model(&scene.model, TABLE_GEOM).map_err(sim_err(&what))?),
+            )
+        } else {
+            (None, None)
+        };
+        let mut views = Vec::new();
+        for key in config.task.env_keys() {
+            let view = if key == RANDOM_CAMERA {
+                View::Random
+            } else {
+                let cam = spec
+                    .cameras
+                    .iter()
+                    .find(|c| c.key == key)
+                    .expect("checked against the spec");
+                View::Fixed(scene.camera_id(&cam.camera).map_err(sim_err(&what))?)
+            };
+            views.push((key, view));
+        }
+        let (width, height) = config
+            .options
+            .render_size
+            .unwrap_or(crate::config::REFERENCE_RENDER_SIZE);
+        let quality = RenderQuality::from_name(&config.options.quality).ok_or_else(|| {
+            EvalError::Usage(format!("unknown quality '{}'", config.options.quality))
+        })?;
+        let settings = RenderSettings {
+            width,
+            height,
+            quality,
+            ..RenderSettings::default()
+        };
+        let renderer = Renderer::new(&scene.model, settings).map_err(sim_err(&what))?;
+        Ok(Self {
+            config: config.clone(),
+            spec,
+            scene,
+            pool,
+            table,
+            renderer,
+            views,
+        })
+    }
+
+    /// The camera of an env image key.
+    pub(crate) fn view(&self, key: &str) -> View {
+        self.views
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| *v)
+            .expect("a mapped env image key")
+    }
+
+    /// Steps of click_mouse's warm-up (0 for other tasks).
+    pub(crate) fn warmup_steps(&self) -> usize {
+        if self.spec.id == "click_mouse" {
+            crate::episode::WARMUP_STEPS
+        } else {
+            0
+        }
+    }
+
+    /// The episode's randomization draws from its seed.
+    pub(crate) fn draws(&self, seed: u64) -> Result<Draws, EvalError> {
+        let visuals = match (&self.pool, &self.table) {
+            (Some(pool), Some(table)) => Some(VisualSample::sample(
+                seed,
+                pool,
+                table,
+                self.scene.model.ffi().nlight as usize,
+            )),
+            _ => None,
+        };
+        let dynamics = if self.config.options.randomize_dynamics {
+            Some(
+                sample_dynamics(&self.spec, &self.scene.model, dynamics_seed(seed))
+                    .map_err(sim_err(&self.spec.id))?,
+            )
+        } else {
+            None
+        };
+        Ok(Draws { visuals, dynamics })
+    }
+
+    /// A video writer per env image key, in the episode's folder (`<key>.mp4`).
+    pub(crate) fn video_writers(
+        &self,
+        dir: &Path,
+    ) -> Result<Vec<(String, VideoWriter)>, VideoError> {
+        let s = self.renderer.settings();
+        self.views
+            .iter()
+            .map(|(k, _)| {
+                VideoWriter::create(dir.join(format!("{k}.mp4")), video_spec(s.width, s.height))
+                    .map(|w| (k.clone(), w))
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,189 @@
+//! Settings of `eval`.
+
+use super::*;
+use crate::cli::EvalArgs;
+use dexjoco_eval::{EvalConfig, EvalOptions, EvalTask, Executor};
+
+/// `eval`.
+pub struct EvalSettings {
+    /// The run.
+    pub config: EvalConfig,
+    /// Where its episodes run.
+    pub executor: Executor,
+}
+
+impl EvalSettings {
+    /// Resolves `eval`'s arguments.
+    pub fn resolve(args: EvalArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let EvalArgs {
+            config,
+            task,
+            prompt,
+            episodes,
+            rand_full,
+            randomize_dynamics,
+            host,
+            port,
+            replan_ratio,
+            pad_state_dim46,
+            record_pressed_digits,
+            latency_steps,
+            real_time,
+            output,
+            scene_dir,
+            resets_from,
+            render_size,
+            quality,
+            no_videos,
+            privileged_keys,
+            deadline,
+            server_wait,
+            tasks,
+        } = args;
+        let tasks_dir = tasks.tasks_dir.clone();
+        let known = task_set(&tasks)?;
+        let mut eval_task = match (&config, &task) {
+            (Some(path), _) => EvalTask::load(path).map_err(eval_usage)?,
+            (None, Some(id)) => EvalTask::of_spec(known_task(&known, id)?, rand_full),
+            (None, None) => unreachable!("clap requires one"),
+        };
+        let spec = known_task(&known, &eval_task.task)?;
+        if let Some(p) = prompt {
+            eval_task.prompt = p;
+        }
+        eval_task.check(spec, rand_full).map_err(eval_usage)?;
+        check_numbers(replan_ratio, server_wait)?;
+        let out = output.unwrap_or_else(|| {
+            global.work_dir.join("eval").join(format!(
+                "{}{}_seed{}",
+                eval_task.task,
+                if rand_full { "_rand_full" } else { "" },
+                global.seed
+            ))
+        });
+        let read = reads(
+            &[],
+            &[
+                config.as_deref(),
+                scene_dir.as_deref(),
+                tasks_dir.as_deref(),
+                resets_from.as_deref(),
+            ],
+        );
+        outputs_apart(&[&out], &read)?;
+        let initial_states = resets_from
+            .as_deref()
+            .map(|p| initial_states_from(p, &known))
+            .transpose()?;
+        let record_pressed_digits =
+            record_pressed_digits.unwrap_or(eval_task.task == "bimanual_unlock_ipad");
+        let options = EvalOptions {
+            seed: global.seed,
+            episodes,
+            rand_full,
+            randomize_dynamics,
+            replan_ratio,
+            horizon: dexjoco_eval::ACTION_HORIZON,
+            pad_state_dim46,
+            record_pressed_digits,
+            latency_steps,
+            real_time,
+            render_size,
+            quality: quality.name().to_owned(),
+            videos: !no_videos,
+            privileged_keys,
+            deadline_secs: deadline,
+            server_wait_secs: server_wait,
+        };
+        let executor = executor(global.jobs.unwrap_or(1), &out)?;
+        Ok(Self {
+            config: EvalConfig {
+                task: eval_task,
+                options,
+                uri: dexjoco_eval::protocol::uri(&host, Some(port)),
+                scene_dir,
+                tasks_dir,
+                out,
+                initial_states,
+            },
+            executor,
+        })
+    }
+}
+
+/// `-j N` environments: worker processes (`eval-worker`), each with its connection.
+fn executor(workers: usize, out: &Path) -> anyhow::Result<Executor> {
+    Ok(if workers > 1 {
+        Executor::Processes {
+            program: std::env::current_exe()?,
+            args: vec![
+                "eval-worker".into(),
+                out.display().to_string(),
+                workers.to_string(),
+            ],
+            workers,
+        }
+    } else {
+        Executor::InProcess
+    })
+}
+
+/// Usage errors for numbers out of range.
+fn check_numbers(replan_ratio: f64, server_wait: f64) -> anyhow::Result<()> {
+    if !(replan_ratio > 0.0 && replan_ratio <= 1.0) {
+        return Err(usage(
+            format!("--replan-ratio {replan_ratio} is not in (0, 1]"),
+            "the reference's default is 0.8",
+        ));
+    }
+    if !(server_wait.is_finite() && server_wait >= 0.0) {
+        return Err(usage(
+            format!("--server-wait {server_wait} is not a number of seconds >= 0"),
+            "for example --server-wait 30",
+        ));
+    }
+    Ok(())
+}
+
+/// An evaluation error as a usage error (exit code 2).
+fn eval_usage(e: dexjoco_eval::EvalError) -> anyhow::Error {
+    usage(
+        e.to_string(),
+        "see `dexjoco-data eval --help`; the reference's configs are in task-configs/",
+    )
+}
+
+/// The initial states of `--resets-from`: a JSON file `{"initial_states": [[...]]}`, or
+/// each episode's `state[0]` in a folder of episodes, in discovery order.
+fn initial_states_from(path: &Path, tasks: &TaskSet) -> anyhow::Result<Vec<Vec<f64>>> {
+    if path.is_file() && path.extension().is_some_and(|e| e == "json") {
+        #[derive(serde::Deserialize)]
+        struct File {
+            initial_states: Vec<Vec<f64>>,
+        }
+        let bytes = fs_err::read(path)?;
+        let f: File = serde_json::from_slice(&bytes).map_err(|e| {
+            usage(
+                format!("--resets-from '{}': {e}", path.display()),
+                "give {\"initial_states\": [[...], ...]} or a folder of episodes",
+            )
+        })?;
+        return Ok(f.initial_states);
+    }
+    let mut states = Vec::new();
+    for source in dexjoco_formats::discover(&[path.to_path_buf()], None)? {
+        let ep = source.read(tasks)?.episode;
+        let state = ep
+            .array(dexjoco_core::Episode::STATE)
+            .filter(|a| !a.is_empty())
+            .ok_or_else(|| anyhow::anyhow!("'{}' has no state", source.path.display()))?;
+        states.push(state.row(0).to_vec());
+    }
+    if states.is_empty() {
+        return Err(usage(
+            format!("--resets-from '{}' holds no episode", path.display()),
+            "give a folder of episodes or a JSON file of initial states",
+        ));
+    }
+    Ok(states)
+}

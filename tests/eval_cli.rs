@@ -1,0 +1,506 @@
+//! `dexjoco-data eval` against real openpi policy servers (openpi's own
+//! `WebsocketPolicyServer`, run from the DexJoCo reference code by
+//! `tests/python/policy_server.py`): an oracle that answers with the chunks of the plan
+//! `scripted` made for the same reset succeeds on every task and is executed action for
+//! action; misbehaving servers are named and leave no half episode; a killed run resumes;
+//! worker processes give the same bytes; `stats` reads the output as it is.
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+
+use common::dexjoco;
+use dexjoco_core::TaskSet;
+
+/// A policy server process (killed on drop).
+struct Server {
+    child: Child,
+    port: u16,
+}
+
+impl Server {
+    /// Starts `policy_server.py <args>` on a free port; returns once it listens.
+    fn start(args: &[&str]) -> Self {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let script = dexjoco_testkit::workspace_root().join("tests/python/policy_server.py");
+        let mut child = Command::new(dexjoco_testkit::reference_python())
+            .arg(script)
+            .args(["--port", &port.to_string()])
+            .args(args)
+            .env(
+                "DEXJOCO_REFERENCE_CODE",
+                dexjoco_testkit::reference_code_dir(),
+            )
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("the reference venv's Python runs");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        assert!(line.starts_with("listening"), "policy server: {line:?}");
+        Self { child, port }
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn run(cmd: &mut Command) -> Output {
+    cmd.output().unwrap()
+}
+
+fn said(o: &Output) -> String {
+    format!(
+        "exit {:?}\n{}{}",
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// `eval` of one task against the server, small renders, no videos.
+fn eval(server: &Server, task: &str, out: &Path, extra: &[&str]) -> Output {
+    run(dexjoco()
+        .args(["-q", "eval", "--task", task, "--host", "127.0.0.1"])
+        .args(["--port", &server.port.to_string()])
+        .args(["--render-size", "32x32", "--quality", "fast", "--no-videos"])
+        .args(["--privileged-keys", "--server-wait", "0"])
+        .arg("--output")
+        .arg(out)
+        .args(extra))
+}
+
+/// `scripted`'s plan of the first reset of `seed` (None when it did not succeed).
+fn plan(task: &str, seed: &str, plans: &Path, scene: Option<&Path>) -> Option<PathBuf> {
+    let mut cmd = dexjoco();
+    cmd.args([
+        "-q",
+        "scripted",
+        "--task",
+        task,
+        "--episodes",
+        "1",
+        "--seed",
+        seed,
+    ])
+    .arg("--out")
+    .arg(plans);
+    if let Some(s) = scene {
+        cmd.arg("--scene-dir").arg(s);
+    }
+    let o = run(&mut cmd);
+    let dir = plans.join(task).join("episode_000000");
+    assert!(
+        o.status.code().is_some_and(|c| c == 0 || c == 1),
+        "{}",
+        said(&o)
+    );
+    dir.is_dir().then_some(dir)
+}
+
+/// The one episode folder of an eval output, and its record.
+fn episode(out: &Path, k: usize) -> (PathBuf, serde_json::Value) {
+    let prefix = format!("episode_{k:02}_");
+    let dir = fs_err::read_dir(out)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with(&prefix)
+        })
+        .unwrap_or_else(|| panic!("no {prefix}* in {}", out.display()));
+    let rec = serde_json::from_slice(&fs_err::read(dir.join("episode.json")).unwrap()).unwrap();
+    (dir, rec)
+}
+
+/// The largest difference between the executed actions (the rollout's `action`) and the
+/// plan's, from step `from` (the warm-up left out).
+fn action_difference(rollout: &Path, plan: &Path, from: usize, warmup: usize) -> f64 {
+    let tasks = TaskSet::builtin();
+    let ev = dexjoco_formats::read_episode(rollout, tasks).unwrap();
+    let pl = dexjoco_formats::read_episode(plan, tasks).unwrap();
+    // As rotation vectors: a quaternion and its negative are one rotation.
+    let (ea, pa) = (
+        ev.array("action_rotvec").unwrap(),
+        pl.array("action_rotvec").unwrap(),
+    );
+    let mut worst = 0.0f64;
+    for t in from..pa.len().min(ea.len() - warmup) {
+        for (a, b) in ea.row(t + warmup).iter().zip(pa.row(t)) {
+            worst = worst.max((a - b).abs());
+        }
+    }
+    worst
+}
+
+#[test]
+fn an_oracle_policy_succeeds_on_every_task_through_the_protocol() {
+    let tmp = tempfile::tempdir().unwrap();
+    let plans = tmp.path().join("plans");
+    let planned: Vec<(&str, Option<PathBuf>)> = dexjoco_sim::scripted::PLANNED_TASKS
+        .iter()
+        .map(|t| (*t, plan(t, "3", &plans, None)))
+        .collect();
+    let server = Server::start(&["oracle", "--plans", plans.to_str().unwrap()]);
+    let root = tmp.path().join("eval");
+    let ipad = tmp.path().join("language/123/bimanual_unlock_ipad_seed3");
+    for (task, plan) in &planned {
+        let out = if *task == "bimanual_unlock_ipad" {
+            ipad.clone()
+        } else {
+            root.join(format!("{task}_seed3"))
+        };
+        let o = eval(&server, task, &out, &["--episodes", "1", "--seed", "3"]);
+        assert_eq!(o.status.code(), Some(0), "{task}: {}", said(&o));
+        let (dir, rec) = episode(&out, 0);
+        let Some(plan) = plan else {
+            eprintln!(
+                "{task}: no successful plan for this reset; eval gave {}",
+                rec["success"]
+            );
+            continue;
+        };
+        assert_eq!(rec["success"], true, "{task}: {rec}");
+        let warmup = rec["warmup_steps"].as_u64().unwrap() as usize;
+        let plan_len = dexjoco_formats::read_episode(plan, TaskSet::builtin())
+            .unwrap()
+            .len();
+        if warmup == 0 {
+            // Latency 0: every chunk merged at its own step, the plan executed as planned.
+            assert_eq!(rec["success_step"], plan_len - 1, "{task}: {rec}");
+            let d = action_difference(&dir, plan, 0, 0);
+            assert!(d < 1e-9, "{task}: executed actions {d:e} from the plan's");
+        }
+        assert!(out.join("success_rate_1_1.txt").is_file());
+    }
+    // The iPad's digits are in its folder's name, as the reference client writes them
+    // (the digits of each press joined by `_`), and the language analysis reads them.
+    let (dir, _) = episode(&ipad, 0);
+    assert!(
+        dir.ends_with("episode_00_success_1_2_3"),
+        "{}",
+        dir.display()
+    );
+    let o = run(dexjoco()
+        .args(["stats", "--language-eval"])
+        .arg(tmp.path().join("language"))
+        .arg("--out")
+        .arg(tmp.path().join("stats-language"))
+        .arg("--json"));
+    assert_eq!(o.status.code(), Some(0), "{}", said(&o));
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(json["language_eval"]["episodes"], 1, "{json}");
+    // stats reads the runs as they are.
+    let o = run(dexjoco()
+        .args(["stats", "--success-table"])
+        .arg(&root)
+        .arg("--out")
+        .arg(tmp.path().join("stats")));
+    let s = said(&o);
+    assert_eq!(o.status.code(), Some(0), "{s}");
+    for (task, plan) in &planned {
+        if plan.is_some() {
+            assert!(
+                s.contains(&dexjoco_stats::task_name(task)),
+                "{task} missing: {s}"
+            );
+        }
+    }
+}
+
+#[test]
+fn with_a_latency_the_chunks_are_aligned_to_their_observations_on_the_reference_scenes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let plans = tmp.path().join("plans");
+    let scene = dexjoco_testkit::reference_scene_dir();
+    let tasks = ["hammer_nail", "pick_bucket", "pinch_tongs", "water_plant"];
+    let planned: Vec<PathBuf> = tasks
+        .iter()
+        .map(|t| plan(t, "3", &plans, Some(&scene)).expect("a successful plan"))
+        .collect();
+    let server = Server::start(&["oracle", "--plans", plans.to_str().unwrap()]);
+    let latency = 4;
+    for (task, plan) in tasks.iter().zip(&planned) {
+        let out = tmp.path().join("eval").join(task);
+        let o = eval(
+            &server,
+            task,
+            &out,
+            &[
+                "--episodes",
+                "1",
+                "--seed",
+                "3",
+                "--latency-steps",
+                &latency.to_string(),
+                "--scene-dir",
+                scene.to_str().unwrap(),
+            ],
+        );
+        assert_eq!(o.status.code(), Some(0), "{task}: {}", said(&o));
+        let (dir, rec) = episode(&out, 0);
+        assert_eq!(rec["success"], true, "{task}: {rec}");
+        assert_eq!(rec["latency_steps"], latency);
+        // The first chunk lands at step 4: the pose is held until then; from there on each
+        // step executes the plan's action for that step (its first 4 rows expired).
+        assert_eq!(rec["held_steps"], latency, "{task}: {rec}");
+        let d = action_difference(&dir, plan, latency, 0);
+        assert!(d < 1e-9, "{task}: executed actions {d:e} from the plan's");
+    }
+}
+
+/// A server that answers a few chunks, then misbehaves as `how` says.
+fn misbehaving(how: &str, after: usize) -> Server {
+    Server::start(&["misbehave", "--how", how, "--after", &after.to_string()])
+}
+
+/// The names in a folder.
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = fs_err::read_dir(dir)
+        .map(|rd| {
+            rd.map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+#[test]
+fn a_bad_server_is_named_and_leaves_no_half_episode() {
+    let tmp = tempfile::tempdir().unwrap();
+    // Nobody listening: named, nothing written.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let out = tmp.path().join("none");
+    let o = run(dexjoco()
+        .args([
+            "eval",
+            "--task",
+            "hammer_nail",
+            "--episodes",
+            "1",
+            "--server-wait",
+            "0",
+        ])
+        .args(["--host", "127.0.0.1", "--port", &port.to_string()])
+        .arg("--output")
+        .arg(&out));
+    let s = said(&o);
+    assert_eq!(o.status.code(), Some(1), "{s}");
+    assert!(
+        s.contains("cannot connect") && s.contains("hint: start a policy server"),
+        "{s}"
+    );
+    assert!(!out.exists());
+    for (how, expect, extra) in [
+        ("shape", "shape (30, 21)", vec![]),
+        ("nan", "row 3, column 4 is NaN", vec![]),
+        (
+            "silent",
+            "no answer within the deadline",
+            vec!["--deadline", "2"],
+        ),
+        ("error", "the policy failed on purpose", vec![]),
+        (
+            "close",
+            "the connection ended while waiting for an answer",
+            vec![],
+        ),
+    ] {
+        let server = misbehaving(how, 2);
+        let out = tmp.path().join(how);
+        let mut args = vec!["--episodes", "1"];
+        args.extend(&extra);
+        let o = eval(&server, "hammer_nail", &out, &args);
+        let s = said(&o);
+        assert_eq!(o.status.code(), Some(1), "{how}: {s}");
+        assert!(s.contains(expect), "{how}: {s}");
+        assert!(
+            names(&out)
+                .iter()
+                .all(|n| !n.starts_with("episode_") && n != ".staging"),
+            "{how}: {:?}",
+            names(&out)
+        );
+    }
+}
+
+#[test]
+fn a_run_the_server_dropped_resumes_with_the_episodes_it_lacks() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    // Episode 0 runs to the step cap on held poses (about 140 chunks); the server dies
+    // during episode 1.
+    let server = misbehaving("close", 160);
+    let o = eval(&server, "hammer_nail", &out, &["--episodes", "2"]);
+    assert_eq!(o.status.code(), Some(1), "{}", said(&o));
+    assert_eq!(
+        names(&out),
+        ["episode_00_failure"],
+        "episode 0 kept, nothing of episode 1"
+    );
+    drop(server);
+    let empty = tmp.path().join("no-plans");
+    fs_err::create_dir_all(&empty).unwrap();
+    let server = Server::start(&["oracle", "--plans", empty.to_str().unwrap()]);
+    let o = eval(&server, "hammer_nail", &out, &["--episodes", "2"]);
+    let s = said(&o);
+    assert_eq!(o.status.code(), Some(0), "{s}");
+    assert!(s.contains("1 evaluated now"), "{s}");
+    assert!(
+        out.join("success_rate_0_2.txt").is_file(),
+        "{:?}",
+        names(&out)
+    );
+    // Another seed into the same folder is refused.
+    let o = eval(
+        &server,
+        "hammer_nail",
+        &out,
+        &["--episodes", "2", "--seed", "9"],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", said(&o));
+}
+
+#[test]
+fn worker_processes_give_the_same_rollouts() {
+    let tmp = tempfile::tempdir().unwrap();
+    let plans = tmp.path().join("plans");
+    let o = run(dexjoco()
+        .args([
+            "-q",
+            "scripted",
+            "--task",
+            "hammer_nail",
+            "--episodes",
+            "2",
+            "--seed",
+            "4",
+        ])
+        .arg("--out")
+        .arg(&plans));
+    assert_eq!(o.status.code(), Some(0), "{}", said(&o));
+    let server = Server::start(&["oracle", "--plans", plans.to_str().unwrap()]);
+    let runs: Vec<PathBuf> = ["1", "2"]
+        .iter()
+        .map(|j| {
+            let out = tmp.path().join(format!("j{j}"));
+            let o = eval(
+                &server,
+                "hammer_nail",
+                &out,
+                &[
+                    "--episodes",
+                    "2",
+                    "--seed",
+                    "4",
+                    "--latency-steps",
+                    "2",
+                    "-j",
+                    j,
+                ],
+            );
+            assert_eq!(o.status.code(), Some(0), "-j {j}: {}", said(&o));
+            out
+        })
+        .collect();
+    assert_eq!(names(&runs[0]), names(&runs[1]));
+    for k in 0..2 {
+        let (a, ra) = episode(&runs[0], k);
+        let (b, rb) = episode(&runs[1], k);
+        let strip = |mut r: serde_json::Value| {
+            r.as_object_mut().unwrap().remove("inference_seconds");
+            r
+        };
+        assert_eq!(strip(ra), strip(rb), "episode {k}");
+        for f in ["replay.zarr/data/action/0.0", "replay.zarr/data/state/0.0"] {
+            assert_eq!(
+                fs_err::read(a.join(f)).unwrap(),
+                fs_err::read(b.join(f)).unwrap(),
+                "episode {k}: {f}"
+            );
+        }
+    }
+}
+
+#[test]
+fn our_first_observation_is_the_reference_clients() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = dexjoco_testkit::upstream_dir().join("task-configs/rand_obj/hammer_nail.yaml");
+    let state = tmp.path().join("state.json");
+    let (theirs, ours) = (tmp.path().join("theirs.npz"), tmp.path().join("ours.npz"));
+    // The reference client's own env wrapper and websocket client, rendering with EGL,
+    // from a reset of seed 0; the server keeps the first observation.
+    let server = Server::start(&["record", "--out", theirs.to_str().unwrap(), "--close"]);
+    dexjoco_testkit::run_reference_python(
+        "reference_client_observation.py",
+        &[
+            "--config",
+            config.to_str().unwrap(),
+            "--seed",
+            "0",
+            "--port",
+            &server.port.to_string(),
+            "--state-out",
+            state.to_str().unwrap(),
+        ],
+    );
+    drop(server);
+    // Ours from the same scene state (the server ends at our second observation).
+    let server = Server::start(&["record", "--out", ours.to_str().unwrap(), "--close"]);
+    let o = run(dexjoco()
+        .args([
+            "-q",
+            "eval",
+            "--config",
+            config.to_str().unwrap(),
+            "--episodes",
+            "1",
+        ])
+        .args(["--host", "127.0.0.1", "--port", &server.port.to_string()])
+        .args(["--no-videos", "--server-wait", "0", "--resets-from"])
+        .arg(&state)
+        .arg("--scene-dir")
+        .arg(dexjoco_testkit::reference_scene_dir())
+        .arg("--output")
+        .arg(tmp.path().join("out")));
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "ends when the server does: {}",
+        said(&o)
+    );
+    let out = dexjoco_testkit::run_python(
+        "compare_observations.py",
+        &[theirs.to_str().unwrap(), ours.to_str().unwrap()],
+    );
+    let cmp: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(cmp["keys_equal"], true, "{cmp}");
+    assert_eq!(cmp["prompt_equal"], true, "{cmp}");
+    assert_eq!(cmp["state_max_diff"], 0.0, "{cmp}");
+    for k in ["base", "wrist"] {
+        assert_eq!(cmp["images"][k]["shape_equal"], true, "{cmp}");
+        assert!(
+            cmp["images"][k]["max_diff"].as_u64().unwrap() <= 1,
+            "{k}: {cmp}"
+        );
+    }
+}

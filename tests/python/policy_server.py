@@ -1,0 +1,178 @@
+"""Policy servers for the `eval` tests, built on openpi's own websocket policy server
+(`openpi/src/openpi/serving/websocket_policy_server.py` of the DexJoCo reference code,
+imported in place from ../shared; reference venv, which has `openpi-client`):
+
+    python policy_server.py --port P oracle --plans DIR [DIR ...]
+    python policy_server.py --port P record --out FILE.npz [--count N] [--close]
+    python policy_server.py --port P misbehave --how {shape,nan,close,silent,error} [--after N]
+
+- `oracle` answers each observation with the next 30 actions of the plan `scripted` made
+  for the episode's reset: it finds the plan whose `state[0]` equals the observation's
+  `dexjoco/initial_state` (eval --privileged-keys) and cuts its `action_rotvec` at
+  `dexjoco/step` (the last action repeated past the plan's end). An episode without a plan
+  is answered with the pose held.
+- `record` keeps the first N observations it receives (every key) in FILE.npz and answers
+  with the pose held.
+- `misbehave` answers well N times, then: a chunk of the wrong width (`shape`), a chunk
+  with a NaN (`nan`), closes the connection (`close`), never answers (`silent`) or fails in
+  the policy (`error`: openpi's server sends the traceback as text and closes).
+
+It prints `listening <port>` on stdout once the socket is open.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation as R
+
+HORIZON = 30
+
+
+def _openpi_server():
+    """openpi's WebsocketPolicyServer, from the reference code beside the checkout."""
+    code = Path(os.environ.get("DEXJOCO_REFERENCE_CODE", Path(__file__).resolve().parents[3] / "shared/third_party/dexjoco-8d23b0f"))
+    src = code / "openpi" / "src"
+    if not (src / "openpi" / "serving" / "websocket_policy_server.py").is_file():
+        sys.exit(f"error: openpi's server not found under {src}: put the DexJoCo reference code there or set $DEXJOCO_REFERENCE_CODE")
+    sys.path.insert(0, str(src))
+    from openpi.serving import websocket_policy_server
+
+    return websocket_policy_server.WebsocketPolicyServer
+
+
+def hold(state: np.ndarray) -> np.ndarray:
+    """The action (policy layout) that holds the pose of a proprio state, as the reference
+    client's stay(): per arm TCP xyz and rotation vector, then the hands' joints."""
+    arms = 2 if len(state) >= 46 and np.any(state[23:46]) else 1
+    out = []
+    for a in range(arms):
+        p = state[a * 7 : a * 7 + 7]
+        out += [p[:3], R.from_quat(p[3:7], scalar_first=True).as_rotvec()]
+        out.append(state[arms * 7 + a * 16 : arms * 7 + a * 16 + 16])
+    return np.concatenate(out)
+
+
+def _chunk_of(rows: np.ndarray, step: int) -> np.ndarray:
+    idx = np.minimum(np.arange(step, step + HORIZON), len(rows) - 1)
+    return rows[idx]
+
+
+class Oracle:
+    """Answers with the plan of the episode's reset."""
+
+    def __init__(self, dirs):
+        import zarr
+
+        self.plans = []
+        for d in dirs:
+            for z in sorted(Path(d).rglob("replay.zarr")):
+                root = zarr.open(str(z), "r")
+                data = root["data"]
+                self.plans.append((np.asarray(data["state"][0]), np.asarray(data["action_rotvec"])))
+
+    def infer(self, obs):
+        s0 = np.asarray(obs["dexjoco/initial_state"])
+        step = int(obs["dexjoco/step"])
+        for state0, rows in self.plans:
+            if state0.shape == s0.shape and np.max(np.abs(state0 - s0)) <= 1e-12:
+                return {"actions": _chunk_of(rows, step)}
+        return {"actions": np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))}
+
+
+class Recorder:
+    """Keeps the first observations it receives; with `close`, ends the process at the
+    next one (the client's episode goes no further)."""
+
+    def __init__(self, out: Path, count: int, close: bool):
+        self.out, self.count, self.seen, self.close = out, count, [], close
+
+    def infer(self, obs):
+        if self.close and len(self.seen) >= self.count:
+            os._exit(0)
+        if len(self.seen) < self.count:
+            self.seen.append(obs)
+            if len(self.seen) == self.count:
+                arrays = {}
+                for i, o in enumerate(self.seen):
+                    for k, v in o.items():
+                        name = f"{i}/{k}"
+                        arrays[name] = np.asarray(v) if not isinstance(v, str) else np.array(v)
+                tmp = self.out.with_suffix(".tmp.npz")
+                np.savez(tmp, **arrays)
+                os.replace(tmp, self.out)
+        return {"actions": np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))}
+
+
+class Misbehave:
+    """Answers well `after` times, then misbehaves as asked."""
+
+    def __init__(self, how: str, after: int):
+        self.how, self.after, self.n = how, after, 0
+
+    def infer(self, obs):
+        self.n += 1
+        good = np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))
+        if self.n <= self.after:
+            return {"actions": good}
+        if self.how == "shape":
+            return {"actions": good[:, :-1]}
+        if self.how == "nan":
+            good[3, 4] = np.nan
+            return {"actions": good}
+        if self.how == "close":
+            os._exit(0)  # the connection drops mid-episode
+        if self.how == "silent":
+            time.sleep(3600)
+        raise RuntimeError("the policy failed on purpose (misbehave --how error)")
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--port", type=int, required=True)
+    p.add_argument("--host", default="127.0.0.1")
+    sub = p.add_subparsers(dest="policy", required=True)
+    o = sub.add_parser("oracle")
+    o.add_argument("--plans", nargs="+", required=True)
+    r = sub.add_parser("record")
+    r.add_argument("--out", type=Path, required=True)
+    r.add_argument("--count", type=int, default=1)
+    r.add_argument("--close", action="store_true", help="end at the observation after the last kept")
+    m = sub.add_parser("misbehave")
+    m.add_argument("--how", choices=["shape", "nan", "close", "silent", "error"], required=True)
+    m.add_argument("--after", type=int, default=0)
+    args = p.parse_args(argv)
+    if args.policy == "oracle":
+        policy, meta = Oracle(args.plans), {"policy": "oracle"}
+    elif args.policy == "record":
+        policy, meta = Recorder(args.out, args.count, args.close), {"policy": "record"}
+    else:
+        policy, meta = Misbehave(args.how, args.after), {"policy": f"misbehave-{args.how}"}
+    server = _openpi_server()(policy, host=args.host, port=args.port, metadata=meta)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    _announce(args.host, args.port)
+    threading.Event().wait()
+
+
+def _announce(host: str, port: int):
+    """Prints `listening <port>` once the port accepts connections."""
+    import socket
+
+    for _ in range(600):
+        try:
+            with socket.create_connection((host, port), timeout=0.2):
+                print(f"listening {port}", flush=True)
+                return
+        except OSError:
+            time.sleep(0.05)
+    sys.exit(f"error: the server did not open {host}:{port}")
+
+
+if __name__ == "__main__":
+    main()
