@@ -9,7 +9,8 @@ camera pools of `$DEXJOCO_UPSTREAM` linked in and the one line MuJoCo 3.17.0 nee
 adapted (`mj_fullM(model, M, data.qM)` became `mj_fullM(model, data, M)` in 3.5). At
 import time, for this process only: the 30 Hz pacing sleep is a no-op and the renderer
 returns a 1x1 black image (no OpenGL context; physics and success logic are untouched;
-`DEXJOCO_REFERENCE_RENDER=1` keeps the reference's own EGL renderer).
+`DEXJOCO_REFERENCE_RENDER=1` keeps the reference's own EGL renderer,
+`DEXJOCO_REFERENCE_SLEEP=1` its 30 Hz pacing).
 
 Used as a library (`make_env`, `replay`, `replay_job`, `record`) or from the command line:
 
@@ -146,7 +147,8 @@ class _HeadlessRenderer:
 def _load():
     os.environ.setdefault("TQDM_DISABLE", "1")  # the replay script's progress bar
     sys.path.insert(0, str(scratch_copy()))
-    time.sleep = lambda _seconds: None  # the envs pace themselves to 30 Hz
+    if os.environ.get("DEXJOCO_REFERENCE_SLEEP") != "1":
+        time.sleep = lambda _seconds: None  # the envs pace themselves to 30 Hz
     import dexjoco.sim.rendering as rendering
 
     # `DEXJOCO_REFERENCE_RENDER=1`: the reference's own renderer (EGL), for the tests
