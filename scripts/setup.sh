@@ -131,7 +131,8 @@ fi
 # --- 3. The Python venv of real readers (tests only) ---------------------------------
 if ((want_python)); then
   req="$ROOT/tests/python/requirements.txt"
-  hash="$( (cat "$req"; "$PYTHON" -c 'import sys; print(sys.version)') | sha256sum | cut -c1-12)"
+  req_no_deps="$ROOT/tests/python/requirements-no-deps.txt"
+  hash="$( (cat "$req" "$req_no_deps"; "$PYTHON" -c 'import sys; print(sys.version)') | sha256sum | cut -c1-12)"
   VENV="${XDG_CACHE_HOME:-$HOME/.cache}/dexjoco-data/venv-$hash"
   if [ ! -x "$VENV/bin/python" ] || [ ! -f "$VENV/.complete" ]; then
     log "creating the test venv $VENV (real readers: $(grep -cv '^\s*#' "$req") packages)"
@@ -139,6 +140,7 @@ if ((want_python)); then
     "$PYTHON" -m venv "$VENV"
     "$VENV/bin/python" -m pip install -q --upgrade pip
     "$VENV/bin/python" -m pip install -q -r "$req"
+    "$VENV/bin/python" -m pip install -q --no-deps -r "$req_no_deps"
     touch "$VENV/.complete"
   fi
   echo "$VENV/bin/python" > "$ROOT/.deps/python-path"

@@ -77,7 +77,7 @@ fn convert_overwrite_never_removes_an_input_the_work_folder_or_a_foreign_folder(
         ]
         .concat(),
     );
-    code(&out, 1);
+    code(&out, 2);
     let err = text(&out.stderr);
     assert!(
         err.contains("holds the input") && err.contains("hint:"),
@@ -97,7 +97,7 @@ fn convert_overwrite_never_removes_an_input_the_work_folder_or_a_foreign_folder(
         ]
         .concat(),
     );
-    code(&out, 1);
+    code(&out, 2);
     assert!(text(&out.stderr).contains("lies inside the input"));
     assert!(inside.join("keep.txt").is_file());
     fs_err::remove_dir_all(&inside).unwrap();
@@ -120,7 +120,7 @@ fn convert_overwrite_never_removes_an_input_the_work_folder_or_a_foreign_folder(
         ]
         .concat(),
     );
-    code(&out, 1);
+    code(&out, 2);
     assert!(text(&out.stderr).contains("holds the input") || text(&out.stderr).contains("holds '"));
     assert!(w.is_dir() && other.is_dir());
 
