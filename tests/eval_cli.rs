@@ -267,6 +267,75 @@ fn with_a_latency_the_chunks_are_aligned_to_their_observations_on_the_reference_
     }
 }
 
+#[test]
+fn overlapping_chunks_are_merged_as_the_reference_clients_buffer_merges_them() {
+    // Each chunk is moved off the plan by its own small pattern, so where chunks overlap
+    // the alignment, the blend weights and the rotation interpolation decide the executed
+    // action; the reference client's own `receive_actions`, fed the same chunks at the same
+    // steps, must execute the same actions.
+    let tmp = tempfile::tempdir().unwrap();
+    for (task, latency) in [("hammer_nail", 5), ("bimanual_unlock_ipad", 7)] {
+        let plans = tmp.path().join("plans").join(task);
+        let plan_dir = plan(task, "3", &plans, None).expect("a successful plan");
+        let log = tmp.path().join(format!("{task}.jsonl"));
+        let server = Server::start(&[
+            "oracle",
+            "--plans",
+            plan_dir.to_str().unwrap(),
+            "--perturb",
+            "2e-3",
+            "--log",
+            log.to_str().unwrap(),
+        ]);
+        let out = tmp.path().join("eval").join(task);
+        let o = eval(
+            &server,
+            task,
+            &out,
+            &[
+                "--episodes",
+                "1",
+                "--seed",
+                "3",
+                "--latency-steps",
+                &latency.to_string(),
+            ],
+        );
+        assert_eq!(o.status.code(), Some(0), "{task}: {}", said(&o));
+        let (dir, rec) = episode(&out, 0);
+        let merged = dexjoco_testkit::run_reference_python(
+            "reference_chunk_merge.py",
+            &[
+                "--log",
+                log.to_str().unwrap(),
+                "--rollout",
+                dir.join("replay.zarr").to_str().unwrap(),
+                "--latency",
+                &latency.to_string(),
+            ],
+        );
+        let merged: serde_json::Value = serde_json::from_str(merged.trim()).unwrap();
+        eprintln!("{task}: {merged}");
+        let steps = rec["steps"].as_u64().unwrap();
+        assert!(merged["merged"].as_u64().unwrap() > 5, "{task}: {merged}");
+        assert_eq!(
+            merged["held"].as_array().unwrap().len() as u64,
+            rec["held_steps"].as_u64().unwrap(),
+            "{task}: the steps the pose is held: {merged} {rec}"
+        );
+        assert_eq!(
+            merged["compared"].as_u64().unwrap() + rec["held_steps"].as_u64().unwrap(),
+            steps,
+            "{task}: {merged}"
+        );
+        let d = merged["max_difference"].as_f64().unwrap();
+        assert!(
+            d < 1e-9,
+            "{task}: executed actions {d:e} from the reference buffer's"
+        );
+    }
+}
+
 /// A server that answers a few chunks, then misbehaves as `how` says.
 fn misbehaving(how: &str, after: usize) -> Server {
     Server::start(&["misbehave", "--how", how, "--after", &after.to_string()])

@@ -2,7 +2,7 @@
 (`openpi/src/openpi/serving/websocket_policy_server.py` of the DexJoCo reference code,
 imported in place from ../shared; reference venv, which has `openpi-client`):
 
-    python policy_server.py --port P oracle --plans DIR [DIR ...]
+    python policy_server.py --port P oracle --plans DIR [DIR ...] [--perturb A --log FILE]
     python policy_server.py --port P record --out FILE.npz [--count N] [--close]
     python policy_server.py --port P misbehave --how {shape,nan,close,silent,error} [--after N]
 
@@ -10,7 +10,11 @@ imported in place from ../shared; reference venv, which has `openpi-client`):
   for the episode's reset: it finds the plan whose `state[0]` equals the observation's
   `dexjoco/initial_state` (eval --privileged-keys) and cuts its `action_rotvec` at
   `dexjoco/step` (the last action repeated past the plan's end). An episode without a plan
-  is answered with the pose held.
+  is answered with the pose held. With `--perturb A` every chunk is moved off the plan by
+  a small pattern of amplitude A that differs from chunk to chunk (positions and hands
+  shifted, rotations turned by up to A rad), so that where chunks overlap the blend
+  decides the executed action; `--log FILE` appends every answer (plan index, step, chunk)
+  as a JSON line, for `reference_chunk_merge.py` to merge as the reference client does.
 - `record` keeps the first N observations it receives (every key) in FILE.npz and answers
   with the pose held.
 - `misbehave` answers well N times, then: a chunk of the wrong width (`shape`), a chunk
@@ -23,6 +27,7 @@ It prints `listening <port>` on stdout once the socket is open.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import threading
@@ -64,12 +69,30 @@ def _chunk_of(rows: np.ndarray, step: int) -> np.ndarray:
     return rows[idx]
 
 
+def perturbed(chunk: np.ndarray, step: int, amplitude: float) -> np.ndarray:
+    """`chunk` moved off by a pattern of `amplitude` unique to `step`: per arm, the
+    position and hand joints shifted, the rotation vector turned about a varying axis."""
+    out = np.array(chunk, dtype=np.float64, copy=True)
+    rows, width = out.shape
+    k = np.arange(rows)[:, None]
+    j = np.arange(width)[None, :]
+    out += amplitude * np.sin(0.37 * step + 0.29 * k + 1.3 * j)
+    per_arm = 22
+    for arm in range(width // per_arm):
+        r = slice(arm * per_arm + 3, arm * per_arm + 6)
+        axis = np.stack([np.sin(0.5 * step + 0.2 * k[:, 0]), np.cos(0.3 * step + 0.1 * k[:, 0]), np.full(rows, 0.5)], axis=1)
+        turn = amplitude * axis / np.linalg.norm(axis, axis=1, keepdims=True)
+        out[:, r] = (R.from_rotvec(turn) * R.from_rotvec(chunk[:, r])).as_rotvec()
+    return out
+
+
 class Oracle:
     """Answers with the plan of the episode's reset."""
 
-    def __init__(self, dirs):
+    def __init__(self, dirs, perturb: float = 0.0, log: Path | None = None):
         import zarr
 
+        self.perturb, self.log = perturb, log
         self.plans = []
         for d in dirs:
             for z in sorted(Path(d).rglob("replay.zarr")):
@@ -80,9 +103,15 @@ class Oracle:
     def infer(self, obs):
         s0 = np.asarray(obs["dexjoco/initial_state"])
         step = int(obs["dexjoco/step"])
-        for state0, rows in self.plans:
+        for index, (state0, rows) in enumerate(self.plans):
             if state0.shape == s0.shape and np.max(np.abs(state0 - s0)) <= 1e-12:
-                return {"actions": _chunk_of(rows, step)}
+                chunk = _chunk_of(rows, step)
+                if self.perturb:
+                    chunk = perturbed(chunk, step, self.perturb)
+                if self.log is not None:
+                    with open(self.log, "a") as f:
+                        f.write(json.dumps({"plan": index, "step": step, "chunk": chunk.tolist()}) + "\n")
+                return {"actions": chunk}
         return {"actions": np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))}
 
 
@@ -140,6 +169,8 @@ def main(argv=None):
     sub = p.add_subparsers(dest="policy", required=True)
     o = sub.add_parser("oracle")
     o.add_argument("--plans", nargs="+", required=True)
+    o.add_argument("--perturb", type=float, default=0.0, help="move each chunk off the plan by this much")
+    o.add_argument("--log", type=Path, help="append every answer to this JSON-lines file")
     r = sub.add_parser("record")
     r.add_argument("--out", type=Path, required=True)
     r.add_argument("--count", type=int, default=1)
@@ -149,7 +180,7 @@ def main(argv=None):
     m.add_argument("--after", type=int, default=0)
     args = p.parse_args(argv)
     if args.policy == "oracle":
-        policy, meta = Oracle(args.plans), {"policy": "oracle"}
+        policy, meta = Oracle(args.plans, args.perturb, args.log), {"policy": "oracle"}
     elif args.policy == "record":
         policy, meta = Recorder(args.out, args.count, args.close), {"policy": "record"}
     else:
