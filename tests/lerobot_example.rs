@@ -144,7 +144,7 @@ fn a_lerobot_policy_trained_on_our_dataset_is_served_by_the_example_and_evaluate
             &port.to_string(),
         ])
         .args(["--render-size", "64x64", "--quality", "fast", "--no-videos"])
-        .args(["--server-wait", "180", "-j", "1"])
+        .args(["--server-wait", "180", "-j", "1", "--step-cap", "150"])
         .arg("--output")
         .arg(&out)
         .output()
@@ -174,7 +174,10 @@ fn a_lerobot_policy_trained_on_our_dataset_is_served_by_the_example_and_evaluate
     assert_eq!(metadata["policy_type"], "act", "{record}");
     assert_eq!(metadata["chunk_size"], 30, "{record}");
     assert_eq!(metadata["action_dim"], 22, "{record}");
-    assert!(record["steps"].as_u64().unwrap() > 0, "{record}");
+    // One short episode: click_mouse's 30 warm-up steps and the policy's 120.
+    assert_eq!(record["step_cap"], 150, "{record}");
+    let steps = record["steps"].as_u64().unwrap() + record["warmup_steps"].as_u64().unwrap();
+    assert!(steps == 150 || record["ended_by"] != "step_cap", "{record}");
     assert!(record["chunks"].as_u64().unwrap() > 0, "{record}");
 
     // stats reads the output as it is.

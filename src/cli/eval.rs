@@ -88,6 +88,10 @@ pub struct EvalArgs {
     /// (results then depend on the machine's and the server's speed).
     #[arg(long, conflicts_with = "latency_steps")]
     pub real_time: bool,
+    /// End each episode after at most N steps instead of the task's cap (1000 to 1500):
+    /// for smoke tests and benchmarks; success rates then differ from the reference's.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub step_cap: Option<u64>,
     /// Output folder (default: <work-dir>/eval/<task>[_rand_full]_seed<seed>, the
     /// reference's folder name).
     #[arg(long, alias = "out")]

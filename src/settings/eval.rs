@@ -38,6 +38,7 @@ impl EvalSettings {
             privileged_keys,
             deadline,
             server_wait,
+            step_cap,
             tasks,
         } = args;
         let tasks_dir = tasks.tasks_dir.clone();
@@ -94,6 +95,7 @@ impl EvalSettings {
             privileged_keys,
             deadline_secs: deadline,
             server_wait_secs: server_wait,
+            step_cap: step_cap.map(|n| n as usize),
         };
         let executor = executor(global.jobs.unwrap_or(1), &out)?;
         Ok(Self {

@@ -2,10 +2,12 @@
 `eval_dexjoco_openpi.main` with real EGL rendering and its videos, against a policy
 server, for `scripts/bench-eval.sh`'s side-by-side throughput:
 
-    python reference_eval_client.py --config CONFIG.yaml --port P --episodes N --out DIR [--no-sleep]
+    python reference_eval_client.py --config CONFIG.yaml --port P --episodes N --out DIR [--no-sleep] [--step-cap N]
 
-`--no-sleep` removes the environments' 30 Hz pacing sleep (the only change); without it
-the client runs exactly as shipped. Prints {"episodes": N, "seconds": wall time} as JSON.
+`--no-sleep` removes the environments' 30 Hz pacing sleep; `--step-cap N` ends each
+episode after N steps (as `eval --step-cap`: the client's environment reports done), so
+that a benchmark needs minutes, not hours, on a CPU. Without them the client runs
+exactly as shipped. Prints {"episodes": N, "seconds": wall time, "steps": steps run} as JSON.
 """
 
 from __future__ import annotations
@@ -34,12 +36,15 @@ def main(argv=None):
     p.add_argument("--episodes", type=int, default=1)
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--no-sleep", action="store_true")
+    p.add_argument("--step-cap", type=int)
     args = p.parse_args(argv)
     # The client package beside (after) the scratch copy of `dexjoco`, which shadows the
     # original one next to it.
     sys.path.append(str(ref.reference_code() / "dexjoco"))
+    from dexjoco_openpi_client import dexjoco_openpi_env
     from dexjoco_openpi_client.eval_dexjoco_openpi import main as evaluate
 
+    steps = count_steps(dexjoco_openpi_env.DexJoCoOpenPIEnv, args.step_cap)
     started = time.monotonic()
     evaluate(
         config=args.config,
@@ -49,7 +54,29 @@ def main(argv=None):
         output=args.out,
         episodes=args.episodes,
     )
-    print(json.dumps({"episodes": args.episodes, "seconds": time.monotonic() - started}))
+    print(json.dumps({"episodes": args.episodes, "seconds": time.monotonic() - started, "steps": steps[0]}))
+
+
+def count_steps(env_class, cap):
+    """Counts the steps the environments run (the reference's `env_step`, warm-up
+    included) and, with a cap, reports done once an episode has run `cap` of them."""
+    total = [0]
+    step, reset = env_class.step, env_class.reset
+
+    def counted_reset(self, *a, **k):
+        self._bench_steps = 0
+        return reset(self, *a, **k)
+
+    def counted_step(self, *a, **k):
+        out = step(self, *a, **k)
+        self._bench_steps = getattr(self, "_bench_steps", 0) + 1
+        total[0] += 1
+        if cap is not None and self._bench_steps >= cap:
+            self._done = True
+        return out
+
+    env_class.reset, env_class.step = counted_reset, counted_step
+    return total
 
 
 if __name__ == "__main__":

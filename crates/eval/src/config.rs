@@ -219,6 +219,10 @@ pub struct EvalOptions {
     pub deadline_secs: f64,
     /// Seconds to keep retrying a refused connection at the start.
     pub server_wait_secs: f64,
+    /// End an episode after at most this many steps instead of the task's step cap
+    /// (`--step-cap`; for smoke tests and benchmarks, not for results to compare).
+    #[serde(default)]
+    pub step_cap: Option<usize>,
 }
 
 impl Default for EvalOptions {
@@ -240,6 +244,7 @@ impl Default for EvalOptions {
             privileged_keys: false,
             deadline_secs: 120.0,
             server_wait_secs: 10.0,
+            step_cap: None,
         }
     }
 }

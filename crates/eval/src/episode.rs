@@ -134,6 +134,7 @@ pub(crate) fn run_episode(
         steps: rollout.steps,
         warmup_steps: stage.warmup_steps(),
         ended_by: rollout.ended_by.into(),
+        step_cap: opts.step_cap,
         chunks: rollout.chunks,
         held_steps: rollout.held,
         latency_steps: (!opts.real_time).then_some(opts.latency_steps),

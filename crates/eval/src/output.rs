@@ -47,6 +47,9 @@ pub struct EpisodeRecord {
     pub warmup_steps: usize,
     /// Why it ended: `success`, `failure` (the task's failure condition) or `step_cap`.
     pub ended_by: String,
+    /// The step cap when `--step-cap` replaced the task's (absent otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub step_cap: Option<usize>,
     /// Observations sent (chunks asked for).
     pub chunks: usize,
     /// Steps with no buffered action (the pose held).
@@ -170,6 +173,7 @@ mod tests {
             steps: 401,
             warmup_steps: 0,
             ended_by: "success".into(),
+            step_cap: None,
             chunks: 20,
             held_steps: 0,
             latency_steps: Some(0),

@@ -197,10 +197,11 @@ fn check_same_run(
     for (k, (path, r)) in done {
         let same = r.task == config.task.task
             && r.seed == config.options.seed
+            && r.step_cap == config.options.step_cap
             && states.get(*k).is_some_and(|s| s == &r.reset);
         if !same {
             return Err(EvalError::Usage(format!(
-                "'{}' holds episode {k} of another run (task {}, seed {}, or another initial \
+                "'{}' holds episode {k} of another run (task {}, seed {}, step cap or another initial \
                  state): choose another --output, or remove the folder",
                 path.display(),
                 r.task,

@@ -24,7 +24,7 @@ pub(crate) enum View {
 }
 
 /// The task's spec for a run: the built-in or `--tasks-dir` spec, with the config's
-/// password in its keypad.
+/// password in its keypad and `--step-cap`'s cap.
 pub fn run_spec(config: &EvalConfig) -> Result<TaskSpec, EvalError> {
     let tasks = dexjoco_core::TaskSet::with_dir(config.tasks_dir.as_deref())
         .map_err(|e| EvalError::Usage(format!("--tasks-dir: {e}")))?;
@@ -38,6 +38,9 @@ pub fn run_spec(config: &EvalConfig) -> Result<TaskSpec, EvalError> {
             ))
         })?
         .clone();
+    if let Some(cap) = config.options.step_cap {
+        spec.step_cap = cap;
+    }
     if let Some(p) = &config.task.password {
         let mut found = false;
         for node in spec.nodes.values_mut() {
