@@ -27,8 +27,7 @@ CONFIG="$UP/task-configs/rand_obj/hammer_nail.yaml"
 TMP="$(mktemp -d)"
 trap 'kill $SERVER 2>/dev/null || true; rm -rf "$TMP"' EXIT
 PORT="$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')"
-mkdir -p "$TMP/no-plans"
-"$R" tests/python/policy_server.py --port "$PORT" oracle --plans "$TMP/no-plans" > "$TMP/server.log" 2>&1 &
+"$R" tests/python/policy_server.py --port "$PORT" hold > "$TMP/server.log" 2>&1 &
 SERVER=$!
 until grep -q listening "$TMP/server.log"; do sleep 0.2; done
 

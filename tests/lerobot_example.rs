@@ -71,14 +71,11 @@ impl Drop for ExampleServer {
     }
 }
 
-#[test]
-fn a_lerobot_policy_trained_on_our_dataset_is_served_by_the_example_and_evaluated() {
-    let tmp = tempfile::tempdir().unwrap();
-    let work = tmp.path().join("work");
+/// The dataset: one sample demonstration, one randomized replay, small renders, as
+/// LeRobot v3.0.
+fn dataset(work: &Path) -> PathBuf {
     let wd = ["--work-dir", work.to_str().unwrap()];
     let demo = dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000");
-
-    // The dataset: one demonstration, one randomized replay, small renders.
     ok(dexjoco().args(wd).args(["-q", "ingest"]).arg(&demo));
     ok(dexjoco()
         .args(wd)
@@ -95,10 +92,11 @@ fn a_lerobot_policy_trained_on_our_dataset_is_served_by_the_example_and_evaluate
             "handcam_rgb",
         ]));
     ok(dexjoco().args(wd).args(["-q", "convert"]));
-    let dataset = work.join("convert/lerobot-v3");
+    work.join("convert/lerobot-v3")
+}
 
-    // LeRobot's own trainer, a few ACT steps on the CPU.
-    let train = tmp.path().join("train_act");
+/// LeRobot's own trainer, a few ACT steps on the CPU; returns the checkpoint folder.
+fn train(dataset: &Path, train: &Path) -> PathBuf {
     let o = ok(Command::new(venv_script("lerobot-train"))
         .env("HF_HUB_OFFLINE", "1")
         .env("WANDB_MODE", "disabled")
@@ -124,6 +122,14 @@ fn a_lerobot_policy_trained_on_our_dataset_is_served_by_the_example_and_evaluate
         "no checkpoint: {}",
         said(&o)
     );
+    checkpoint
+}
+
+#[test]
+fn a_lerobot_policy_trained_on_our_dataset_is_served_by_the_example_and_evaluated() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dataset = dataset(&tmp.path().join("work"));
+    let checkpoint = train(&dataset, &tmp.path().join("train_act"));
 
     // The example serves it; eval runs one episode against it.
     let port = std::net::TcpListener::bind("127.0.0.1:0")

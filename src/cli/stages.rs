@@ -315,7 +315,7 @@ pub struct AugmentArgs {
     /// datasets/demos).
     pub inputs: Vec<PathBuf>,
     /// Randomized replays per episode.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = dexjoco_augment::DEFAULT_REPLAYS)]
     pub replays: usize,
     /// Scene pack folder (e.g. the DexJoCo reference xmls/); default: built-in scenes.
     #[arg(long)]

@@ -3,6 +3,7 @@
 imported in place from ../shared; reference venv, which has `openpi-client`):
 
     python policy_server.py --port P oracle --plans DIR [DIR ...] [--perturb A --log FILE]
+    python policy_server.py --port P hold
     python policy_server.py --port P record --out FILE.npz [--count N] [--close]
     python policy_server.py --port P misbehave --how {shape,nan,close,silent,error} [--after N]
 
@@ -15,6 +16,8 @@ imported in place from ../shared; reference venv, which has `openpi-client`):
   shifted, rotations turned by up to A rad), so that where chunks overlap the blend
   decides the executed action; `--log FILE` appends every answer (plan index, step, chunk)
   as a JSON line, for `reference_chunk_merge.py` to merge as the reference client does.
+- `hold` answers every observation with the pose held (any client, no privileged keys:
+  `scripts/bench-eval.sh`'s policy, which runs every episode to its step cap).
 - `record` keeps the first N observations it receives (every key) in FILE.npz and answers
   with the pose held.
 - `misbehave` answers well N times, then: a chunk of the wrong width (`shape`), a chunk
@@ -115,6 +118,13 @@ class Oracle:
         return {"actions": np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))}
 
 
+class Hold:
+    """Answers with the observation's pose held."""
+
+    def infer(self, obs):
+        return {"actions": np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))}
+
+
 class Recorder:
     """Keeps the first observations it receives; with `close`, ends the process at the
     next one (the client's episode goes no further)."""
@@ -171,6 +181,7 @@ def main(argv=None):
     o.add_argument("--plans", nargs="+", required=True)
     o.add_argument("--perturb", type=float, default=0.0, help="move each chunk off the plan by this much")
     o.add_argument("--log", type=Path, help="append every answer to this JSON-lines file")
+    sub.add_parser("hold")
     r = sub.add_parser("record")
     r.add_argument("--out", type=Path, required=True)
     r.add_argument("--count", type=int, default=1)
@@ -181,6 +192,8 @@ def main(argv=None):
     args = p.parse_args(argv)
     if args.policy == "oracle":
         policy, meta = Oracle(args.plans, args.perturb, args.log), {"policy": "oracle"}
+    elif args.policy == "hold":
+        policy, meta = Hold(), {"policy": "hold"}
     elif args.policy == "record":
         policy, meta = Recorder(args.out, args.count, args.close), {"policy": "record"}
     else:

@@ -22,6 +22,8 @@ pub(crate) const PREVIEWS: &str = ".previews";
 pub const SETTINGS_FILE: &str = "augment_settings.json";
 /// The contact sheet of the replays' first frames.
 pub const CONTACT_SHEET: &str = "contact_sheet.png";
+/// The default of `--replays`.
+pub const DEFAULT_REPLAYS: usize = 10;
 /// The default of `--extend-steps`: one second at DexJoCo's 30 Hz.
 pub const DEFAULT_EXTEND_STEPS: usize = 30;
 /// Records of replays that failed under `--dynamics` and were not kept
@@ -71,6 +73,39 @@ pub struct AugmentConfig {
     /// Start clean when the output folder was made with other settings (removes only what
     /// augment wrote there).
     pub overwrite: bool,
+}
+
+impl AugmentConfig {
+    /// `inputs` replayed into `out` with `augment`'s documented defaults: 10 replays,
+    /// seed 0, the built-in scenes and camera pool, only the randomized third-person view
+    /// at 640x640 in the paper quality, failed replays dropped, whole episodes, a contact
+    /// sheet, no depth, no dynamics, the 30-step extension, everything in one run, nothing
+    /// replaced. Change what differs with struct update syntax.
+    pub fn new(inputs: Vec<PathBuf>, out: impl Into<PathBuf>) -> Self {
+        Self {
+            inputs,
+            out: out.into(),
+            replays: DEFAULT_REPLAYS,
+            seed: 0,
+            tasks_dir: None,
+            scene: SceneSource::BuiltIn,
+            camera_pool: None,
+            cameras: Vec::new(),
+            settings: RenderSettings {
+                quality: dexjoco_sim::RenderQuality::PAPER,
+                ..RenderSettings::default()
+            },
+            keep_failed: false,
+            max_frames: None,
+            resimulate_per_replay: false,
+            contact_sheet: true,
+            depth: false,
+            dynamics: false,
+            extend_steps: DEFAULT_EXTEND_STEPS,
+            shard: None,
+            overwrite: false,
+        }
+    }
 }
 
 /// A deterministic share of an augment run: shard `index` of `count` (0-based).

@@ -345,30 +345,14 @@ mod tests {
 
     fn config(size: u32) -> AugmentConfig {
         AugmentConfig {
-            inputs: Vec::new(),
-            out: "o".into(),
             replays: 1,
-            seed: 0,
-            tasks_dir: None,
-            scene: SceneSource::BuiltIn,
-            camera_pool: None,
-            cameras: Vec::new(),
-            settings: dexjoco_sim::RenderSettings {
+            settings: RenderSettings {
                 width: size,
                 height: size,
-                quality: RenderQuality::FAST,
-                depth: false,
-                geometry: Geometry::Full,
+                ..RenderSettings::default()
             },
-            keep_failed: false,
-            max_frames: None,
-            resimulate_per_replay: false,
             contact_sheet: false,
-            depth: false,
-            dynamics: false,
-            extend_steps: 30,
-            shard: None,
-            overwrite: false,
+            ..AugmentConfig::new(Vec::new(), "o")
         }
     }
 

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use dexjoco_augment::{AugmentConfig, AugmentReport, augment};
 use dexjoco_core::NoProgress;
-use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
+use dexjoco_sim::{RenderSettings, SceneSource};
 
 fn demos() -> PathBuf {
     dexjoco_testkit::workspace_root().join("datasets/demos")
@@ -15,30 +15,17 @@ fn demos() -> PathBuf {
 
 fn config(inputs: Vec<PathBuf>, out: &Path) -> AugmentConfig {
     AugmentConfig {
-        inputs,
-        out: out.to_path_buf(),
         replays: 2,
         seed: 7,
-        tasks_dir: None,
-        scene: SceneSource::BuiltIn,
-        camera_pool: None,
-        cameras: Vec::new(),
         settings: RenderSettings {
             width: 64,
             height: 64,
-            quality: RenderQuality::FAST,
-            depth: false,
-            geometry: dexjoco_sim::Geometry::Full,
+            ..RenderSettings::default()
         },
         keep_failed: true,
         max_frames: Some(8),
-        resimulate_per_replay: false,
         contact_sheet: false,
-        depth: false,
-        dynamics: false,
-        extend_steps: dexjoco_augment::DEFAULT_EXTEND_STEPS,
-        shard: None,
-        overwrite: false,
+        ..AugmentConfig::new(inputs, out)
     }
 }
 

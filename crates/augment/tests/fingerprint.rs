@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use dexjoco_augment::{AugmentConfig, SETTINGS_FILE, augment};
 use dexjoco_core::NoProgress;
-use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
+use dexjoco_sim::{RenderSettings, SceneSource};
 
 /// The reference scenes as a folder of links, with `own` copied in so it can be edited.
 fn scene_folder(dir: &Path, own: &str) -> PathBuf {
@@ -29,32 +29,22 @@ fn scene_folder(dir: &Path, own: &str) -> PathBuf {
 /// Physics only (no replay rendered): what writes and checks the fingerprint.
 fn config(scenes: &Path, out: &Path) -> AugmentConfig {
     AugmentConfig {
-        inputs: vec![
-            dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000"),
-        ],
-        out: out.to_path_buf(),
         replays: 0,
-        seed: 0,
-        tasks_dir: None,
         scene: SceneSource::Dir(scenes.to_path_buf()),
-        camera_pool: None,
-        cameras: Vec::new(),
         settings: RenderSettings {
             width: 32,
             height: 32,
-            quality: RenderQuality::FAST,
-            depth: false,
-            geometry: dexjoco_sim::Geometry::Full,
+            ..RenderSettings::default()
         },
-        keep_failed: false,
         max_frames: Some(4),
-        resimulate_per_replay: false,
         contact_sheet: false,
-        depth: false,
-        dynamics: false,
         extend_steps: 0,
-        shard: None,
-        overwrite: false,
+        ..AugmentConfig::new(
+            vec![
+                dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000"),
+            ],
+            out,
+        )
     }
 }
 

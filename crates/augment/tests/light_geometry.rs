@@ -7,36 +7,29 @@ use std::path::{Path, PathBuf};
 
 use dexjoco_augment::{AugmentConfig, augment, geometry_difference};
 use dexjoco_core::NoProgress;
-use dexjoco_sim::{Geometry, RenderQuality, RenderSettings, SceneSource};
+use dexjoco_sim::{Geometry, RenderSettings, SceneSource};
 
 fn config(out: &Path, geometry: Geometry) -> AugmentConfig {
     AugmentConfig {
-        inputs: vec![
-            dexjoco_testkit::workspace_root().join("datasets/demos/hammer_nail/episode_000000"),
-        ],
-        out: out.to_path_buf(),
         replays: 2,
         seed: 3,
-        tasks_dir: None,
         scene: SceneSource::Dir(dexjoco_testkit::reference_scene_dir()),
-        camera_pool: None,
-        cameras: Vec::new(),
         settings: RenderSettings {
             width: 96,
             height: 96,
-            quality: RenderQuality::FAST,
-            depth: false,
             geometry,
+            ..RenderSettings::default()
         },
         keep_failed: true,
         max_frames: Some(40),
-        resimulate_per_replay: false,
         contact_sheet: false,
-        depth: false,
-        dynamics: false,
         extend_steps: 0,
-        shard: None,
-        overwrite: false,
+        ..AugmentConfig::new(
+            vec![
+                dexjoco_testkit::workspace_root().join("datasets/demos/hammer_nail/episode_000000"),
+            ],
+            out,
+        )
     }
 }
 

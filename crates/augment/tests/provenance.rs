@@ -4,36 +4,26 @@
 
 use dexjoco_augment::{AugmentConfig, Provenance, REPORT_MD, ToolVersions, augment};
 use dexjoco_core::NoProgress;
-use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
+use dexjoco_sim::RenderSettings;
 
 fn config(out: &std::path::Path) -> AugmentConfig {
     AugmentConfig {
-        inputs: vec![
-            dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000"),
-        ],
-        out: out.to_path_buf(),
         replays: 2,
-        seed: 0,
-        tasks_dir: None,
-        scene: SceneSource::BuiltIn,
-        camera_pool: None,
-        cameras: Vec::new(),
         settings: RenderSettings {
             width: 32,
             height: 32,
-            quality: RenderQuality::FAST,
-            depth: false,
-            geometry: dexjoco_sim::Geometry::Full,
+            ..RenderSettings::default()
         },
         keep_failed: true,
         max_frames: Some(4),
-        resimulate_per_replay: false,
         contact_sheet: false,
-        depth: false,
-        dynamics: false,
         extend_steps: 0,
-        shard: None,
-        overwrite: false,
+        ..AugmentConfig::new(
+            vec![
+                dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000"),
+            ],
+            out,
+        )
     }
 }
 

@@ -22,7 +22,7 @@ use dexjoco_augment::{AugmentConfig, augment};
 use dexjoco_core::{Episode, TaskSpec};
 use dexjoco_formats::raw::write_replay_zarr;
 use dexjoco_sim::scripted::{self, PLANNED_TASKS, Variant};
-use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource, TaskEnv, load_task_scene};
+use dexjoco_sim::{RenderSettings, SceneSource, TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
 use serde_json::Value;
 
@@ -345,30 +345,18 @@ fn replay_through_augment(cases: &[Case], dir: &Path) {
             write_replay_zarr(&input.join(&c.spec.id).join("episode_000000"), &ep).unwrap();
         }
         let config = AugmentConfig {
-            inputs: vec![input],
-            out: dir.join(format!("augment-out-{camera}")),
             replays: 1,
             seed: 3,
-            tasks_dir: None,
             scene: SceneSource::Dir(dexjoco_testkit::reference_scene_dir()),
-            camera_pool: None,
-            cameras: vec![camera],
+            cameras: vec![camera.clone()],
             settings: RenderSettings {
                 width: 32,
                 height: 32,
-                quality: RenderQuality::FAST,
-                depth: false,
-                geometry: dexjoco_sim::Geometry::Full,
+                ..RenderSettings::default()
             },
-            keep_failed: false,
-            max_frames: None,
-            resimulate_per_replay: false,
             contact_sheet: false,
-            depth: false,
-            dynamics: false,
             extend_steps: 0,
-            shard: None,
-            overwrite: false,
+            ..AugmentConfig::new(vec![input], dir.join(format!("augment-out-{camera}")))
         };
         let report = augment(&config, &dexjoco_core::NoProgress).unwrap();
         assert_eq!(report.episodes.len(), group.len(), "{:?}", report.skipped);

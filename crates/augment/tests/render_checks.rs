@@ -10,7 +10,7 @@ use std::process::Command;
 use dexjoco_augment::{AugmentConfig, AugmentReport, RENDER_DEFECT_ENV, augment};
 use dexjoco_core::NoProgress;
 use dexjoco_formats::raw::{RenderCheck, RenderFlag, read_replay_label};
-use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
+use dexjoco_sim::RenderSettings;
 
 /// Where the run with the hook writes (set for the child test only).
 const OUT_ENV: &str = "DEXJOCO_TEST_RENDER_CHECKS_OUT";
@@ -21,30 +21,19 @@ fn demo(task: &str) -> PathBuf {
 
 fn config(inputs: Vec<PathBuf>, out: &Path, replays: usize, frames: usize) -> AugmentConfig {
     AugmentConfig {
-        inputs,
-        out: out.to_path_buf(),
         replays,
         seed: 11,
-        tasks_dir: None,
-        scene: SceneSource::BuiltIn,
-        camera_pool: None,
-        cameras: Vec::new(),
         settings: RenderSettings {
             width: 32,
             height: 32,
-            quality: RenderQuality::FAST,
-            depth: false,
-            geometry: dexjoco_sim::Geometry::Full,
+            ..RenderSettings::default()
         },
         keep_failed: true,
         max_frames: Some(frames),
-        resimulate_per_replay: false,
         contact_sheet: false,
         depth: true,
-        dynamics: false,
         extend_steps: 0,
-        shard: None,
-        overwrite: false,
+        ..AugmentConfig::new(inputs, out)
     }
 }
 

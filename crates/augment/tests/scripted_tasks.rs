@@ -8,7 +8,7 @@ use std::path::Path;
 use dexjoco_augment::{AugmentConfig, augment};
 use dexjoco_core::TaskSpec;
 use dexjoco_sim::scripted::{self, Variant};
-use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource, TaskEnv, load_task_scene};
+use dexjoco_sim::{RenderSettings, SceneSource, TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
 
 /// A random reset of `task` (seeded), its scene and spec.
@@ -38,31 +38,18 @@ fn plan_record_replay(task: &str, seed: u64) {
     dexjoco_formats::raw::write_replay_zarr(&input, ep).unwrap();
     let camera = spec.cameras[0].camera.clone();
     let config = AugmentConfig {
-        inputs: vec![dir.path().join("in")],
-        out: dir.path().join("out"),
         replays: 1,
         seed: 3,
-        tasks_dir: None,
-        scene: SceneSource::BuiltIn,
-        camera_pool: None,
         cameras: vec![camera],
         settings: RenderSettings {
             width: 32,
             height: 32,
-            quality: RenderQuality::FAST,
-            depth: false,
-            geometry: dexjoco_sim::Geometry::Full,
+            ..RenderSettings::default()
         },
-        keep_failed: false,
-        max_frames: None,
-        resimulate_per_replay: false,
         contact_sheet: false,
-        depth: false,
-        dynamics: false,
         // Strict: the replay must succeed on the very step the plan did.
         extend_steps: 0,
-        shard: None,
-        overwrite: false,
+        ..AugmentConfig::new(vec![dir.path().join("in")], dir.path().join("out"))
     };
     let report = augment(&config, &dexjoco_core::NoProgress).unwrap();
     assert_eq!(report.episodes.len(), 1, "{task}: {:?}", report.skipped);

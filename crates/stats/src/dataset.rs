@@ -9,34 +9,18 @@ use serde::{Deserialize, Serialize};
 use dexjoco_formats::openpi::{RunningStats, norm_stats_document};
 
 use crate::error::StatsError;
-use crate::health::{EpisodeFiles, Health};
-use crate::measures::mean_std;
+use crate::health::{
+    ALL_TASKS, EpisodeFiles, FlatDimension, Flatness, Health, LEROBOT_EPS, NEAR_CONSTANT_REL,
+    OPENPI_EPS,
+};
+use crate::health_report::warnings;
+use crate::measures::{mean_std, quantile_sorted};
 
 /// Bins of the per-dimension histograms.
 pub const HISTOGRAM_BINS: usize = 40;
 
 /// Arrays that are not distributions worth summarizing.
 const SKIPPED_ARRAYS: [&str; 1] = [Episode::TIMESTAMP];
-
-/// The `q`-quantile of sorted values with linear interpolation between order statistics
-/// (`numpy.quantile`'s default method). `None` when empty.
-pub fn quantile_sorted(sorted: &[f64], q: f64) -> Option<f64> {
-    let n = sorted.len();
-    if n == 0 {
-        return None;
-    }
-    let pos = q.clamp(0.0, 1.0) * (n - 1) as f64;
-    let lo = pos.floor() as usize;
-    let hi = (lo + 1).min(n - 1);
-    let t = pos - lo as f64;
-    let (a, b) = (sorted[lo], sorted[hi]);
-    // numpy interpolates from the nearer end for accuracy.
-    Some(if t >= 0.5 {
-        b - (b - a) * (1.0 - t)
-    } else {
-        a + (b - a) * t
-    })
-}
 
 /// Summary of episode lengths in frames.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -344,7 +328,8 @@ impl DatasetStats {
         specs: &TaskSet,
     ) -> Result<Self, StatsError> {
         let mut stats = Self::compute_arrays(episodes, specs)?;
-        stats.health = Health::compute(&stats, episodes, files);
+        stats.health = Health::compute(stats.flat_dimensions(), episodes, files);
+        stats.health.warnings = warnings(&stats.health);
         Ok(stats)
     }
 
@@ -494,6 +479,59 @@ impl DatasetStats {
         s.push('\n');
         s.push_str(&self.health.to_markdown());
         s
+    }
+}
+
+/// The constant and near-constant dimensions of one array's statistics.
+pub fn flat_dimensions(scope: &str, array: &str, s: &ArrayStats) -> Vec<FlatDimension> {
+    (0..s.width)
+        .filter_map(|d| {
+            let flatness = if s.min[d] == s.max[d] {
+                Flatness::Constant
+            } else if s.std[d] <= NEAR_CONSTANT_REL * s.mean[d].abs().max(1.0) {
+                Flatness::NearConstant
+            } else {
+                return None;
+            };
+            let std = if flatness == Flatness::Constant {
+                0.0
+            } else {
+                s.std[d]
+            };
+            Some(FlatDimension {
+                scope: scope.to_owned(),
+                array: array.to_owned(),
+                index: d,
+                column: s.columns[d].clone(),
+                flatness,
+                mean: s.mean[d],
+                std,
+                min: s.min[d],
+                max: s.max[d],
+                lerobot_gain: 1.0 / (std + LEROBOT_EPS),
+                openpi_gain: 1.0 / (std + OPENPI_EPS),
+                openpi_quantile_gain: 2.0 / (s.q99[d] - s.q01[d] + OPENPI_EPS),
+            })
+        })
+        .collect()
+}
+
+impl DatasetStats {
+    /// The constant and near-constant dimensions of every task's arrays, and of the
+    /// whole dataset's when it holds several tasks.
+    fn flat_dimensions(&self) -> Vec<FlatDimension> {
+        let mut out = Vec::new();
+        for t in &self.tasks {
+            for (name, s) in &t.arrays {
+                out.extend(flat_dimensions(&t.task, name, s));
+            }
+        }
+        if self.tasks.len() > 1 {
+            for (name, s) in &self.arrays {
+                out.extend(flat_dimensions(ALL_TASKS, name, s));
+            }
+        }
+        out
     }
 }
 

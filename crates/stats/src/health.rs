@@ -25,7 +25,7 @@ use dexjoco_core::{Episode, first_moving_frame};
 use dexjoco_formats::raw::ReplayLabel;
 use serde::{Deserialize, Serialize};
 
-use crate::dataset::{ArrayStats, DatasetStats, quantile_sorted};
+use crate::measures::quantile_sorted;
 
 pub use crate::health_files::EpisodeFiles;
 
@@ -189,40 +189,6 @@ pub struct Health {
     pub warnings: Vec<String>,
 }
 
-/// The constant and near-constant dimensions of one array's statistics.
-pub fn flat_dimensions(scope: &str, array: &str, s: &ArrayStats) -> Vec<FlatDimension> {
-    (0..s.width)
-        .filter_map(|d| {
-            let flatness = if s.min[d] == s.max[d] {
-                Flatness::Constant
-            } else if s.std[d] <= NEAR_CONSTANT_REL * s.mean[d].abs().max(1.0) {
-                Flatness::NearConstant
-            } else {
-                return None;
-            };
-            let std = if flatness == Flatness::Constant {
-                0.0
-            } else {
-                s.std[d]
-            };
-            Some(FlatDimension {
-                scope: scope.to_owned(),
-                array: array.to_owned(),
-                index: d,
-                column: s.columns[d].clone(),
-                flatness,
-                mean: s.mean[d],
-                std,
-                min: s.min[d],
-                max: s.max[d],
-                lerobot_gain: 1.0 / (std + LEROBOT_EPS),
-                openpi_gain: 1.0 / (std + OPENPI_EPS),
-                openpi_quantile_gain: 2.0 / (s.q99[d] - s.q01[d] + OPENPI_EPS),
-            })
-        })
-        .collect()
-}
-
 /// Static leading frames of one task's episodes (`action`, compared as recorded).
 fn static_leading(task: &str, episodes: &[&Episode]) -> StaticLeading {
     let mut s = StaticLeading {
@@ -369,8 +335,14 @@ fn outcomes(task: &str, labels: &[(&str, Option<&ReplayLabel>)]) -> Outcomes {
 
 impl Health {
     /// The health of `episodes` (with `files[i]` what episode `i`'s folder holds; a
-    /// missing entry counts as a recording without videos), given their statistics.
-    pub fn compute(stats: &DatasetStats, episodes: &[Episode], files: &[EpisodeFiles]) -> Self {
+    /// missing entry counts as a recording without videos), given the constant and
+    /// near-constant dimensions of their statistics. The warnings are left to
+    /// `health_report::warnings`.
+    pub fn compute(
+        flat_dimensions: Vec<FlatDimension>,
+        episodes: &[Episode],
+        files: &[EpisodeFiles],
+    ) -> Self {
         let none = EpisodeFiles::default();
         let files: Vec<EpisodeFiles> = (0..episodes.len())
             .map(|i| files.get(i).unwrap_or(&none).clone())
@@ -379,18 +351,10 @@ impl Health {
         for (i, e) in episodes.iter().enumerate() {
             by_task.entry(e.task.as_str()).or_default().push(i);
         }
-        let mut h = Self::default();
-        for t in &stats.tasks {
-            for (name, s) in &t.arrays {
-                h.flat_dimensions.extend(flat_dimensions(&t.task, name, s));
-            }
-        }
-        if stats.tasks.len() > 1 {
-            for (name, s) in &stats.arrays {
-                h.flat_dimensions
-                    .extend(flat_dimensions(ALL_TASKS, name, s));
-            }
-        }
+        let mut h = Self {
+            flat_dimensions,
+            ..Self::default()
+        };
         for (task, idx) in &by_task {
             let eps: Vec<&Episode> = idx.iter().map(|&i| &episodes[i]).collect();
             h.static_leading.push(static_leading(task, &eps));
@@ -402,7 +366,6 @@ impl Health {
             h.outcomes.push(outcomes(task, &labels));
         }
         h.duplicates = duplicates(episodes, &files);
-        h.warnings = crate::health_report::warnings(&h);
         h
     }
 }

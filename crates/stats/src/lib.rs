@@ -37,20 +37,20 @@ mod success;
 
 pub use dataset::{
     ArrayStats, DatasetStats, HISTOGRAM_BINS, LengthStats, TaskStats, column_names,
-    quantile_sorted, width_outliers,
+    flat_dimensions, width_outliers,
 };
 pub use error::StatsError;
 pub use health::{
     ALL_TASKS, DuplicateGroup, Duplicates, EpisodeFiles, EpisodeFrames, FlatDimension, Flatness,
     Health, LEROBOT_EPS, LengthDistribution, NEAR_CONSTANT_REL, OPENPI_EPS, Outcomes,
-    StaticLeading, flat_dimensions,
+    StaticLeading,
 };
 pub use health_files::arrays_sha256;
 pub use language::{
     EXAMPLE_MARKER, Instruction, JsPair, LanguageInput, LanguageOptions, LanguageReport,
     MANIFEST_FILE, NONE_OUTPUT, Precision, Trial, format_p, infer_expected,
 };
-pub use measures::{ChiSquare, LogBase, MeanStd};
+pub use measures::{ChiSquare, LogBase, MeanStd, quantile_sorted};
 pub use output::{SOURCE_NORM_STATS, SOURCE_NORM_STATS_DIR};
 pub use provenance::{MadeOn, ReplayProvenance};
 pub use replays::{AUGMENT_REPORT, ReplayStats, TaskReplays};

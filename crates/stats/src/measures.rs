@@ -1,7 +1,8 @@
 //! Measures of dependence on a table of counts (rows x columns): Pearson's chi-square
 //! test of independence, normalized mutual information and the Jensen-Shannon
 //! divergence between rows. They follow SciPy and scikit-learn term for term, and the
-//! tests compare them with both.
+//! tests compare them with both. Also the mean/std and quantile summaries of samples that
+//! the dataset statistics and their health section share.
 
 use serde::{Deserialize, Serialize};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
@@ -227,6 +228,26 @@ pub fn mean_std(values: &[f64]) -> Option<MeanStd> {
         (ss / (n - 1) as f64).sqrt()
     });
     Some(MeanStd { mean, std, n })
+}
+
+/// The `q`-quantile of sorted values with linear interpolation between order statistics
+/// (`numpy.quantile`'s default method). `None` when empty.
+pub fn quantile_sorted(sorted: &[f64], q: f64) -> Option<f64> {
+    let n = sorted.len();
+    if n == 0 {
+        return None;
+    }
+    let pos = q.clamp(0.0, 1.0) * (n - 1) as f64;
+    let lo = pos.floor() as usize;
+    let hi = (lo + 1).min(n - 1);
+    let t = pos - lo as f64;
+    let (a, b) = (sorted[lo], sorted[hi]);
+    // numpy interpolates from the nearer end for accuracy.
+    Some(if t >= 0.5 {
+        b - (b - a) * (1.0 - t)
+    } else {
+        a + (b - a) * t
+    })
 }
 
 #[cfg(test)]

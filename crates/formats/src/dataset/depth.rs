@@ -17,9 +17,8 @@ use dexjoco_core::Location;
 use dexjoco_video::{DepthVideoWriter, VideoError};
 use serde::Serialize;
 
-use super::lerobot_info::CameraSpec;
 use super::stats::{FeatureStats, column_stats, downsample_stride, sample_indices};
-use super::{DepthPart, PreparedEpisode, VideoPart};
+use super::{DepthPart, VideoPart};
 use crate::error::{DatasetError, FormatError};
 use crate::npz::for_each_depth_frame;
 
@@ -196,67 +195,6 @@ pub fn encode_part(
         message: "no frame is kept".into(),
     })?;
     Ok((video, stats))
-}
-
-/// The depth camera features of a dataset whose first episode is `first` (from its depth
-/// parts' encoded videos), named `<camera>_depth`.
-pub(crate) fn camera_specs(first: &PreparedEpisode) -> Vec<CameraSpec> {
-    first
-        .depth
-        .iter()
-        .map(|d| CameraSpec {
-            name: format!("{}_depth", d.name),
-            key: depth_key(&d.name),
-            width: d.width as u32,
-            height: d.height as u32,
-            codec: DEPTH_CODEC.into(),
-            pix_fmt: DEPTH_PIX_FMT.into(),
-            copied: false,
-        })
-        .collect()
-}
-
-/// The encoded depth videos of `ep`, checked against the dataset's depth features.
-pub(crate) fn encoded_parts<'a>(
-    ep: &'a PreparedEpisode,
-    specs: &[CameraSpec],
-) -> Result<Vec<&'a VideoPart>, DatasetError> {
-    let names: Vec<&str> = ep.depth.iter().map(|d| d.name.as_str()).collect();
-    let want: Vec<&str> = specs
-        .iter()
-        .map(|s| s.name.trim_end_matches("_depth"))
-        .collect();
-    if names != want {
-        return Err(DatasetError::episode(
-            &ep.id,
-            format!("depth of cameras {names:?} differs from the dataset's {want:?}"),
-        ));
-    }
-    let mut parts = Vec::new();
-    for (d, s) in ep.depth.iter().zip(specs) {
-        let Some(v) = d.video.as_ref() else {
-            return Err(DatasetError::episode(
-                &ep.id,
-                format!("the depth of camera '{}' was not encoded", d.name),
-            ));
-        };
-        if (d.width as u32, d.height as u32) != (s.width, s.height) {
-            return Err(DatasetError::episode(
-                &ep.id,
-                format!(
-                    "depth of camera '{}' ('{}'): {}x{} differs from the dataset's {}x{}",
-                    d.name,
-                    d.path.display(),
-                    d.width,
-                    d.height,
-                    s.width,
-                    s.height
-                ),
-            ));
-        }
-        parts.push(v);
-    }
-    Ok(parts)
 }
 
 /// A depth video feature's `info`, with the keys and values lerobot 0.6.1 writes for a

@@ -12,8 +12,9 @@ use dexjoco_video::VideoInfo;
 use serde::Serialize;
 use serde_json::{Value, json};
 
-use super::PreparedEpisode;
+use super::depth::{DEPTH_CODEC, DEPTH_PIX_FMT, DepthVideoMeta, depth_key};
 use super::stats::FeatureStats;
+use super::{PreparedEpisode, VideoPart};
 use crate::error::DatasetError;
 
 /// A camera feature of the dataset, from its first episode's video part.
@@ -116,7 +117,7 @@ pub enum VideoMeta {
     /// LeRobot v2.1.
     V21(VideoMetaV21),
     /// A depth map (LeRobot v3.0), as lerobot 0.6.1 describes it.
-    Depth(super::depth::DepthVideoMeta),
+    Depth(DepthVideoMeta),
 }
 
 /// A LeRobot v3.0 video feature's `info`.
@@ -451,4 +452,64 @@ pub(crate) fn stats_json(s: &FeatureStats, image: bool) -> Value {
     }
     m.insert("count".into(), json!([s.count]));
     Value::Object(m)
+}
+/// The depth camera features of a dataset whose first episode is `first` (from its depth
+/// parts' encoded videos), named `<camera>_depth`.
+pub(crate) fn depth_camera_specs(first: &PreparedEpisode) -> Vec<CameraSpec> {
+    first
+        .depth
+        .iter()
+        .map(|d| CameraSpec {
+            name: format!("{}_depth", d.name),
+            key: depth_key(&d.name),
+            width: d.width as u32,
+            height: d.height as u32,
+            codec: DEPTH_CODEC.into(),
+            pix_fmt: DEPTH_PIX_FMT.into(),
+            copied: false,
+        })
+        .collect()
+}
+
+/// The encoded depth videos of `ep`, checked against the dataset's depth features.
+pub(crate) fn encoded_depth_parts<'a>(
+    ep: &'a PreparedEpisode,
+    specs: &[CameraSpec],
+) -> Result<Vec<&'a VideoPart>, DatasetError> {
+    let names: Vec<&str> = ep.depth.iter().map(|d| d.name.as_str()).collect();
+    let want: Vec<&str> = specs
+        .iter()
+        .map(|s| s.name.trim_end_matches("_depth"))
+        .collect();
+    if names != want {
+        return Err(DatasetError::episode(
+            &ep.id,
+            format!("depth of cameras {names:?} differs from the dataset's {want:?}"),
+        ));
+    }
+    let mut parts = Vec::new();
+    for (d, s) in ep.depth.iter().zip(specs) {
+        let Some(v) = d.video.as_ref() else {
+            return Err(DatasetError::episode(
+                &ep.id,
+                format!("the depth of camera '{}' was not encoded", d.name),
+            ));
+        };
+        if (d.width as u32, d.height as u32) != (s.width, s.height) {
+            return Err(DatasetError::episode(
+                &ep.id,
+                format!(
+                    "depth of camera '{}' ('{}'): {}x{} differs from the dataset's {}x{}",
+                    d.name,
+                    d.path.display(),
+                    d.width,
+                    d.height,
+                    s.width,
+                    s.height
+                ),
+            ));
+        }
+        parts.push(v);
+    }
+    Ok(parts)
 }

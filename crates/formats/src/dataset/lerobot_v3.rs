@@ -201,7 +201,7 @@ impl V3Writer {
         fs_err::create_dir_all(root.join("meta"))?;
         let mut cameras = CameraSpec::of(first);
         let colour = cameras.len();
-        cameras.extend(super::depth::camera_specs(first));
+        cameras.extend(super::lerobot_info::depth_camera_specs(first));
         Ok(Self {
             videos: cameras.iter().map(|_| VideoFile::default()).collect(),
             root,
@@ -259,7 +259,7 @@ impl V3Writer {
         let fps = f64::from(self.fps);
         let vcap = (self.options.video_file_mb * 1e6) as u64;
         let mut videos = Vec::new();
-        let depth = super::depth::encoded_parts(ep, &self.cameras[self.colour..])?;
+        let depth = super::lerobot_info::encoded_depth_parts(ep, &self.cameras[self.colour..])?;
         for (i, part) in ep.videos.iter().chain(depth).enumerate() {
             if !self.videos[i].parts.is_empty() && self.videos[i].bytes + part.bytes >= vcap {
                 self.close_video(i)?;
@@ -550,7 +550,7 @@ impl DatasetWriter for V3Writer {
                 )
             },
         )?;
-        super::depth::encoded_parts(ep, &self.cameras[self.colour..]).map(drop)
+        super::lerobot_info::encoded_depth_parts(ep, &self.cameras[self.colour..]).map(drop)
     }
 
     /// Appends one episode: its rows to the current data file (one row group), its video
