@@ -10,17 +10,17 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dexjoco_core::{Episode, FrameArray, TaskSpec};
-use dexjoco_sim::dynamics::{DynamicsValue, apply_dynamics};
-use dexjoco_sim::randomize::{VisualSample, apply_visuals};
+use dexjoco_sim::dynamics::apply_dynamics;
+use dexjoco_sim::randomize::apply_visuals;
 use dexjoco_sim::{CameraView, EnvOptions, Renderer, Scene, TaskEnv};
-use dexjoco_video::{Codec, VideoSpec, VideoWriter};
+use dexjoco_video::VideoWriter;
 
 use crate::chunks::{ActionBuffer, stay_action, to_env_action};
 use crate::error::{EvalError, sim_err};
 use crate::inference::Inference;
 use crate::observe::{Observation, Privileged, Rgb, SIDE, policy_state, resize_with_pad};
 use crate::output::EpisodeRecord;
-use crate::stage::{Stage, View};
+use crate::stage::{Draws, Stage, View, episode_seed};
 
 /// click_mouse's warm-up: 30 steps of this action (policy layout) before the first
 /// observation, "to align with the dataset" (the reference client).
@@ -48,7 +48,6 @@ const CLICK_MOUSE_WARMUP: [f64; 22] = [
     0.0,
     0.0,
 ];
-pub(crate) const WARMUP_STEPS: usize = 30;
 
 /// The control rate the reference paces its loop to.
 const HZ: f64 = 30.0;
@@ -65,12 +64,6 @@ struct Rollout {
     pressed: Vec<Vec<u8>>,
 }
 
-/// The episode's own draws (with `--rand-full`, `--randomize-dynamics`).
-pub(crate) struct Draws {
-    pub(crate) visuals: Option<VisualSample>,
-    pub(crate) dynamics: Option<Vec<DynamicsValue>>,
-}
-
 /// Runs episode `k` from `state0` into the staging folder `dir` (videos, rollout);
 /// returns its record.
 pub(crate) fn run_episode(
@@ -82,7 +75,7 @@ pub(crate) fn run_episode(
     server_metadata: &serde_json::Value,
 ) -> Result<EpisodeRecord, EvalError> {
     let what = format!("{} episode {k}", stage.spec.id);
-    let seed = crate::run::episode_seed(stage.config.options.seed, k);
+    let seed = episode_seed(stage.config.options.seed, k);
     let draws = stage.draws(seed)?;
     let scene = match &draws.dynamics {
         Some(values) => Scene {
@@ -377,14 +370,4 @@ fn write_rollout(dir: &Path, spec: &TaskSpec, r: &Rollout, k: usize) -> Result<(
     ep.compute_action_rotvec(spec.setup).map_err(bad)?;
     dexjoco_formats::raw::write_replay_zarr(dir, &ep)?;
     Ok(())
-}
-
-/// The codec of the episode videos (H.264 as the DexJoCo recorder).
-pub(crate) fn video_spec(width: u32, height: u32) -> VideoSpec {
-    VideoSpec {
-        width,
-        height,
-        fps: 30,
-        codec: Codec::DEXJOCO,
-    }
 }

@@ -29,5 +29,6 @@ pub mod wire;
 pub use config::{ACTION_HORIZON, EvalConfig, EvalOptions, EvalTask, RANDOM_CAMERA};
 pub use error::{EvalError, one_line};
 pub use output::EpisodeRecord;
-pub use run::{EvalSummary, Executor, episode_seed, evaluate, initial_states, serve_worker};
+pub use run::{EvalSummary, Executor, evaluate, initial_states, serve_worker};
+pub use stage::episode_seed;
 pub use stage::run_spec;

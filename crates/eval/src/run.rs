@@ -12,7 +12,6 @@ use dexjoco_formats::DirLock;
 use dexjoco_sim::{SceneSource, TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 use crate::config::EvalConfig;
 use crate::episode::run_episode;
@@ -24,18 +23,6 @@ use crate::output::{
 };
 use crate::protocol::PolicyClient;
 use crate::stage::{Stage, run_spec};
-
-/// The seed of episode `k`'s own draws (visual and dynamics randomization): the first 8
-/// bytes of SHA-256 over (run seed, episode), so an episode's draw never depends on which
-/// others run, nor on the worker count.
-pub fn episode_seed(seed: u64, k: usize) -> u64 {
-    let mut h = Sha256::new();
-    h.update(b"dexjoco-eval/v1");
-    h.update(seed.to_le_bytes());
-    h.update((k as u64).to_le_bytes());
-    let d = h.finalize();
-    u64::from_le_bytes(d[..8].try_into().expect("8 bytes"))
-}
 
 /// The initial states of the run's episodes: the given ones, else drawn one after the
 /// other from `seed` as `dexjoco-data scripted --seed` draws its resets (so a scripted

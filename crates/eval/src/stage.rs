@@ -5,13 +5,13 @@
 use std::path::Path;
 
 use dexjoco_core::{Node, TaskSpec};
-use dexjoco_sim::dynamics::{dynamics_seed, sample_dynamics};
+use dexjoco_sim::dynamics::{DynamicsValue, dynamics_seed, sample_dynamics};
 use dexjoco_sim::randomize::{CameraPool, TABLE_GEOM, TableLibrary, VisualSample};
 use dexjoco_sim::{RenderQuality, RenderSettings, Renderer, Scene, SceneSource, load_task_scene};
-use dexjoco_video::{VideoError, VideoWriter};
+use dexjoco_video::{Codec, VideoError, VideoSpec, VideoWriter};
+use sha2::{Digest, Sha256};
 
 use crate::config::{EvalConfig, RANDOM_CAMERA};
-use crate::episode::{Draws, video_spec};
 use crate::error::{EvalError, sim_err};
 
 /// Where an env image key's camera is.
@@ -57,6 +57,37 @@ pub fn run_spec(config: &EvalConfig) -> Result<TaskSpec, EvalError> {
         }
     }
     Ok(spec)
+}
+
+/// Steps of click_mouse's warm-up before the first observation (the reference client).
+pub(crate) const WARMUP_STEPS: usize = 30;
+
+/// The episode's own draws (with `--rand-full`, `--randomize-dynamics`).
+pub(crate) struct Draws {
+    pub(crate) visuals: Option<VisualSample>,
+    pub(crate) dynamics: Option<Vec<DynamicsValue>>,
+}
+
+/// The codec of the episode videos (H.264 as the DexJoCo recorder).
+pub(crate) fn video_spec(width: u32, height: u32) -> VideoSpec {
+    VideoSpec {
+        width,
+        height,
+        fps: 30,
+        codec: Codec::DEXJOCO,
+    }
+}
+
+/// The seed of episode `k`'s own draws (visual and dynamics randomization): the first 8
+/// bytes of SHA-256 over (run seed, episode), so an episode's draw never depends on which
+/// others run, nor on the worker count.
+pub fn episode_seed(seed: u64, k: usize) -> u64 {
+    let mut h = Sha256::new();
+    h.update(b"dexjoco-eval/v1");
+    h.update(seed.to_le_bytes());
+    h.update((k as u64).to_le_bytes());
+    let d = h.finalize();
+    u64::from_le_bytes(d[..8].try_into().expect("8 bytes"))
 }
 
 /// A run's shared state in one process.
@@ -136,7 +167,7 @@ impl Stage {
     /// Steps of click_mouse's warm-up (0 for other tasks).
     pub(crate) fn warmup_steps(&self) -> usize {
         if self.spec.id == "click_mouse" {
-            crate::episode::WARMUP_STEPS
+            WARMUP_STEPS
         } else {
             0
         }
