@@ -1,0 +1,75 @@
+//! Rerun opens what `convert` writes: a LeRobot v3.0 dataset made from a sample
+//! demonstration (augment: two randomized replays and the wrist camera) loads through
+//! Rerun's own LeRobot importer (`rerun <dataset>`, rerun-sdk 0.41 in the test venv)
+//! with every episode as a recording, and in each the action and state series, the task
+//! text and both cameras' videos cover every frame.
+
+mod common;
+
+use std::process::{Command, Output};
+
+use common::dexjoco;
+
+fn ok(cmd: &mut Command) -> Output {
+    let o = cmd.output().unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{cmd:?}: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+#[test]
+fn rerun_loads_every_episode_with_its_series_and_videos() {
+    let tmp = tempfile::tempdir().unwrap();
+    let work = tmp.path().join("work");
+    let wd = ["--work-dir", work.to_str().unwrap()];
+    let demo = dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000001");
+    ok(dexjoco().args(wd).args(["-q", "ingest"]).arg(&demo));
+    ok(dexjoco()
+        .args(wd)
+        .args(["-q", "augment"])
+        .arg(work.join("ingest"))
+        .args(["--replays", "2", "--size", "48", "--quality", "fast"])
+        .args(["--camera", "handcam_rgb"]));
+    ok(dexjoco().args(wd).args(["-q", "convert"]));
+    let dataset = work.join("convert/lerobot-v3");
+    let info: serde_json::Value =
+        serde_json::from_slice(&fs_err::read(dataset.join("meta/info.json")).unwrap()).unwrap();
+    let episodes = info["total_episodes"].as_u64().unwrap() as usize;
+    let frames = info["total_frames"].as_u64().unwrap();
+    assert_eq!(episodes, 2);
+
+    let rrd = tmp.path().join("dataset.rrd");
+    let report = dexjoco_testkit::run_python(
+        "rerun_import.py",
+        &[dataset.to_str().unwrap(), rrd.to_str().unwrap()],
+    );
+    let report: serde_json::Value = serde_json::from_str(report.trim()).unwrap();
+    assert_eq!(
+        report["recordings"],
+        serde_json::json!(["episode_0", "episode_1"]),
+        "{report}"
+    );
+    let contents = report["contents"].as_array().unwrap();
+    assert_eq!(contents.len(), episodes, "{report}");
+    let mut total = 0;
+    for rec in contents {
+        let length = rec["scalars"]["action"].as_u64().unwrap();
+        assert!(length > 100, "{rec}");
+        assert_eq!(rec["scalars"]["observation.state"], length, "{rec}");
+        assert_eq!(rec["task_rows"], length, "{rec}");
+        for camera in ["third_person", "handcam_rgb"] {
+            assert_eq!(
+                rec["video_samples"][format!("observation.images.{camera}")],
+                length,
+                "{camera}: {rec}"
+            );
+        }
+        total += length;
+    }
+    assert_eq!(total, frames, "{report}");
+}
