@@ -37,7 +37,7 @@ row() {
 }
 # Steps our episodes ran (warm-up included, as the reference's env_step counts them).
 our_steps() {
-  python3 -c "import json, pathlib, sys; print(sum(json.loads(p.read_text())['steps'] + json.loads(p.read_text())['warmup_steps'] for p in pathlib.Path(sys.argv[1]).glob('episode_*/episode.json')))" "$1"
+  python3 -c "import json, pathlib, sys; rs = [json.loads(p.read_text()) for p in pathlib.Path(sys.argv[1]).glob('episode_*/episode.json')]; print(sum(r['steps'] + r['warmup_steps'] for r in rs))" "$1"
 }
 
 echo "| client | episodes | steps | seconds | steps / s | 1000-step episodes / min |"

@@ -11,7 +11,7 @@ use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 
-use common::dexjoco;
+use common::{dexjoco, free_port, said};
 use dexjoco_core::TaskSet;
 
 /// A policy server process (killed on drop).
@@ -23,11 +23,7 @@ struct Server {
 impl Server {
     /// Starts `policy_server.py <args>` on a free port; returns once it listens.
     fn start(args: &[&str]) -> Self {
-        let port = std::net::TcpListener::bind("127.0.0.1:0")
-            .unwrap()
-            .local_addr()
-            .unwrap()
-            .port();
+        let port = free_port();
         let script = dexjoco_testkit::workspace_root().join("tests/python/policy_server.py");
         let mut child = Command::new(dexjoco_testkit::reference_python())
             .arg(script)
@@ -61,15 +57,6 @@ fn run(cmd: &mut Command) -> Output {
     cmd.output().unwrap()
 }
 
-fn said(o: &Output) -> String {
-    format!(
-        "exit {:?}\n{}{}",
-        o.status.code(),
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
 /// `eval` of one task against the server, small renders, no videos.
 fn eval(server: &Server, task: &str, out: &Path, extra: &[&str]) -> Output {
     run(dexjoco()
@@ -80,6 +67,24 @@ fn eval(server: &Server, task: &str, out: &Path, extra: &[&str]) -> Output {
         .arg("--output")
         .arg(out)
         .args(extra))
+}
+
+/// `eval` of one episode of seed 3 with the modelled latency `latency`.
+fn eval_latency(server: &Server, task: &str, out: &Path, latency: usize, extra: &[&str]) -> Output {
+    let latency = latency.to_string();
+    let args = [
+        &[
+            "--episodes",
+            "1",
+            "--seed",
+            "3",
+            "--latency-steps",
+            &latency,
+        ][..],
+        extra,
+    ]
+    .concat();
+    eval(server, task, out, &args)
 }
 
 /// `scripted`'s plan of the first reset of `seed` (None when it did not succeed).
@@ -240,20 +245,12 @@ fn with_a_latency_the_chunks_are_aligned_to_their_observations_on_the_reference_
     let latency = 4;
     for (task, plan) in tasks.iter().zip(&planned) {
         let out = tmp.path().join("eval").join(task);
-        let o = eval(
+        let o = eval_latency(
             &server,
             task,
             &out,
-            &[
-                "--episodes",
-                "1",
-                "--seed",
-                "3",
-                "--latency-steps",
-                &latency.to_string(),
-                "--scene-dir",
-                scene.to_str().unwrap(),
-            ],
+            latency,
+            &["--scene-dir", scene.to_str().unwrap()],
         );
         assert_eq!(o.status.code(), Some(0), "{task}: {}", said(&o));
         let (dir, rec) = episode(&out, 0);
@@ -288,19 +285,7 @@ fn overlapping_chunks_are_merged_as_the_reference_clients_buffer_merges_them() {
             log.to_str().unwrap(),
         ]);
         let out = tmp.path().join("eval").join(task);
-        let o = eval(
-            &server,
-            task,
-            &out,
-            &[
-                "--episodes",
-                "1",
-                "--seed",
-                "3",
-                "--latency-steps",
-                &latency.to_string(),
-            ],
-        );
+        let o = eval_latency(&server, task, &out, latency, &[]);
         assert_eq!(o.status.code(), Some(0), "{task}: {}", said(&o));
         let (dir, rec) = episode(&out, 0);
         let merged = dexjoco_testkit::run_reference_python(
@@ -357,11 +342,7 @@ fn names(dir: &Path) -> Vec<String> {
 fn a_bad_server_is_named_and_leaves_no_half_episode() {
     let tmp = tempfile::tempdir().unwrap();
     // Nobody listening: named, nothing written.
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let port = free_port();
     let out = tmp.path().join("none");
     let o = run(dexjoco()
         .args([

@@ -8,25 +8,9 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Command, Stdio};
 
-use common::dexjoco;
-
-fn said(o: &Output) -> String {
-    format!(
-        "exit {:?}\n{}{}",
-        o.status.code(),
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-/// Runs a command, asserting it succeeds; returns its output.
-fn ok(cmd: &mut Command) -> Output {
-    let o = cmd.output().unwrap();
-    assert_eq!(o.status.code(), Some(0), "{cmd:?}: {}", said(&o));
-    o
-}
+use common::{dexjoco, free_port, said, sample_lerobot_dataset, succeeds};
 
 /// The test venv's console script `name` (beside its Python).
 fn venv_script(name: &str) -> PathBuf {
@@ -71,51 +55,29 @@ impl Drop for ExampleServer {
     }
 }
 
-/// The dataset: one sample demonstration, one randomized replay, small renders, as
-/// LeRobot v3.0.
-fn dataset(work: &Path) -> PathBuf {
-    let wd = ["--work-dir", work.to_str().unwrap()];
-    let demo = dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000");
-    ok(dexjoco().args(wd).args(["-q", "ingest"]).arg(&demo));
-    ok(dexjoco()
-        .args(wd)
-        .args(["-q", "augment"])
-        .arg(work.join("ingest"))
-        .args([
-            "--replays",
-            "1",
-            "--size",
-            "64",
-            "--quality",
-            "fast",
-            "--camera",
-            "handcam_rgb",
-        ]));
-    ok(dexjoco().args(wd).args(["-q", "convert"]));
-    work.join("convert/lerobot-v3")
-}
-
 /// LeRobot's own trainer, a few ACT steps on the CPU; returns the checkpoint folder.
 fn train(dataset: &Path, train: &Path) -> PathBuf {
-    let o = ok(Command::new(venv_script("lerobot-train"))
-        .env("HF_HUB_OFFLINE", "1")
-        .env("WANDB_MODE", "disabled")
-        .arg("--dataset.repo_id=local/click_mouse")
-        .arg(format!("--dataset.root={}", dataset.display()))
-        .args([
-            "--policy.type=act",
-            "--policy.device=cpu",
-            "--policy.push_to_hub=false",
-            "--policy.pretrained_backbone_weights=null",
-            "--policy.chunk_size=30",
-            "--policy.n_action_steps=30",
-            "--batch_size=2",
-            "--steps=2",
-            "--save_freq=2",
-            "--num_workers=0",
-            "--wandb.enable=false",
-        ])
-        .arg(format!("--output_dir={}", train.display())));
+    let o = succeeds(
+        Command::new(venv_script("lerobot-train"))
+            .env("HF_HUB_OFFLINE", "1")
+            .env("WANDB_MODE", "disabled")
+            .arg("--dataset.repo_id=local/click_mouse")
+            .arg(format!("--dataset.root={}", dataset.display()))
+            .args([
+                "--policy.type=act",
+                "--policy.device=cpu",
+                "--policy.push_to_hub=false",
+                "--policy.pretrained_backbone_weights=null",
+                "--policy.chunk_size=30",
+                "--policy.n_action_steps=30",
+                "--batch_size=2",
+                "--steps=2",
+                "--save_freq=2",
+                "--num_workers=0",
+                "--wandb.enable=false",
+            ])
+            .arg(format!("--output_dir={}", train.display())),
+    );
     let checkpoint = train.join("checkpoints/last/pretrained_model");
     assert!(
         checkpoint.join("model.safetensors").is_file(),
@@ -128,15 +90,17 @@ fn train(dataset: &Path, train: &Path) -> PathBuf {
 #[test]
 fn a_lerobot_policy_trained_on_our_dataset_is_served_by_the_example_and_evaluated() {
     let tmp = tempfile::tempdir().unwrap();
-    let dataset = dataset(&tmp.path().join("work"));
+    // The dataset: one sample demonstration, one randomized replay, 64 px.
+    let dataset = sample_lerobot_dataset(
+        &tmp.path().join("work"),
+        "click_mouse/episode_000000",
+        1,
+        64,
+    );
     let checkpoint = train(&dataset, &tmp.path().join("train_act"));
 
     // The example serves it; eval runs one episode against it.
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let port = free_port();
     let log = tmp.path().join("server.log");
     let _server = ExampleServer::start(&checkpoint, port, &log);
     let out = tmp.path().join("eval/click_mouse_rand_full_seed0");
@@ -187,10 +151,12 @@ fn a_lerobot_policy_trained_on_our_dataset_is_served_by_the_example_and_evaluate
     assert!(record["chunks"].as_u64().unwrap() > 0, "{record}");
 
     // stats reads the output as it is.
-    let o = ok(dexjoco()
-        .args(["stats", "--success-table"])
-        .arg(tmp.path().join("eval"))
-        .arg("--out")
-        .arg(tmp.path().join("stats")));
+    let o = succeeds(
+        dexjoco()
+            .args(["stats", "--success-table"])
+            .arg(tmp.path().join("eval"))
+            .arg("--out")
+            .arg(tmp.path().join("stats")),
+    );
     assert!(said(&o).contains("Click Mouse"), "{}", said(&o));
 }

@@ -6,37 +6,17 @@
 
 mod common;
 
-use std::process::{Command, Output};
-
-use common::dexjoco;
-
-fn ok(cmd: &mut Command) -> Output {
-    let o = cmd.output().unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{cmd:?}: {}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    o
-}
+use common::sample_lerobot_dataset;
 
 #[test]
 fn rerun_loads_every_episode_with_its_series_and_videos() {
     let tmp = tempfile::tempdir().unwrap();
-    let work = tmp.path().join("work");
-    let wd = ["--work-dir", work.to_str().unwrap()];
-    let demo = dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000001");
-    ok(dexjoco().args(wd).args(["-q", "ingest"]).arg(&demo));
-    ok(dexjoco()
-        .args(wd)
-        .args(["-q", "augment"])
-        .arg(work.join("ingest"))
-        .args(["--replays", "2", "--size", "48", "--quality", "fast"])
-        .args(["--camera", "handcam_rgb"]));
-    ok(dexjoco().args(wd).args(["-q", "convert"]));
-    let dataset = work.join("convert/lerobot-v3");
+    let dataset = sample_lerobot_dataset(
+        &tmp.path().join("work"),
+        "click_mouse/episode_000001",
+        2,
+        48,
+    );
     let info: serde_json::Value =
         serde_json::from_slice(&fs_err::read(dataset.join("meta/info.json")).unwrap()).unwrap();
     let episodes = info["total_episodes"].as_u64().unwrap() as usize;

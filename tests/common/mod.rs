@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command};
+use std::process::{Child, Command, Output};
 
 /// Variables that change what the binary does: removed from every test's environment, so
 /// that a developer's shell (or a Slurm / Kubernetes job running the tests) cannot leak in.
@@ -33,6 +33,58 @@ pub fn dexjoco() -> Command {
         c.env_remove(var);
     }
     c
+}
+
+/// A command's exit code and both streams, for assertion messages.
+pub fn said(o: &Output) -> String {
+    format!(
+        "exit {:?}\n{}{}",
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Runs `cmd`, asserting it exits 0; returns its output.
+pub fn succeeds(cmd: &mut Command) -> Output {
+    let o = cmd.output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{cmd:?}: {}", said(&o));
+    o
+}
+
+/// A TCP port on 127.0.0.1 that nothing listens on right now.
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// A small LeRobot v3.0 dataset made the user's way in `work`: the sample demonstration
+/// `demo` (under datasets/demos/) ingested, augmented `replays` times at `size` px in the
+/// fast quality with the wrist camera, converted; returns the dataset folder.
+pub fn sample_lerobot_dataset(work: &Path, demo: &str, replays: u32, size: u32) -> PathBuf {
+    let wd = ["--work-dir", work.to_str().unwrap()];
+    let demo = dexjoco_testkit::workspace_root()
+        .join("datasets/demos")
+        .join(demo);
+    succeeds(dexjoco().args(wd).args(["-q", "ingest"]).arg(&demo));
+    succeeds(
+        dexjoco()
+            .args(wd)
+            .args(["-q", "augment"])
+            .arg(work.join("ingest"))
+            .args([
+                "--replays",
+                &replays.to_string(),
+                "--size",
+                &size.to_string(),
+            ])
+            .args(["--quality", "fast", "--camera", "handcam_rgb"]),
+    );
+    succeeds(dexjoco().args(wd).args(["-q", "convert"]));
+    work.join("convert/lerobot-v3")
 }
 
 /// A folder of DexJoCo raw episode folders (replay.zarr + videos/) for `convert`.

@@ -67,6 +67,11 @@ def hold(state: np.ndarray) -> np.ndarray:
     return np.concatenate(out)
 
 
+def held_chunk(obs) -> np.ndarray:
+    """A whole chunk that holds the observation's pose."""
+    return np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))
+
+
 def _chunk_of(rows: np.ndarray, step: int) -> np.ndarray:
     idx = np.minimum(np.arange(step, step + HORIZON), len(rows) - 1)
     return rows[idx]
@@ -115,14 +120,14 @@ class Oracle:
                     with open(self.log, "a") as f:
                         f.write(json.dumps({"plan": index, "step": step, "chunk": chunk.tolist()}) + "\n")
                 return {"actions": chunk}
-        return {"actions": np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))}
+        return {"actions": held_chunk(obs)}
 
 
 class Hold:
     """Answers with the observation's pose held."""
 
     def infer(self, obs):
-        return {"actions": np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))}
+        return {"actions": held_chunk(obs)}
 
 
 class Recorder:
@@ -146,7 +151,7 @@ class Recorder:
                 tmp = self.out.with_suffix(".tmp.npz")
                 np.savez(tmp, **arrays)
                 os.replace(tmp, self.out)
-        return {"actions": np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))}
+        return {"actions": held_chunk(obs)}
 
 
 class Misbehave:
@@ -157,7 +162,7 @@ class Misbehave:
 
     def infer(self, obs):
         self.n += 1
-        good = np.tile(hold(np.asarray(obs["state"])), (HORIZON, 1))
+        good = held_chunk(obs)
         if self.n <= self.after:
             return {"actions": good}
         if self.how == "shape":

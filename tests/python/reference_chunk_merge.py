@@ -24,14 +24,13 @@ from pathlib import Path
 import dexjoco_reference as ref  # pins the arithmetic, makes the scratch copy
 
 import numpy as np  # noqa: E402
+from scipy.spatial.transform import Rotation as R  # noqa: E402
 
 
 def difference(a: np.ndarray, b: np.ndarray) -> float:
     """The largest difference of two actions: positions and hand joints value by value,
     each arm's rotation as the angle between the two (a rotation vector near pi and its
     antipode are one rotation)."""
-    from scipy.spatial.transform import Rotation as R
-
     worst = 0.0
     for arm in range(len(a) // 22):
         base = arm * 22

@@ -7,8 +7,9 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{CoreError, Location};
-use crate::layout::ArmSetup;
+use crate::layout::{ArmSetup, DEXJOCO_FPS};
 use crate::rotation::action_to_rotvec;
+use crate::task_spec::TaskSpec;
 
 /// A per-frame array: `len()` frames of `width` values each, row-major.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -189,6 +190,35 @@ impl Episode {
             width: 1,
             data: (0..frames).map(|k| k as f64 / fps).collect(),
         }
+    }
+
+    /// A recorded rollout of `spec`'s task at DexJoCo's 30 Hz: `actions[t]` executed
+    /// from `states[t]`, with regular timestamps, the task's prompt and `action_rotvec`
+    /// derived from the actions; no cameras.
+    pub fn from_rollout(
+        id: String,
+        spec: &TaskSpec,
+        actions: &[Vec<f64>],
+        states: &[Vec<f64>],
+    ) -> Result<Self, CoreError> {
+        let arrays = BTreeMap::from([
+            (Self::ACTION.to_owned(), FrameArray::from_rows(actions)?),
+            (Self::STATE.to_owned(), FrameArray::from_rows(states)?),
+            (
+                Self::TIMESTAMP.to_owned(),
+                Self::regular_timestamps(actions.len(), DEXJOCO_FPS),
+            ),
+        ]);
+        let mut ep = Self {
+            id,
+            task: spec.id.clone(),
+            prompt: spec.prompt.clone(),
+            fps: DEXJOCO_FPS,
+            arrays,
+            cameras: Vec::new(),
+        };
+        ep.compute_action_rotvec(spec.setup)?;
+        Ok(ep)
     }
 
     /// Computes `action_rotvec` from `action` (per arm, normalized quaternion to rotation

@@ -9,7 +9,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use dexjoco_core::{Episode, FrameArray, TaskSpec};
+use dexjoco_core::{Episode, TaskSpec};
 use dexjoco_sim::dynamics::apply_dynamics;
 use dexjoco_sim::randomize::apply_visuals;
 use dexjoco_sim::{CameraView, EnvOptions, Renderer, Scene, TaskEnv};
@@ -344,30 +344,8 @@ impl Loop<'_> {
 /// The rollout as a DexJoCo raw episode (`replay.zarr`: the executed actions, warm-up
 /// included, and the state before each).
 fn write_rollout(dir: &Path, spec: &TaskSpec, r: &Rollout, k: usize) -> Result<(), EvalError> {
-    let bad = |e: dexjoco_core::CoreError| EvalError::Worker(format!("episode {k}: {e}"));
-    let n = r.actions.len();
-    let mut arrays = std::collections::BTreeMap::new();
-    arrays.insert(
-        Episode::ACTION.to_owned(),
-        FrameArray::from_rows(&r.actions).map_err(bad)?,
-    );
-    arrays.insert(
-        Episode::STATE.to_owned(),
-        FrameArray::from_rows(&r.states).map_err(bad)?,
-    );
-    arrays.insert(
-        Episode::TIMESTAMP.to_owned(),
-        Episode::regular_timestamps(n, dexjoco_core::DEXJOCO_FPS),
-    );
-    let mut ep = Episode {
-        id: format!("episode_{k:02}"),
-        task: spec.id.clone(),
-        prompt: spec.prompt.clone(),
-        fps: dexjoco_core::DEXJOCO_FPS,
-        arrays,
-        cameras: Vec::new(),
-    };
-    ep.compute_action_rotvec(spec.setup).map_err(bad)?;
+    let ep = Episode::from_rollout(format!("episode_{k:02}"), spec, &r.actions, &r.states)
+        .map_err(|e| EvalError::Worker(format!("episode {k}: {e}")))?;
     dexjoco_formats::raw::write_replay_zarr(dir, &ep)?;
     Ok(())
 }

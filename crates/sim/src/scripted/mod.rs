@@ -5,9 +5,7 @@
 //! per-task planners are built from its motions (straight target moves with a fixed
 //! orientation and hand pose, holds, guarded moves that stop on a condition).
 
-use std::collections::BTreeMap;
-
-use dexjoco_core::{Episode, FrameArray, HAND_DOF, NameKind, TaskSpec};
+use dexjoco_core::{Episode, HAND_DOF, NameKind, TaskSpec};
 
 use crate::checker::name_id;
 use crate::env::{EnvOptions, TaskEnv};
@@ -327,32 +325,8 @@ impl Recorder {
 
     /// The recorded episode (frames up to and including the success step).
     pub fn into_episode(self, id: &str) -> Result<Episode, SimError> {
-        let spec = self.env.spec().clone();
-        let bad = |e: dexjoco_core::CoreError| SimError::Spec(e.to_string());
-        let n = self.actions.len();
-        let mut arrays = BTreeMap::new();
-        arrays.insert(
-            Episode::ACTION.to_owned(),
-            FrameArray::from_rows(&self.actions).map_err(bad)?,
-        );
-        arrays.insert(
-            Episode::STATE.to_owned(),
-            FrameArray::from_rows(&self.states).map_err(bad)?,
-        );
-        arrays.insert(
-            Episode::TIMESTAMP.to_owned(),
-            Episode::regular_timestamps(n, 30.0),
-        );
-        let mut ep = Episode {
-            id: id.to_owned(),
-            task: spec.id.clone(),
-            prompt: spec.prompt.clone(),
-            fps: 30.0,
-            arrays,
-            cameras: Vec::new(),
-        };
-        ep.compute_action_rotvec(spec.setup).map_err(bad)?;
-        Ok(ep)
+        Episode::from_rollout(id.to_owned(), self.env.spec(), &self.actions, &self.states)
+            .map_err(|e| SimError::Spec(e.to_string()))
     }
 }
 
