@@ -145,6 +145,16 @@ if ((want_python)); then
   fi
   echo "$VENV/bin/python" > "$ROOT/.deps/python-path"
 
+  # imageio-ffmpeg's wheel, for the wheel test's `pip install --no-index` of the
+  # `dexjoco-data[ffmpeg]` extra (the version the readers' venv pins).
+  ffmpeg_pin="$(grep -E '^imageio-ffmpeg==' "$req")"
+  WHEELHOUSE="${XDG_CACHE_HOME:-$HOME/.cache}/dexjoco-data/wheelhouse"
+  if ! ls "$WHEELHOUSE"/imageio_ffmpeg-"${ffmpeg_pin#*==}"-*.whl >/dev/null 2>&1; then
+    log "downloading $ffmpeg_pin into $WHEELHOUSE"
+    "$VENV/bin/python" -m pip download -q --no-deps --only-binary :all: -d "$WHEELHOUSE" "$ffmpeg_pin"
+  fi
+  echo "$WHEELHOUSE" > "$ROOT/.deps/wheelhouse-path"
+
   # The DexJoCo reference environments (parity tests) pin numpy 1.26 and Python 3.11:
   # a second, small venv (no torch), from Debian 12's own python3.11 when present.
   ref_req="$ROOT/tests/python/reference-requirements.txt"

@@ -37,8 +37,8 @@ fn exe_dir() -> Option<PathBuf> {
     exe.parent().map(Path::to_path_buf)
 }
 
-/// The bundle's `share/dexjoco-data` when the binary runs from an extracted release
-/// bundle (`bin/dexjoco-data`).
+/// `share/dexjoco-data` beside the binary's `bin/`: an extracted release bundle, or the
+/// Python environment the wheel was installed into.
 fn bundle_share() -> Option<PathBuf> {
     Some(exe_dir()?.join("../share/dexjoco-data")).filter(|p| p.is_dir())
 }
@@ -85,8 +85,12 @@ pub fn data_dir() -> Option<Located> {
     first(
         DATA_ENV,
         vec![
-            bundle_share()
-                .map(|s| Located::new(s.join("datasets"), "the bundle beside the binary")),
+            bundle_share().map(|s| {
+                Located::new(
+                    s.join("datasets"),
+                    "share/dexjoco-data beside the binary (release bundle or pip install)",
+                )
+            }),
             checkout_of_binary()
                 .map(|c| Located::new(c.join("datasets"), "the checkout the binary was built in")),
             Some(Located::new(

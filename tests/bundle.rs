@@ -15,29 +15,6 @@ fn root() -> PathBuf {
     dexjoco_testkit::workspace_root()
 }
 
-/// Runs `script` (sh) with the checkout hidden under a tmpfs and an empty environment.
-fn hidden_checkout(script: &str) -> std::process::Output {
-    let checkout = root();
-    let wrapped = format!(
-        "mount -t tmpfs hidden '{}' && test ! -e '{}/Cargo.toml' && {script}",
-        checkout.display(),
-        checkout.display()
-    );
-    Command::new("unshare")
-        .args(["--mount", "--propagation", "private", "--"])
-        .args([
-            "env",
-            "-i",
-            "PATH=/usr/bin:/bin",
-            "HOME=/nonexistent",
-            "sh",
-            "-c",
-        ])
-        .arg(wrapped)
-        .output()
-        .expect("running unshare (util-linux)")
-}
-
 #[test]
 fn the_bundle_runs_the_sample_job_with_the_checkout_hidden_and_no_environment() {
     let tmp = tempfile::tempdir().unwrap();
@@ -98,7 +75,7 @@ fn the_bundle_runs_the_sample_job_with_the_checkout_hidden_and_no_environment() 
         work = work.display(),
         demos = demos.display(),
     );
-    let out = hidden_checkout(&script);
+    let out = common::hidden_checkout(&script);
     let doctor = fs_err::read_to_string(work.join("doctor.txt")).unwrap_or_default();
     assert!(
         out.status.success() && String::from_utf8_lossy(&out.stdout).contains("sample-job-done"),
@@ -115,7 +92,7 @@ fn the_bundle_runs_the_sample_job_with_the_checkout_hidden_and_no_environment() 
         "{doctor}"
     );
     assert!(
-        doctor.contains("datasets (from the bundle beside the binary)"),
+        doctor.contains("datasets (from share/dexjoco-data beside the binary"),
         "{doctor}"
     );
     assert!(!doctor.contains(&root().display().to_string()), "{doctor}");

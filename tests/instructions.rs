@@ -48,8 +48,10 @@ fn mcap_with_instruction(dir: &Path) {
         .unwrap();
 }
 
-/// The task text of every frame of a LeRobot dataset, as lerobot reads it.
+/// The task text of every frame of a LeRobot dataset, as lerobot reads it (after
+/// lerobot-doctor's checks pass on it).
 fn lerobot_frame_tasks(dataset: &Path) -> Vec<String> {
+    dexjoco_testkit::lerobot_doctor_passes(dataset);
     let got = dexjoco_testkit::run_python_json("lerobot_tasks.py", &[dataset.to_str().unwrap()]);
     serde_json::from_value(got["frames"].clone()).unwrap()
 }

@@ -133,11 +133,19 @@ fn doctor_fails_without_ffmpeg() {
         .arg("doctor")
         .env("PATH", &empty)
         .env_remove("DEXJOCO_FFMPEG")
+        .env_remove("IMAGEIO_FFMPEG_EXE")
+        .env_remove("VIRTUAL_ENV")
         .current_dir(dir.path())
         .output()
         .expect("binary runs");
     let stdout = text(&out.stdout);
-    assert!(stdout.contains("[MISSING] ffmpeg not on PATH"), "{stdout}");
+    assert!(stdout.contains("[MISSING] no ffmpeg"), "{stdout}");
+    // Both ways to get one: the system's package, or the wheel's extra.
+    assert!(
+        stdout.contains("apt install ffmpeg")
+            && stdout.contains("pip install 'dexjoco-data[ffmpeg]'"),
+        "{stdout}"
+    );
     assert_eq!(out.status.code(), Some(1), "{stdout}");
 }
 

@@ -180,6 +180,7 @@ fn a_task_of_ones_own_goes_through_ingest_stats_convert_and_export() {
         cli(&["convert", store, "--tasks-dir", tasks, "--out"]).arg(&dataset),
         0,
     );
+    dexjoco_testkit::lerobot_doctor_passes(&dataset);
     let read = dexjoco_testkit::run_python_json("lerobot_tasks.py", &[dataset.to_str().unwrap()]);
     assert_eq!(read["tasks"], serde_json::json!({"0": PROMPT}));
 

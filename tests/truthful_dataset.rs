@@ -290,6 +290,7 @@ fn a_labelled_depth_and_privileged_dataset_reaches_lerobot_and_diffusion_policy(
     let out = convert(&aug, &dp, "diffusion-policy");
     assert!(out.status.success(), "convert dp: {}", text(&out.stderr));
     check_info(&v3);
+    dexjoco_testkit::lerobot_doctor_passes(&v3);
     check_readers(&v3, &dp, &replays);
 
     // LeRobot v2.1 refuses --depth, before writing anything.

@@ -54,6 +54,10 @@ struct MujocoReport {
 #[derive(Debug, Serialize)]
 struct FfmpegReport {
     path: PathBuf,
+    /// Where it was found (PATH, $DEXJOCO_FFMPEG, imageio-ffmpeg).
+    found_by: String,
+    /// ffprobe beside it or on PATH; without one, ffmpeg alone is asked.
+    ffprobe: Option<PathBuf>,
     version: String,
     encoders: Vec<(String, bool)>,
 }
@@ -67,9 +71,8 @@ struct PythonReport {
 }
 
 fn ffmpeg() -> Option<FfmpegReport> {
-    let path = std::env::var_os("DEXJOCO_FFMPEG")
-        .map(PathBuf::from)
-        .or_else(|| crate::locate::which("ffmpeg"))?;
+    let found = dexjoco_video::locate_ffmpeg()?;
+    let path = found.path.clone();
     let version = Command::new(&path).arg("-version").output().ok()?;
     let version = String::from_utf8_lossy(&version.stdout)
         .lines()
@@ -92,6 +95,8 @@ fn ffmpeg() -> Option<FfmpegReport> {
         .collect();
     Some(FfmpegReport {
         path,
+        found_by: found.source.describe().to_owned(),
+        ffprobe: dexjoco_video::locate_ffprobe(),
         version,
         encoders,
     })
@@ -125,6 +130,10 @@ fn python_report() -> Option<PythonReport> {
 
 /// The encoder every command that writes videos needs.
 const REQUIRED_ENCODER: &str = "libx264";
+
+/// How to get an ffmpeg with libx264, system-wide or into the Python environment.
+const INSTALL_FFMPEG: &str = "sudo apt install ffmpeg (Debian/Ubuntu; dnf install ffmpeg from RPM Fusion on RHEL), \
+     or pip install 'dexjoco-data[ffmpeg]' (imageio-ffmpeg's static build)";
 
 /// Whether ffmpeg was found and has [`REQUIRED_ENCODER`].
 fn ffmpeg_ok(ffmpeg: Option<&FfmpegReport>) -> bool {
@@ -199,11 +208,18 @@ fn print_mujoco(mujoco: &MujocoReport, mujoco_ok: bool) {
     }
 }
 
+/// How to get EGL and a driver behind it (pip cannot bring them).
+const INSTALL_EGL: &str = "sudo apt install libegl1 libegl-mesa0 libgl1-mesa-dri (Mesa, rendering on the CPU; \
+     RHEL: dnf install mesa-libEGL mesa-dri-drivers), or the NVIDIA driver's EGL on GPU nodes";
+
 /// Each EGL device and whether it opens a context; a hint when none does.
 fn print_egl(egl: &Result<dexjoco_sim::EglProbe, String>) {
     outln!("Offscreen rendering (EGL)");
     match egl {
-        Err(e) => outln!("  [MISSING] {e}"),
+        Err(e) => {
+            outln!("  [MISSING] {e}");
+            outln!("  hint: {INSTALL_EGL}");
+        }
         Ok(probe) => {
             for d in &probe.devices {
                 let chosen = probe.selected == Some(d.index);
@@ -236,9 +252,7 @@ fn print_egl(egl: &Result<dexjoco_sim::EglProbe, String>) {
             }
             if probe.selected.is_none() {
                 outln!("  [MISSING] no device opens an offscreen OpenGL context");
-                outln!(
-                    "  hint: install Mesa (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri), or the NVIDIA driver's EGL"
-                );
+                outln!("  hint: {INSTALL_EGL}");
             }
         }
     }
@@ -248,9 +262,21 @@ fn print_egl(egl: &Result<dexjoco_sim::EglProbe, String>) {
 fn print_ffmpeg(ffmpeg: Option<&FfmpegReport>) {
     outln!("Video (ffmpeg)");
     match ffmpeg {
-        None => outln!("  [MISSING] ffmpeg not on PATH (Debian: ffmpeg)"),
+        None => {
+            outln!(
+                "  [MISSING] no ffmpeg: none on PATH, no $DEXJOCO_FFMPEG, no imageio-ffmpeg in this environment"
+            );
+            outln!("  hint: {INSTALL_FFMPEG}");
+        }
         Some(f) => {
             outln!("  [ok  ] {} ({})", f.path.display(), f.version);
+            outln!("         found: {}", f.found_by);
+            match &f.ffprobe {
+                Some(p) => outln!("         ffprobe {}", p.display()),
+                None => outln!(
+                    "         ffprobe: none beside it (ffmpeg itself is asked what a video holds)"
+                ),
+            }
             for (e, ok) in &f.encoders {
                 let mark = match (*ok, e == REQUIRED_ENCODER) {
                     (true, _) => "ok  ",
@@ -261,7 +287,7 @@ fn print_ffmpeg(ffmpeg: Option<&FfmpegReport>) {
             }
             if !ffmpeg_ok(Some(f)) {
                 outln!(
-                    "  hint: augment and render --video need {REQUIRED_ENCODER}: install Debian's ffmpeg package"
+                    "  hint: augment and render --video need {REQUIRED_ENCODER}: {INSTALL_FFMPEG}"
                 );
             }
         }

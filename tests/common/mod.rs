@@ -63,7 +63,8 @@ pub fn free_port() -> u16 {
 
 /// A small LeRobot v3.0 dataset made the user's way in `work`: the sample demonstration
 /// `demo` (under datasets/demos/) ingested, augmented `replays` times at `size` px in the
-/// fast quality with the wrist camera, converted; returns the dataset folder.
+/// fast quality with the wrist camera, converted (lerobot-doctor's checks pass on it);
+/// returns the dataset folder.
 pub fn sample_lerobot_dataset(work: &Path, demo: &str, replays: u32, size: u32) -> PathBuf {
     let wd = ["--work-dir", work.to_str().unwrap()];
     let demo = dexjoco_testkit::workspace_root()
@@ -84,7 +85,9 @@ pub fn sample_lerobot_dataset(work: &Path, demo: &str, replays: u32, size: u32) 
             .args(["--quality", "fast", "--camera", "handcam_rgb"]),
     );
     succeeds(dexjoco().args(wd).args(["-q", "convert"]));
-    work.join("convert/lerobot-v3")
+    let dataset = work.join("convert/lerobot-v3");
+    dexjoco_testkit::lerobot_doctor_passes(&dataset);
+    dataset
 }
 
 /// A folder of DexJoCo raw episode folders (replay.zarr + videos/) for `convert`.
@@ -199,4 +202,29 @@ pub fn extracted_bundle(dir: &Path) -> PathBuf {
     assert!(st.success(), "tar could not extract {}", archive.display());
     let name = archive.file_name().unwrap().to_string_lossy();
     dir.join(name.trim_end_matches(".tar.gz"))
+}
+
+/// Runs `script` (sh) in a private mount namespace with a tmpfs over the checkout
+/// (`unshare -m`; the tests run as root) and an empty environment (`env -i`, PATH
+/// /usr/bin:/bin), as on a machine that never had the checkout.
+pub fn hidden_checkout(script: &str) -> std::process::Output {
+    let checkout = dexjoco_testkit::workspace_root();
+    let wrapped = format!(
+        "mount -t tmpfs hidden '{}' && test ! -e '{}/Cargo.toml' && {script}",
+        checkout.display(),
+        checkout.display()
+    );
+    Command::new("unshare")
+        .args(["--mount", "--propagation", "private", "--"])
+        .args([
+            "env",
+            "-i",
+            "PATH=/usr/bin:/bin",
+            "HOME=/nonexistent",
+            "sh",
+            "-c",
+        ])
+        .arg(wrapped)
+        .output()
+        .expect("running unshare (util-linux)")
 }

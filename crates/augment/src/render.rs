@@ -13,7 +13,7 @@ use dexjoco_formats::npz::DepthWriter;
 use dexjoco_formats::raw;
 use dexjoco_sim::mujoco_rs::prelude::MjModel;
 use dexjoco_sim::{RenderSettings, Renderer, Scene};
-use dexjoco_video::{Codec, VideoSpec, VideoWriter};
+use dexjoco_video::{Codec, Keyframes, VideoSpec, VideoWriter};
 use serde::{Deserialize, Serialize};
 
 use crate::assets::TaskAssets;
@@ -311,6 +311,11 @@ fn open_replays(
         fps: src.episode.fps.round().max(1.0) as u32,
         codec: Codec::DEXJOCO,
     };
+    // Keyframes where convert may cut the static leading frames, so it cuts by stream copy.
+    let keyframes = Keyframes {
+        interval: None,
+        at: dexjoco_core::possible_cuts(&src.episode),
+    };
     let defects = Defects::from_env()?;
     let mut pending = Vec::new();
     for &r in &job.replays {
@@ -334,7 +339,7 @@ fn open_replays(
         let mut writers = Vec::new();
         let mut depth = Vec::new();
         for cam in cameras {
-            let w = VideoWriter::create(videos.join(format!("{cam}.mp4")), spec)
+            let w = VideoWriter::create_with(videos.join(format!("{cam}.mp4")), spec, &keyframes)
                 .map_err(video_err(id))?;
             writers.push(w);
             if config.depth {

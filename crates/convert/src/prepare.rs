@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use dexjoco_core::{ArmSetup, Episode, FrameArray, Location};
 use dexjoco_formats::dataset::stats::{FeatureStats, ImageSampler, column_stats, sample_indices};
 use dexjoco_formats::dataset::{PreparedEpisode, VideoLayout, VideoPart};
-use dexjoco_video::{Codec, VideoReader, VideoSpec, VideoWriter};
+use dexjoco_video::{Codec, Keyframes, VideoReader, VideoSpec, VideoWriter};
 
 use crate::config::{Selection, first_moving_frame};
 use crate::error::ConvertError;
@@ -374,8 +374,15 @@ impl Cameras<'_> {
             samples: sample_indices(n - self.skipped),
             sampler: ImageSampler::default(),
         };
+        // Joined files cut a source's static leading frames by stream copy, which starts
+        // at a keyframe only: augment puts one there; other sources are re-encoded.
+        let cuts_at_keyframe = || {
+            self.skipped == 0
+                || dexjoco_video::keyframe_indices(&src)
+                    .is_ok_and(|keys| keys.binary_search(&self.skipped).is_ok())
+        };
         let use_source = match self.layout {
-            VideoLayout::Joined => fits && !self.video.reencode,
+            VideoLayout::Joined => fits && !self.video.reencode && cuts_at_keyframe(),
             // Every episode's file must end up in the same codec.
             VideoLayout::PerEpisode => {
                 fits && !self.video.reencode
@@ -428,7 +435,14 @@ impl Cameras<'_> {
             fps: self.fps,
             codec: self.video.codec.codec(),
         };
-        let mut writer = VideoWriter::create_with(out, spec, Some(2))?;
+        let mut writer = VideoWriter::create_with(
+            out,
+            spec,
+            &Keyframes {
+                interval: Some(2),
+                at: Vec::new(),
+            },
+        )?;
         frames.sample(|frame| writer.write_frame(frame))?;
         writer.finish()?;
         Ok(())

@@ -124,6 +124,22 @@ pub fn first_moving_frame(action: &FrameArray, float32: bool) -> usize {
     }
 }
 
+/// Every frame where `convert` may start an episode's kept frames (its static leading
+/// frames cut): [`first_moving_frame`] of `action` and of `action_rotvec`, as recorded and
+/// rounded to float32, the first frame left out. Augment makes these frames keyframes
+/// of its videos so that `convert` cuts there by stream copy.
+pub fn possible_cuts(episode: &Episode) -> Vec<usize> {
+    let mut cuts: Vec<usize> = [Episode::ACTION, Episode::ACTION_ROTVEC]
+        .into_iter()
+        .filter_map(|name| episode.array(name))
+        .flat_map(|a| [false, true].map(|float32| first_moving_frame(a, float32)))
+        .filter(|&k| k > 0)
+        .collect();
+    cuts.sort_unstable();
+    cuts.dedup();
+    cuts
+}
+
 /// One camera of an episode: its name and where its frames are stored.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct CameraStream {

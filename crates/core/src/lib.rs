@@ -24,7 +24,7 @@ pub mod synth;
 mod task_set;
 mod task_spec;
 
-pub use episode::{CameraStream, Episode, FrameArray, first_moving_frame};
+pub use episode::{CameraStream, Episode, FrameArray, first_moving_frame, possible_cuts};
 pub use error::{CoreError, Location};
 pub use layout::{
     ArmSetup, ArrayLayout, DEXJOCO_FPS, FieldSlice, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM,

@@ -195,3 +195,56 @@ pub fn file_tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     walk(dir, dir, &mut out);
     out
 }
+
+/// What `lerobot-doctor` 0.2.0 (community checks of LeRobot datasets, in the test venv)
+/// finds in the LeRobot dataset at `root`: its JSON report. Panics when it exits with
+/// an error (`--ci --fail-on fail`: a FAIL), naming the failing checks, or when it
+/// warns of a video file whose frame count disagrees with its episodes'.
+pub fn lerobot_doctor_passes(root: &Path) -> serde_json::Value {
+    let python = python();
+    let doctor = python.with_file_name("lerobot-doctor");
+    let out = Command::new(&doctor)
+        .arg("check")
+        .arg(root)
+        .args(["--ci", "--fail-on", "fail", "--json"])
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {}: {e}", doctor.display()));
+    let text = String::from_utf8_lossy(&out.stdout);
+    let report: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| {
+        panic!(
+            "lerobot-doctor printed no JSON for {} ({e}):\n{text}\n{}",
+            root.display(),
+            String::from_utf8_lossy(&out.stderr)
+        )
+    });
+    let messages: Vec<String> = report["checks"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .flat_map(|c| {
+            c["messages"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(move |m| format!("{} {}: {}", m["severity"], c["name"], m["message"]))
+        })
+        .filter(|m| !m.starts_with("\"PASS\""))
+        .collect();
+    assert!(
+        out.status.success() && report["overall_severity"] != "FAIL",
+        "lerobot-doctor fails {} ({}):\n{}",
+        root.display(),
+        out.status,
+        messages.join("\n")
+    );
+    let frame_counts: Vec<&String> = messages
+        .iter()
+        .filter(|m| m.contains("frames, expected"))
+        .collect();
+    assert!(
+        frame_counts.is_empty(),
+        "lerobot-doctor: a video's frame count disagrees with its episodes in {}:\n{frame_counts:?}",
+        root.display()
+    );
+    report
+}

@@ -18,8 +18,14 @@ use std::process::{Child, ChildStdin, Command, Stdio};
 use serde::{Deserialize, Serialize};
 
 mod depth;
+mod probe;
+mod program;
 mod versions;
 pub use depth::{DepthVideoWriter, decode_gray12};
+
+pub use probe::{VideoInfo, frame_times, keyframe_indices, probe, probe_with_ffmpeg_alone};
+use program::locate_ffprobe as ffprobe_program;
+pub use program::{Ffmpeg, FfmpegSource, ffmpeg_program, locate_ffmpeg, locate_ffprobe};
 pub use versions::{EncoderVersions, encoder_versions};
 
 /// Errors of video encoding and decoding; each names the file.
@@ -108,9 +114,29 @@ pub struct VideoSpec {
     pub codec: Codec,
 }
 
-/// The ffmpeg program: `$DEXJOCO_FFMPEG` or `ffmpeg` on PATH.
-pub fn ffmpeg_program() -> PathBuf {
-    std::env::var_os("DEXJOCO_FFMPEG").map_or_else(|| "ffmpeg".into(), PathBuf::from)
+/// Where an encoder puts keyframes (closed GOPs: a keyframe starts a stream copy cut).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Keyframes {
+    /// At most this many frames from one keyframe to the next (ffmpeg's `-g`); the
+    /// encoder's default (x264: 250) when `None`. lerobot encodes with 2 so that random
+    /// access decodes few frames.
+    pub interval: Option<u32>,
+    /// Frames that must be keyframes, such as an episode's first kept frame after its
+    /// static leading frames, so that `convert` cuts there by stream copy.
+    pub at: Vec<usize>,
+}
+
+impl Keyframes {
+    /// ffmpeg's `-force_key_frames expr:` expression for [`Keyframes::at`].
+    fn force_expression(&self) -> Option<String> {
+        let mut at: Vec<usize> = self.at.iter().copied().filter(|&k| k > 0).collect();
+        at.sort_unstable();
+        at.dedup();
+        (!at.is_empty()).then(|| {
+            let terms: Vec<String> = at.iter().map(|k| format!("eq(n,{k})")).collect();
+            format!("expr:{}", terms.join("+"))
+        })
+    }
 }
 
 /// CPU seconds (user + system) of this process's finished child processes, such as the
@@ -138,14 +164,6 @@ fn spawn_ffmpeg(cmd: &mut Command, path: &Path) -> Result<Child, VideoError> {
     })
 }
 
-fn ffprobe_program() -> PathBuf {
-    let ff = ffmpeg_program();
-    match ff.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir.join("ffprobe"),
-        _ => "ffprobe".into(),
-    }
-}
-
 /// Streams RGB frames into a video file through an ffmpeg process.
 #[derive(Debug)]
 pub struct VideoWriter {
@@ -162,15 +180,14 @@ pub struct VideoWriter {
 impl VideoWriter {
     /// Starts an encoder writing to a temporary file beside `path`.
     pub fn create(path: impl Into<PathBuf>, spec: VideoSpec) -> Result<Self, VideoError> {
-        Self::create_with(path, spec, None)
+        Self::create_with(path, spec, &Keyframes::default())
     }
 
-    /// As [`VideoWriter::create`], with a keyframe every `gop` frames when given (lerobot
-    /// encodes with a GOP of 2 so that random access decodes few frames).
+    /// As [`VideoWriter::create`], with the keyframes `keyframes` asks for.
     pub fn create_with(
         path: impl Into<PathBuf>,
         spec: VideoSpec,
-        gop: Option<u32>,
+        keyframes: &Keyframes,
     ) -> Result<Self, VideoError> {
         let mut cmd = Command::new(ffmpeg_program());
         match spec.codec {
@@ -199,8 +216,11 @@ impl VideoWriter {
                 ]);
             }
         }
-        if let Some(g) = gop {
+        if let Some(g) = keyframes.interval {
             cmd.args(["-g", &g.max(1).to_string()]);
+        }
+        if let Some(expr) = keyframes.force_expression() {
+            cmd.args(["-force_key_frames", &expr]);
         }
         cmd.args(["-pix_fmt", "yuv420p"]);
         let frame_bytes = spec.width as usize * spec.height as usize * 3;
@@ -341,26 +361,7 @@ impl Drop for VideoWriter {
     }
 }
 
-/// What ffprobe says about a video's first stream.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct VideoInfo {
-    /// Codec name (`h264`, `av1`).
-    pub codec: String,
-    /// Codec profile (`High`), when reported.
-    pub profile: Option<String>,
-    /// Pixel format (`yuv420p`).
-    pub pix_fmt: String,
-    /// Width.
-    pub width: u32,
-    /// Height.
-    pub height: u32,
-    /// Frames per second.
-    pub fps: f64,
-    /// Number of frames (counted by decoding the packets).
-    pub frames: u64,
-}
-
-fn run(program: PathBuf, args: &[&str], path: &Path) -> Result<Vec<u8>, VideoError> {
+pub(crate) fn run(program: PathBuf, args: &[&str], path: &Path) -> Result<Vec<u8>, VideoError> {
     let out = Command::new(&program)
         .args(args)
         .output()
@@ -377,52 +378,6 @@ fn run(program: PathBuf, args: &[&str], path: &Path) -> Result<Vec<u8>, VideoErr
         });
     }
     Ok(out.stdout)
-}
-
-/// Codec, size, rate and frame count of a video (with ffprobe).
-pub fn probe(path: &Path) -> Result<VideoInfo, VideoError> {
-    let p = path.to_string_lossy();
-    let out = run(
-        ffprobe_program(),
-        &[
-            "-v",
-            "error",
-            "-select_streams",
-            "v:0",
-            "-count_packets",
-            "-show_streams",
-            "-of",
-            "json",
-            &p,
-        ],
-        path,
-    )?;
-    let bad = |m: &str| VideoError::Failed {
-        program: "ffprobe".into(),
-        path: path.into(),
-        message: m.into(),
-    };
-    let json: serde_json::Value = serde_json::from_slice(&out).map_err(|e| bad(&e.to_string()))?;
-    let s = json["streams"]
-        .get(0)
-        .ok_or_else(|| bad("no video stream"))?;
-    let rate = s["avg_frame_rate"].as_str().unwrap_or("0/1");
-    let fps = match rate.split_once('/') {
-        Some((n, d)) => n.parse::<f64>().unwrap_or(0.0) / d.parse::<f64>().unwrap_or(1.0).max(1e-9),
-        None => rate.parse().unwrap_or(0.0),
-    };
-    Ok(VideoInfo {
-        codec: s["codec_name"].as_str().unwrap_or("").into(),
-        profile: s["profile"].as_str().map(Into::into),
-        pix_fmt: s["pix_fmt"].as_str().unwrap_or("").into(),
-        width: s["width"].as_u64().unwrap_or(0) as u32,
-        height: s["height"].as_u64().unwrap_or(0) as u32,
-        fps,
-        frames: s["nb_read_packets"]
-            .as_str()
-            .and_then(|n| n.parse().ok())
-            .unwrap_or(0),
-    })
 }
 
 /// Decodes every frame to RGB8 (rows top to bottom), one `Vec` per frame.
@@ -563,27 +518,44 @@ impl Drop for VideoReader {
     }
 }
 
+/// One input of [`concat_copy`]: a video, and how many of its leading frames to cut.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ConcatInput {
+    /// The video.
+    pub path: PathBuf,
+    /// Leading frames left out; frame `skip` must be a keyframe (see [`keyframe_indices`]),
+    /// where stream copy can start.
+    pub skip: usize,
+}
+
 /// Joins videos of one codec, size and frame rate `fps` into `out` by stream copy
 /// (ffmpeg's concat demuxer): no re-encode, and the timestamps run on continuously, so
-/// frame k of input i is at exactly (frames before input i + k) / fps. (The demuxer
-/// offsets each input by its container duration, rounded to milliseconds; the `setts`
-/// filter snaps every timestamp back onto the frame grid.) Written to a temporary file
-/// beside `out` and renamed when complete.
-pub fn concat_copy(inputs: &[PathBuf], out: &Path, fps: u32) -> Result<(), VideoError> {
+/// kept frame k of input i is at exactly (kept frames before input i + k) / fps. An
+/// input's leading `skip` frames are cut (the demuxer's `inpoint`, at a keyframe, so the
+/// cut is exact). (The demuxer offsets each input by its container duration, rounded to
+/// milliseconds; the `setts` filter snaps every timestamp back onto the frame grid.)
+/// Written to a temporary file beside `out` and renamed when complete.
+pub fn concat_copy(inputs: &[ConcatInput], out: &Path, fps: u32) -> Result<(), VideoError> {
     let name = out
         .file_name()
         .map_or_else(|| "video".into(), |n| n.to_string_lossy().into_owned());
     let list = out.with_file_name(format!(".{name}.concat.txt"));
     let tmp = out.with_file_name(format!(".{name}.partial.mp4"));
     let mut text = String::from("ffconcat version 1.0\n");
-    for p in inputs {
-        let abs = std::path::absolute(p).map_err(|source| VideoError::Io {
-            path: p.clone(),
+    for input in inputs {
+        let abs = std::path::absolute(&input.path).map_err(|source| VideoError::Io {
+            path: input.path.clone(),
             source,
         })?;
         // The concat list quotes paths with single quotes; a quote is written as '\''.
         let quoted = abs.to_string_lossy().replace('\'', "'\\''");
         text.push_str(&format!("file '{quoted}'\n"));
+        if input.skip > 0 {
+            // In microseconds, rounded up: the demuxer seeks to the last keyframe at or
+            // before the in point, which must be frame `skip` itself, not one before.
+            let micros = (input.skip as u64 * 1_000_000).div_ceil(u64::from(fps));
+            text.push_str(&format!("inpoint {micros}us\n"));
+        }
     }
     fs_err::write(&list, text).map_err(|source| VideoError::Io {
         path: list.clone(),
@@ -632,31 +604,4 @@ pub fn concat_copy(inputs: &[PathBuf], out: &Path, fps: u32) -> Result<(), Video
         path: out.into(),
         source,
     })
-}
-
-/// Presentation timestamps (seconds) of every frame of the first video stream, in
-/// presentation order.
-pub fn frame_times(path: &Path) -> Result<Vec<f64>, VideoError> {
-    let p = path.to_string_lossy();
-    let out = run(
-        ffprobe_program(),
-        &[
-            "-v",
-            "error",
-            "-select_streams",
-            "v:0",
-            "-show_entries",
-            "packet=pts_time",
-            "-of",
-            "csv=p=0",
-            &p,
-        ],
-        path,
-    )?;
-    let mut t: Vec<f64> = String::from_utf8_lossy(&out)
-        .lines()
-        .filter_map(|l| l.trim().trim_end_matches(',').parse().ok())
-        .collect();
-    t.sort_by(f64::total_cmp);
-    Ok(t)
 }

@@ -1,15 +1,26 @@
 //! Real ffmpeg: join clips by stream copy onto a continuous frame grid; stream frames.
 
-use dexjoco_video::{Codec, VideoReader, VideoSpec, VideoWriter, concat_copy, frame_times, probe};
+use dexjoco_video::{
+    Codec, ConcatInput, Keyframes, VideoReader, VideoSpec, VideoWriter, concat_copy, frame_times,
+    keyframe_indices, probe, probe_with_ffmpeg_alone,
+};
 
 fn clip(path: &std::path::Path, codec: Codec, n: usize, shade: u8) {
+    clip_with(path, codec, n, shade, Vec::new());
+}
+
+fn clip_with(path: &std::path::Path, codec: Codec, n: usize, shade: u8, keyframes_at: Vec<usize>) {
     let spec = VideoSpec {
         width: 64,
         height: 64,
         fps: 30,
         codec,
     };
-    let mut w = VideoWriter::create_with(path, spec, Some(2)).unwrap();
+    let keyframes = Keyframes {
+        interval: Some(if keyframes_at.is_empty() { 2 } else { 250 }),
+        at: keyframes_at,
+    };
+    let mut w = VideoWriter::create_with(path, spec, &keyframes).unwrap();
     for k in 0..n {
         w.write_frame(&vec![shade.wrapping_add(10 * k as u8); 64 * 64 * 3])
             .unwrap();
@@ -34,7 +45,7 @@ fn clips_join_on_the_frame_grid_without_reencoding() {
             .map(|(i, n)| {
                 let p = dir.path().join(format!("{i}.mp4"));
                 clip(&p, codec, *n, 40 * i as u8);
-                p
+                ConcatInput { path: p, skip: 0 }
             })
             .collect();
         let out = dir.path().join("joined.mp4");
@@ -64,5 +75,65 @@ fn clips_join_on_the_frame_grid_without_reencoding() {
         }
         assert_eq!(k, 30);
         assert!(!dir.path().join(".joined.mp4.concat.txt").exists());
+    }
+}
+
+#[test]
+fn a_clip_cut_at_a_forced_keyframe_joins_without_its_leading_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let (first, second) = (dir.path().join("a.mp4"), dir.path().join("b.mp4"));
+    clip(&first, Codec::DEXJOCO, 6, 0);
+    // 20 frames, a keyframe forced at 7 (and none other but the first: interval 250).
+    clip_with(&second, Codec::DEXJOCO, 20, 100, vec![7]);
+    assert_eq!(keyframe_indices(&second).unwrap(), [0, 7]);
+    let out = dir.path().join("joined.mp4");
+    let inputs = [
+        ConcatInput {
+            path: first.clone(),
+            skip: 0,
+        },
+        ConcatInput {
+            path: second.clone(),
+            skip: 7,
+        },
+    ];
+    concat_copy(&inputs, &out, 30).unwrap();
+    assert_eq!(probe(&out).unwrap().frames, 6 + 13);
+    let t = frame_times(&out).unwrap();
+    for (k, t) in t.iter().enumerate() {
+        assert!((t - k as f64 / 30.0).abs() < 1e-4, "frame {k} at {t}");
+    }
+    // Frame 6 of the join is frame 7 of the second clip (shade 100 + 70).
+    let mut r = VideoReader::open(&out, None).unwrap();
+    let mut buf = Vec::new();
+    let mut k = 0;
+    while r.next_frame(&mut buf).unwrap() {
+        if k == 6 {
+            let mean = buf.iter().map(|v| f64::from(*v)).sum::<f64>() / buf.len() as f64;
+            assert!((mean - 170.0).abs() < 4.0, "frame 6 mean {mean}");
+        }
+        k += 1;
+    }
+    assert_eq!(k, 19);
+}
+
+#[test]
+fn ffmpeg_alone_probes_as_ffprobe_does() {
+    let dir = tempfile::tempdir().unwrap();
+    for (i, codec) in [
+        Codec::DEXJOCO,
+        Codec::Av1 {
+            crf: 30,
+            preset: 12,
+        },
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let p = dir.path().join(format!("{i}.mp4"));
+        clip(&p, codec, 9, 30);
+        let by_ffprobe = probe(&p).unwrap();
+        let alone = probe_with_ffmpeg_alone(&p).unwrap();
+        assert_eq!(alone, by_ffprobe, "{codec:?}");
     }
 }

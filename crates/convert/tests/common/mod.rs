@@ -141,8 +141,10 @@ pub fn selection() -> Selection {
     sel
 }
 
-/// Loads a LeRobot v3.0 dataset with lerobot 0.6.1 (`backend`: pyav or torchcodec).
+/// Loads a LeRobot v3.0 dataset with lerobot 0.6.1 (`backend`: pyav or torchcodec),
+/// after lerobot-doctor's checks pass on it.
 pub fn load(root: &Path, backend: &str) -> Value {
+    dexjoco_testkit::lerobot_doctor_passes(root);
     dexjoco_testkit::run_python_json("lerobot_v3_load.py", &[root.to_str().unwrap(), backend])
 }
 

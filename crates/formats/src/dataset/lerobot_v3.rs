@@ -4,6 +4,7 @@
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
+use dexjoco_video::ConcatInput;
 use parquet::arrow::ArrowWriter;
 use serde_json::Value;
 
@@ -125,7 +126,9 @@ pub(crate) fn data_columns(
 struct VideoFile {
     chunk: usize,
     file: usize,
-    parts: Vec<PathBuf>,
+    parts: Vec<ConcatInput>,
+    /// The parts' extradata (H.264 SPS/PPS): parts with other parameters start a file.
+    extradata: Option<String>,
     temporary: Vec<PathBuf>,
     frames: usize,
     bytes: u64,
@@ -261,7 +264,13 @@ impl V3Writer {
         let mut videos = Vec::new();
         let depth = super::lerobot_info::encoded_depth_parts(ep, &self.cameras[self.colour..])?;
         for (i, part) in ep.videos.iter().chain(depth).enumerate() {
-            if !self.videos[i].parts.is_empty() && self.videos[i].bytes + part.bytes >= vcap {
+            let other_parameters = self.videos[i]
+                .extradata
+                .as_ref()
+                .is_some_and(|e| *e != part.info.extradata);
+            if !self.videos[i].parts.is_empty()
+                && (self.videos[i].bytes + part.bytes >= vcap || other_parameters)
+            {
                 self.close_video(i)?;
                 let (c, f) = next_index((self.videos[i].chunk, self.videos[i].file));
                 self.videos[i] = VideoFile {
@@ -271,14 +280,19 @@ impl V3Writer {
                 };
             }
             let v = &mut self.videos[i];
-            let start = v.frames + part.skip;
-            let end = v.frames + part.frames;
+            // The part's static leading frames are cut at its keyframe `skip`.
+            let kept = part.frames - part.skip;
+            let (start, end) = (v.frames, v.frames + kept);
             videos.push((v.chunk, v.file, start as f64 / fps, end as f64 / fps));
-            v.parts.push(part.path.clone());
+            v.parts.push(ConcatInput {
+                path: part.path.clone(),
+                skip: part.skip,
+            });
+            v.extradata = Some(part.info.extradata.clone());
             if part.temporary {
                 v.temporary.push(part.path.clone());
             }
-            v.frames += part.frames;
+            v.frames += kept;
             v.bytes += part.bytes;
         }
         Ok(videos)
