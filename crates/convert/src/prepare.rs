@@ -409,7 +409,15 @@ impl Cameras<'_> {
             let out = self
                 .work_dir
                 .join(format!("{:06}-{name}.mp4", self.ordinal));
-            self.encode(&mut frames, &out).map_err(vid_err)?;
+            // Re-encoded only to cut at a frame that is no keyframe: in the source's codec,
+            // so that the part joins the dataset's file (or starts one when its
+            // parameters differ).
+            let codec = match info.codec.as_str() {
+                "h264" if fits && !self.video.reencode => VideoCodec::H264,
+                "av1" if fits && !self.video.reencode => VideoCodec::Av1,
+                _ => self.video.codec,
+            };
+            self.encode(&mut frames, &out, codec).map_err(vid_err)?;
             let info = dexjoco_video::probe(&out).map_err(vid_err)?;
             VideoPart {
                 name: name.to_owned(),
@@ -426,14 +434,19 @@ impl Cameras<'_> {
         Ok((part, frames.sampler.finish()))
     }
 
-    /// Encodes the kept frames into `out` (GOP 2) while sampling them.
-    fn encode(&self, frames: &mut Frames, out: &Path) -> Result<(), dexjoco_video::VideoError> {
+    /// Encodes the kept frames into `out` with `codec` (GOP 2) while sampling them.
+    fn encode(
+        &self,
+        frames: &mut Frames,
+        out: &Path,
+        codec: VideoCodec,
+    ) -> Result<(), dexjoco_video::VideoError> {
         let (width, height) = frames.reader.size();
         let spec = VideoSpec {
             width,
             height,
             fps: self.fps,
-            codec: self.video.codec.codec(),
+            codec: codec.codec(),
         };
         let mut writer = VideoWriter::create_with(
             out,

@@ -239,7 +239,12 @@ fn lerobot_v3_loads_the_outcomes_and_privileged_state() {
         &NoProgress,
     )
     .unwrap();
-    assert_eq!((s.episodes, s.frames, s.failed.len()), (3, 32, 0));
+    assert_eq!(
+        (s.episodes, s.frames, s.failed.len()),
+        (3, 32, 0),
+        "{:?}",
+        s.failed
+    );
     // The same as LeRobot v2.1, for lerobot's own v2.1 -> v3.0 script.
     let v21 = out_dir.path().join("v21");
     let mut opts = options(OutputFormat::LeRobotV21);

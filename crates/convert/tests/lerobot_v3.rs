@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{check_items, fixture, load, selection};
+use common::{check_items, fixture, fixture_with, load, selection};
 use dexjoco_convert::{ConvertError, ConvertOptions, VideoCodec, VideoOptions, convert};
 use dexjoco_core::NoProgress;
 use serde_json::Value;
@@ -35,10 +35,11 @@ fn stream_copied_h264_loads_in_lerobot_with_pyav_and_torchcodec() {
         (3, 32, 4)
     );
     assert_eq!((summary.videos_copied, summary.videos_encoded), (6, 0));
-    // One file per camera; timestamps continuous: 36 frames at k / 30.
+    // One file per camera, the static leading frames cut out at augment's keyframes
+    // (the file holds the episodes' 32 frames); timestamps continuous at k / 30.
     let front = out.join("videos/observation.images.front/chunk-000/file-000.mp4");
     let times = dexjoco_video::frame_times(&front).unwrap();
-    assert_eq!(times.len(), 36);
+    assert_eq!(times.len(), 32);
     for (k, t) in times.iter().enumerate() {
         assert!((t - k as f64 / 30.0).abs() < 1e-4, "frame {k} at {t}");
     }
@@ -71,6 +72,36 @@ fn stream_copied_h264_loads_in_lerobot_with_pyav_and_torchcodec() {
         .collect();
     assert_eq!(names, vec!["dataset".to_owned()]);
     assert!(!out.join(".work").exists());
+}
+
+#[test]
+fn recordings_without_a_keyframe_at_the_cut_are_reencoded_in_their_codec() {
+    // As the DexJoCo recorder writes them: no keyframe where the static frames end.
+    let fx = fixture_with(false);
+    let out_dir = tempfile::tempdir().unwrap();
+    let out = out_dir.path().join("dataset");
+    let summary = convert(
+        fx.inputs.iter().cloned().map(Ok),
+        &out,
+        &options(VideoOptions::default()),
+        &NoProgress,
+    )
+    .unwrap();
+    // Episodes 0 and 1 (static frames) re-encoded to cut, in H.264 like the copied
+    // episode 2, though the re-encoding codec is AV1; every file's frames are its
+    // episodes' (lerobot-doctor agrees, in `load`).
+    assert_eq!((summary.episodes, summary.frames), (3, 32));
+    assert_eq!((summary.videos_copied, summary.videos_encoded), (2, 4));
+    let mut frames = 0;
+    for f in fs_err::read_dir(out.join("videos/observation.images.front/chunk-000")).unwrap() {
+        let info = dexjoco_video::probe(&f.unwrap().path()).unwrap();
+        assert_eq!(info.codec, "h264");
+        frames += info.frames;
+    }
+    assert_eq!(frames, 32);
+    let loaded = load(&out, "pyav");
+    // Encoded twice (recorded, then cut): a few levels more off than a stream copy.
+    check_items(&fx, &loaded, 6.0);
 }
 
 #[test]

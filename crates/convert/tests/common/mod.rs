@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use dexjoco_convert::{InputEpisode, Selection, TaskSelection};
 use dexjoco_core::{CameraStream, Episode, FrameArray};
-use dexjoco_video::{Codec, VideoSpec, VideoWriter};
+use dexjoco_video::{Codec, Keyframes, VideoSpec, VideoWriter};
 use serde_json::Value;
 
 pub const SIZE: u32 = 64; // SVT-AV1 needs at least 64 rows
@@ -31,8 +31,15 @@ pub struct Fixture {
 }
 
 /// Three single-arm episodes of two tasks, cameras `front` and `handcam_rgb` in H.264 as
-/// the DexJoCo recorder writes them; episodes 0 and 1 begin with static frames.
+/// augment writes them (a keyframe where convert cuts the static leading frames);
+/// episodes 0 and 1 begin with static frames.
 pub fn fixture() -> Fixture {
+    fixture_with(true)
+}
+
+/// [`fixture`], with `keyframes_at_cuts` false as the DexJoCo recorder writes videos
+/// (x264's keyframe interval alone: convert re-encodes to cut).
+pub fn fixture_with(keyframes_at_cuts: bool) -> Fixture {
     let dir = tempfile::tempdir().unwrap();
     let lens = [12usize, 15, 9];
     let tasks = ["click_mouse", "water_plant", "click_mouse"];
@@ -90,7 +97,15 @@ pub fn fixture() -> Fixture {
         fs_err::create_dir_all(ep_dir.join("videos")).unwrap();
         for (c, cam) in ["front", "handcam_rgb"].iter().enumerate() {
             let rel = PathBuf::from(format!("videos/{cam}.mp4"));
-            write_video(&ep_dir.join(&rel), n, |k| colour(e, c, k));
+            let keyframes = Keyframes {
+                interval: None,
+                at: if keyframes_at_cuts {
+                    dexjoco_core::possible_cuts(&episode)
+                } else {
+                    Vec::new()
+                },
+            };
+            write_video_with(&ep_dir.join(&rel), n, |k| colour(e, c, k), &keyframes);
             episode.cameras.push(CameraStream {
                 name: (*cam).into(),
                 video: Some(rel),
@@ -110,13 +125,22 @@ pub fn fixture() -> Fixture {
 }
 
 pub fn write_video(path: &Path, n: usize, colour: impl Fn(usize) -> [u8; 3]) {
+    write_video_with(path, n, colour, &Keyframes::default());
+}
+
+pub fn write_video_with(
+    path: &Path,
+    n: usize,
+    colour: impl Fn(usize) -> [u8; 3],
+    keyframes: &Keyframes,
+) {
     let spec = VideoSpec {
         width: SIZE,
         height: SIZE,
         fps: 30,
         codec: Codec::DEXJOCO,
     };
-    let mut w = VideoWriter::create(path, spec).unwrap();
+    let mut w = VideoWriter::create_with(path, spec, keyframes).unwrap();
     for k in 0..n {
         let c = colour(k);
         let frame: Vec<u8> = (0..SIZE * SIZE).flat_map(|_| c).collect();
