@@ -245,6 +245,7 @@ fn lerobot_v3_loads_the_outcomes_and_privileged_state() {
         "{:?}",
         s.failed
     );
+    dexjoco_testkit::lerobot_doctor_passes(&out);
     // The same as LeRobot v2.1, for lerobot's own v2.1 -> v3.0 script.
     let v21 = out_dir.path().join("v21");
     let mut opts = options(OutputFormat::LeRobotV21);
