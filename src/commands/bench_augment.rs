@@ -73,6 +73,7 @@ fn config(
         extend_steps: 0,
         shard: None,
         overwrite: true,
+        video: dexjoco_augment::VideoEncoding::default(),
     }
 }
 

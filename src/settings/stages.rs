@@ -157,6 +157,9 @@ impl AugmentSettings {
             egl_devices,
             deadline,
             overwrite,
+            crf,
+            x264_preset,
+            keyframe_interval,
         } = args;
         if replays == 0 {
             return Err(usage(
@@ -234,6 +237,11 @@ impl AugmentSettings {
                 extend_steps,
                 shard,
                 overwrite,
+                video: dexjoco_augment::VideoEncoding {
+                    crf,
+                    preset: x264_preset,
+                    keyframe_interval,
+                },
             },
         })
     }

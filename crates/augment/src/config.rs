@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use dexjoco_sim::{RenderSettings, SceneSource};
+use dexjoco_video::{Codec, Keyframes, X264Preset};
 use serde::{Deserialize, Serialize};
 
 /// Name of the randomized third-person camera's video (`videos/third_person.mp4`).
@@ -73,6 +74,64 @@ pub struct AugmentConfig {
     /// Start clean when the output folder was made with other settings (removes only what
     /// augment wrote there).
     pub overwrite: bool,
+    /// How the camera videos are encoded.
+    pub video: VideoEncoding,
+}
+
+/// How augment encodes its camera videos: H.264 (libx264, yuv420p), one encoder process
+/// per camera. The keyframe interval decides what training pays: `convert` stream-copies
+/// these videos into LeRobot datasets, and lerobot decodes from the keyframe before each
+/// random item (docs/performance.md, "Video encoding").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct VideoEncoding {
+    /// x264's constant rate factor (DexJoCo's recorder: 21); 0: lossless RGB.
+    pub crf: u8,
+    /// x264's speed preset.
+    pub preset: X264Preset,
+    /// At most this many frames from one keyframe to the next; 0: x264's own (250).
+    pub keyframe_interval: u32,
+}
+
+impl Default for VideoEncoding {
+    /// augment's defaults (`--crf`, `--x264-preset`, `--keyframe-interval`).
+    fn default() -> Self {
+        Self {
+            crf: 21,
+            preset: X264Preset::Veryfast,
+            keyframe_interval: 10,
+        }
+    }
+}
+
+impl VideoEncoding {
+    /// What augment wrote before the encoding was chosen by measurement (the DexJoCo
+    /// recorder's x264 settings): crf 21, preset medium, x264's keyframe interval (250).
+    pub const LEGACY: Self = Self {
+        crf: 21,
+        preset: X264Preset::Medium,
+        keyframe_interval: 0,
+    };
+
+    /// The codec these settings encode with.
+    pub fn codec(self) -> Codec {
+        Codec::H264 {
+            crf: self.crf,
+            preset: self.preset,
+        }
+    }
+
+    /// The keyframes of a video whose frames `at` must be keyframes.
+    pub fn keyframes(self, at: Vec<usize>) -> Keyframes {
+        Keyframes {
+            interval: (self.keyframe_interval > 0).then_some(self.keyframe_interval),
+            at,
+        }
+    }
+
+    /// For `serde(default)`: settings files written before this field.
+    pub(crate) fn legacy() -> Self {
+        Self::LEGACY
+    }
 }
 
 impl AugmentConfig {
@@ -104,6 +163,7 @@ impl AugmentConfig {
             extend_steps: DEFAULT_EXTEND_STEPS,
             shard: None,
             overwrite: false,
+            video: VideoEncoding::default(),
         }
     }
 }

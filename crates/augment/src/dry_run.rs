@@ -9,7 +9,7 @@ use std::time::Instant;
 use dexjoco_core::{Episode, TaskSet};
 use dexjoco_sim::mujoco_rs::prelude::MjtState;
 use dexjoco_sim::{CameraView, RenderSettings, Renderer};
-use dexjoco_video::{Codec, VideoSpec, VideoWriter};
+use dexjoco_video::{VideoSpec, VideoWriter};
 use serde::Serialize;
 
 use crate::assets::load_assets;
@@ -191,10 +191,11 @@ fn calibrate(
         width: config.settings.width,
         height: config.settings.height,
         fps: 30,
-        codec: Codec::DEXJOCO,
+        codec: config.video.codec(),
     };
+    let keyframes = config.video.keyframes(Vec::new());
     let mut writers: Vec<VideoWriter> = (0..=fixed.len())
-        .map(|c| VideoWriter::create(tmp.path().join(format!("{c}.mp4")), spec))
+        .map(|c| VideoWriter::create_with(tmp.path().join(format!("{c}.mp4")), spec, &keyframes))
         .collect::<Result<_, _>>()
         .map_err(video_err(id))?;
     let mut env = new_env(src, &assets.scene, &src.spec)?;

@@ -14,7 +14,7 @@ use dexjoco_sim::{Geometry, RenderQuality, RenderSettings, SceneSource};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::config::{AugmentConfig, SETTINGS_FILE};
+use crate::config::{AugmentConfig, SETTINGS_FILE, VideoEncoding};
 use crate::error::AugmentError;
 use crate::provenance::ToolVersions;
 use dexjoco_sim::randomize::CameraPool;
@@ -55,6 +55,9 @@ pub struct OutputSettings {
     pub extend_steps: usize,
     /// Dynamics randomized.
     pub dynamics: bool,
+    /// The videos' encoding (files written before it was recorded: the legacy one).
+    #[serde(default = "VideoEncoding::legacy")]
+    pub video: VideoEncoding,
     /// Where scenes come from (`built-in` or the scene folder).
     pub scene: String,
     /// Per task: SHA-256 of its scene file (the composed built-in XML, or the scene pack's
@@ -184,6 +187,7 @@ impl OutputSettings {
             extend_steps,
             dynamics,
             scene,
+            video,
             // By content instead: each replay records its source episode's hash.
             inputs: _,
             out: _,
@@ -224,6 +228,7 @@ impl OutputSettings {
             max_frames: *max_frames,
             extend_steps: *extend_steps,
             dynamics: *dynamics,
+            video: *video,
             // The folder as an absolute path, so `xmls` and `/abs/xmls` are one folder.
             scene: match scene {
                 SceneSource::BuiltIn => "built-in".into(),
@@ -435,6 +440,7 @@ mod tests {
             ("max_frames", changed(&base, |c| c.max_frames = Some(3))),
             ("extend_steps", changed(&base, |c| c.extend_steps = 0)),
             ("dynamics", changed(&base, |c| c.dynamics = true)),
+            ("video", changed(&base, |c| c.video.keyframe_interval = 2)),
             (
                 "scene",
                 changed(&base, |c| c.scene = SceneSource::Dir(scenes.path().into())),

@@ -45,7 +45,7 @@ pub use checks::{BLANK_SHARE, BLANK_TOLERANCE, FROZEN_HAND_RAD, FROZEN_MIN_FRAME
 pub use compare::{GeometryDifference, geometry_difference, psnr, ssim};
 pub use config::{
     AugmentConfig, CONTACT_SHEET, DEFAULT_EXTEND_STEPS, DEFAULT_REPLAYS, REPORT_JSON, REPORT_MD,
-    SETTINGS_FILE, Shard, THIRD_PERSON, replay_name,
+    SETTINGS_FILE, Shard, THIRD_PERSON, VideoEncoding, replay_name,
 };
 pub use dexjoco_sim::dynamics::{
     DynamicsValue, apply_dynamics, dynamics_seed, read_dynamics, sample_dynamics,

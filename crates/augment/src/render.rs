@@ -13,7 +13,7 @@ use dexjoco_formats::npz::DepthWriter;
 use dexjoco_formats::raw;
 use dexjoco_sim::mujoco_rs::prelude::MjModel;
 use dexjoco_sim::{RenderSettings, Renderer, Scene};
-use dexjoco_video::{Codec, Keyframes, VideoSpec, VideoWriter};
+use dexjoco_video::{VideoSpec, VideoWriter};
 use serde::{Deserialize, Serialize};
 
 use crate::assets::TaskAssets;
@@ -309,13 +309,12 @@ fn open_replays(
         width: config.settings.width,
         height: config.settings.height,
         fps: src.episode.fps.round().max(1.0) as u32,
-        codec: Codec::DEXJOCO,
+        codec: config.video.codec(),
     };
     // Keyframes where convert may cut the static leading frames, so it cuts by stream copy.
-    let keyframes = Keyframes {
-        interval: None,
-        at: dexjoco_core::possible_cuts(&src.episode),
-    };
+    let keyframes = config
+        .video
+        .keyframes(dexjoco_core::possible_cuts(&src.episode));
     let defects = Defects::from_env()?;
     let mut pending = Vec::new();
     for &r in &job.replays {

@@ -40,7 +40,7 @@ impl VideoCodec {
                 crf: 30,
                 preset: 12,
             },
-            Self::H264 => Codec::H264 { crf: 21 },
+            Self::H264 => Codec::DEXJOCO,
         }
     }
 

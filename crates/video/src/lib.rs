@@ -82,10 +82,15 @@ pub enum VideoError {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "codec")]
 pub enum Codec {
-    /// H.264 (libx264), yuv420p, profile high: what the DexJoCo recorder writes (crf 21).
+    /// H.264 (libx264), yuv420p, profile high: what the DexJoCo recorder writes (crf 21,
+    /// preset medium). crf 0 is lossless RGB instead (libx264rgb, qp 0, the rendered
+    /// frames bit for bit; large: for measurements and for re-encoding later).
     H264 {
-        /// Constant rate factor (lower = better; 21 in DexJoCo).
+        /// Constant rate factor (lower = better; 21 in DexJoCo; 0 lossless).
         crf: u8,
+        /// x264's speed preset (records made before it was chosen: medium).
+        #[serde(default)]
+        preset: X264Preset,
     },
     /// AV1 (libsvtav1), yuv420p: what lerobot encodes by default.
     Av1 {
@@ -97,8 +102,73 @@ pub enum Codec {
 }
 
 impl Codec {
-    /// The DexJoCo recorder's setting: H.264, crf 21.
-    pub const DEXJOCO: Self = Self::H264 { crf: 21 };
+    /// The DexJoCo recorder's setting: H.264, crf 21, x264's default preset (medium).
+    pub const DEXJOCO: Self = Self::H264 {
+        crf: 21,
+        preset: X264Preset::Medium,
+    };
+}
+
+/// x264's speed presets (faster presets spend less CPU per frame for somewhat larger
+/// files at the same crf).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum X264Preset {
+    /// `ultrafast`.
+    Ultrafast,
+    /// `superfast`.
+    Superfast,
+    /// `veryfast`.
+    Veryfast,
+    /// `faster`.
+    Faster,
+    /// `fast`.
+    Fast,
+    /// `medium`, x264's default.
+    #[default]
+    Medium,
+    /// `slow`.
+    Slow,
+}
+
+impl X264Preset {
+    /// Every preset, fastest first.
+    pub const ALL: [Self; 7] = [
+        Self::Ultrafast,
+        Self::Superfast,
+        Self::Veryfast,
+        Self::Faster,
+        Self::Fast,
+        Self::Medium,
+        Self::Slow,
+    ];
+
+    /// The name x264 and ffmpeg give it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ultrafast => "ultrafast",
+            Self::Superfast => "superfast",
+            Self::Veryfast => "veryfast",
+            Self::Faster => "faster",
+            Self::Fast => "fast",
+            Self::Medium => "medium",
+            Self::Slow => "slow",
+        }
+    }
+}
+
+impl std::str::FromStr for X264Preset {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|p| p.name()).collect();
+                format!("unknown x264 preset '{s}' (one of {})", names.join(", "))
+            })
+    }
 }
 
 /// Frame size, rate and codec of a video.
@@ -114,7 +184,8 @@ pub struct VideoSpec {
     pub codec: Codec,
 }
 
-/// Where an encoder puts keyframes (closed GOPs: a keyframe starts a stream copy cut).
+/// Where an encoder puts keyframes (closed GOPs: a keyframe starts a stream copy cut, and
+/// decoding a frame at random starts at the keyframe before it).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Keyframes {
     /// At most this many frames from one keyframe to the next (ffmpeg's `-g`); the
@@ -190,8 +261,15 @@ impl VideoWriter {
         keyframes: &Keyframes,
     ) -> Result<Self, VideoError> {
         let mut cmd = Command::new(ffmpeg_program());
+        let mut pix_fmt = "yuv420p";
         match spec.codec {
-            Codec::H264 { crf } => {
+            Codec::H264 { crf: 0, preset } => {
+                // Lossless RGB: the frames as rendered.
+                cmd.args(["-c:v", "libx264rgb", "-threads", "1", "-qp", "0"]);
+                cmd.args(["-preset", preset.name()]);
+                pix_fmt = "rgb24";
+            }
+            Codec::H264 { crf, preset } => {
                 cmd.args([
                     "-c:v",
                     "libx264",
@@ -203,6 +281,8 @@ impl VideoWriter {
                     "high",
                     "-crf",
                     &crf.to_string(),
+                    "-preset",
+                    preset.name(),
                 ]);
             }
             Codec::Av1 { crf, preset } => {
@@ -222,7 +302,7 @@ impl VideoWriter {
         if let Some(expr) = keyframes.force_expression() {
             cmd.args(["-force_key_frames", &expr]);
         }
-        cmd.args(["-pix_fmt", "yuv420p"]);
+        cmd.args(["-pix_fmt", pix_fmt]);
         let frame_bytes = spec.width as usize * spec.height as usize * 3;
         Self::start(path.into(), spec, "rgb24", frame_bytes, cmd)
     }
