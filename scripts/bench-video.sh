@@ -60,9 +60,9 @@ psnr() {
   python3 -c "print(round($total / max($n, 1), 2))"
 }
 video_bytes() { find "$1" -path '*/videos/*.mp4' -printf '%s\n' | awk '{s+=$1} END {print s}'; }
-# x264 CPU ms per frame from an augment report.
+# x264 CPU ms per frame, from augment's own summary ("encode (x264 CPU) 0.53 ms").
 encode_ms() {
-  python3 -c "import json,sys; t=json.load(open(sys.argv[1]))['times']; print(round(1e3*t['encode_cpu']/max(t['frames'],1), 3))" "$1/augment_report.json"
+  sed -n 's/.*encode (x264 CPU) \([0-9.]*\) ms.*/\1/p' "$1.log" | tail -1
 }
 # Random-read ms per item (median) of a LeRobot dataset with one backend.
 read_ms() {
@@ -85,7 +85,7 @@ for size in $sizes; do
   "$bin" -q ingest "datasets/demos/$task" --out "$d/ingest" >/dev/null
   aug() { # out-dir extra-flags...
     local o="$1"; shift
-    "$bin" -q augment "$d/ingest" --out "$o" --replays "$replays" --size "$size" --quality fast "$@" >/dev/null
+    "$bin" -q augment "$d/ingest" --out "$o" --replays "$replays" --size "$size" --quality fast "$@" > "$o.log"
   }
   log "$size px: lossless reference run"
   aug "$d/lossless" --crf 0 --keyframe-interval 0

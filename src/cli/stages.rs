@@ -369,21 +369,9 @@ pub struct AugmentArgs {
     /// replay.
     #[arg(long, default_value_t = dexjoco_augment::DEFAULT_EXTEND_STEPS, value_name = "N")]
     pub extend_steps: usize,
-    /// x264's constant rate factor of the camera videos (lower: better and larger; 21 is
-    /// the DexJoCo recorder's). 0 writes lossless RGB (libx264rgb), the rendered frames
-    /// bit for bit, for measuring or re-encoding later (large; convert re-encodes it).
-    #[arg(long, default_value_t = 21, value_name = "CRF", value_parser = clap::value_parser!(u8).range(0..=51))]
-    pub crf: u8,
-    /// x264's speed preset of the camera videos: ultrafast, superfast, veryfast, faster,
-    /// fast, medium (x264's default, the DexJoCo recorder's), slow. The default was chosen
-    /// by measurement (docs/performance.md, "Video encoding").
-    #[arg(long, default_value = "veryfast", value_name = "PRESET")]
-    pub x264_preset: dexjoco_video::X264Preset,
-    /// At most N frames from one keyframe to the next in the camera videos. convert
-    /// stream-copies them into LeRobot datasets, where a random item decodes from the
-    /// keyframe before it: short intervals read fast at training time. 0: x264's own (250).
-    #[arg(long, default_value_t = 10, value_name = "N")]
-    pub keyframe_interval: u32,
+    /// How the camera videos are encoded.
+    #[command(flatten)]
+    pub video: VideoEncodingArgs,
     /// Render only this share of the work: I/N (0-based), or `auto` from the cluster's
     /// environment (Slurm job array, Kubernetes Indexed Job).
     #[arg(long, value_name = "I/N|auto")]
@@ -559,4 +547,35 @@ pub struct StatsArgs {
     /// The known tasks.
     #[command(flatten)]
     pub tasks: TasksDirArgs,
+}
+
+/// `augment`'s video encoding flags.
+#[derive(Debug, Args)]
+pub struct VideoEncodingArgs {
+    /// x264's constant rate factor of the camera videos (lower: better and larger; 21 is
+    /// the DexJoCo recorder's). 0 writes lossless RGB (libx264rgb), the rendered frames
+    /// bit for bit, for measuring or re-encoding later (large; convert re-encodes it).
+    #[arg(long, default_value_t = 21, value_name = "CRF", value_parser = clap::value_parser!(u8).range(0..=51))]
+    pub crf: u8,
+    /// x264's speed preset of the camera videos: ultrafast, superfast, veryfast, faster,
+    /// fast, medium (x264's default, the DexJoCo recorder's), slow. The default was chosen
+    /// by measurement (docs/performance.md, "Video encoding").
+    #[arg(long, default_value = "ultrafast", value_name = "PRESET")]
+    pub x264_preset: dexjoco_video::X264Preset,
+    /// At most N frames from one keyframe to the next in the camera videos. convert
+    /// stream-copies them into LeRobot datasets, where a random item decodes from the
+    /// keyframe before it: short intervals read fast at training time. 0: x264's own (250).
+    #[arg(long, default_value_t = 5, value_name = "N")]
+    pub keyframe_interval: u32,
+}
+
+impl VideoEncodingArgs {
+    /// The encoding these flags ask for.
+    pub fn encoding(&self) -> dexjoco_augment::VideoEncoding {
+        dexjoco_augment::VideoEncoding {
+            crf: self.crf,
+            preset: self.x264_preset,
+            keyframe_interval: self.keyframe_interval,
+        }
+    }
 }

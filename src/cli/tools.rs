@@ -236,6 +236,11 @@ pub struct BenchConvertArgs {
     /// Skip the DexJoCo reference converter.
     #[arg(long)]
     pub no_reference: bool,
+    /// Random items read (lerobot 0.6.1's LeRobotDataset, torchcodec and pyav) from our
+    /// LeRobot v3.0 dataset and the reference converter's, timed one by one as a training
+    /// data loader reads them; 0 skips the read timing.
+    #[arg(long, default_value_t = 100, value_name = "N")]
+    pub read_items: usize,
 }
 
 /// `bench render` options.

@@ -45,19 +45,22 @@ struct Ratio {
 /// Our LeRobot v3.0 row's tool.
 const OURS_LEROBOT: &str = "dexjoco-data convert (LeRobot v3.0, stream copy)";
 
-/// Writes `episodes` click_mouse raw episode folders with a `front` H.264 camera (one
-/// video encoded, copied into every episode: generation stays quick).
+/// Writes `episodes` click_mouse raw episode folders with a `front` H.264 camera encoded
+/// as augment encodes by default (one video encoded, copied into every episode:
+/// generation stays quick).
 fn generate(dir: &Path, episodes: usize, frames: usize, size: u32) -> anyhow::Result<()> {
     let task = TaskSpec::builtin("click_mouse").context("click_mouse task")?;
     for i in 0..episodes {
         let ep = dexjoco_core::synth::episode(task, frames, i as u64);
         let d = dir.join(&task.id).join(format!("episode_{i:06}"));
         dexjoco_formats::raw::write_replay_zarr(&d, &ep)?;
+        // Encoded as augment encodes by default (its keyframe interval decides random reads).
+        let encoding = dexjoco_augment::VideoEncoding::default();
         let spec = dexjoco_video::VideoSpec {
             width: size,
             height: size,
             fps: 30,
-            codec: dexjoco_video::Codec::DEXJOCO,
+            codec: encoding.codec(),
         };
         fs_err::create_dir_all(d.join("videos"))?;
         if i > 0 {
@@ -65,7 +68,11 @@ fn generate(dir: &Path, episodes: usize, frames: usize, size: u32) -> anyhow::Re
             fs_err::copy(first, d.join("videos/front.mp4"))?;
             continue;
         }
-        let mut w = dexjoco_video::VideoWriter::create(d.join("videos/front.mp4"), spec)?;
+        let mut w = dexjoco_video::VideoWriter::create_with(
+            d.join("videos/front.mp4"),
+            spec,
+            &encoding.keyframes(Vec::new()),
+        )?;
         let mut frame = vec![0u8; (size * size * 3) as usize];
         for k in 0..frames {
             for (j, px) in frame.iter_mut().enumerate() {
@@ -187,7 +194,9 @@ pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitS
         Err(why) => outln!("DexJoCo reference converter: skipped ({why})"),
     }
     let memory = memory_runs(tmp.path(), &config, args)?;
+    let reads = random_reads(tmp.path(), args, reference.is_ok())?;
     print_tables(args, &runs, &ratios, &memory);
+    print_reads(&reads);
     let out = global.work_dir.join("bench");
     fs_err::create_dir_all(&out)?;
     let json = out.join("convert.json");
@@ -197,6 +206,7 @@ pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitS
         serde_json::to_string_pretty(&serde_json::json!({
             "runs": runs,
             "memory": memory,
+            "random_reads": reads,
             "reference_converter_skipped": skipped,
         }))?,
     )?;
@@ -435,6 +445,98 @@ fn print_tables(args: &BenchConvertArgs, runs: &[Run], ratios: &[Ratio], memory:
             r.frames,
             r.seconds,
             r.peak_rss_mb
+        );
+    }
+}
+
+/// Random-access read time of one LeRobot v3.0 dataset with one video backend.
+#[derive(Debug, Serialize)]
+struct RandomRead {
+    dataset: &'static str,
+    backend: &'static str,
+    items: usize,
+    ms_median: f64,
+    ms_mean: f64,
+    bytes: u64,
+}
+
+/// The folder holding `meta/info.json` at or below `dir` (the reference converter writes
+/// its dataset one level down).
+fn dataset_root(dir: &Path) -> Option<PathBuf> {
+    if dir.join("meta/info.json").is_file() {
+        return Some(dir.to_path_buf());
+    }
+    fs_err::read_dir(dir)
+        .ok()?
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .find(|p| p.join("meta/info.json").is_file())
+}
+
+/// Our LeRobot v3.0 dataset and the reference converter's (when it ran), each read at
+/// `args.read_items` seeded random indices with torchcodec and with pyav by lerobot's
+/// own LeRobotDataset (`tests/python/lerobot_random_read.py` of the checkout).
+fn random_reads(
+    tmp: &Path,
+    args: &BenchConvertArgs,
+    reference_ran: bool,
+) -> anyhow::Result<Vec<RandomRead>> {
+    if args.read_items == 0 {
+        return Ok(Vec::new());
+    }
+    let script = crate::locate::checkout()
+        .context("the read timing runs tests/python/lerobot_random_read.py from the source checkout: run it from a checkout, or pass --read-items 0")?
+        .join("tests/python/lerobot_random_read.py");
+    let mut datasets = vec![("dexjoco-data convert (stream copy)", tmp.join("ours"))];
+    if reference_ran {
+        let dir = tmp.join("dexjoco-dc-single-lerobot");
+        let root = dataset_root(&dir)
+            .with_context(|| format!("no LeRobot dataset under {}", dir.display()))?;
+        datasets.push(("DexJoCo reference converter (AV1, GOP 2)", root));
+    }
+    let mut reads = Vec::new();
+    for (dataset, root) in datasets {
+        for backend in ["torchcodec", "pyav"] {
+            let items = args.read_items.to_string();
+            let argv = [
+                script.to_string_lossy().into_owned(),
+                root.to_string_lossy().into_owned(),
+                backend.to_owned(),
+                items,
+            ];
+            let argv: Vec<&str> = argv.iter().map(String::as_str).collect();
+            let (_, _, stdout) = timed(&python()?, &argv)?;
+            let r: serde_json::Value = serde_json::from_str(stdout.trim())
+                .with_context(|| format!("lerobot_random_read.py printed no JSON: {stdout}"))?;
+            reads.push(RandomRead {
+                dataset,
+                backend,
+                items: args.read_items,
+                ms_median: r["ms_median"].as_f64().unwrap_or(f64::NAN),
+                ms_mean: r["ms_mean"].as_f64().unwrap_or(f64::NAN),
+                bytes: r["bytes"].as_u64().unwrap_or(0),
+            });
+        }
+    }
+    Ok(reads)
+}
+
+/// The read-time table.
+fn print_reads(reads: &[RandomRead]) {
+    if reads.is_empty() {
+        return;
+    }
+    outln!();
+    outln!("| LeRobot v3.0 dataset | backend | MB | ms per random item (median) | mean |");
+    outln!("|---|---|---:|---:|---:|");
+    for r in reads {
+        outln!(
+            "| {} | {} | {:.1} | {:.1} | {:.1} |",
+            r.dataset,
+            r.backend,
+            r.bytes as f64 / 1e6,
+            r.ms_median,
+            r.ms_mean
         );
     }
 }

@@ -157,9 +157,7 @@ impl AugmentSettings {
             egl_devices,
             deadline,
             overwrite,
-            crf,
-            x264_preset,
-            keyframe_interval,
+            video,
         } = args;
         if replays == 0 {
             return Err(usage(
@@ -237,11 +235,7 @@ impl AugmentSettings {
                 extend_steps,
                 shard,
                 overwrite,
-                video: dexjoco_augment::VideoEncoding {
-                    crf,
-                    preset: x264_preset,
-                    keyframe_interval,
-                },
+                video: video.encoding(),
             },
         })
     }

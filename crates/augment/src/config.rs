@@ -93,12 +93,16 @@ pub struct VideoEncoding {
 }
 
 impl Default for VideoEncoding {
-    /// augment's defaults (`--crf`, `--x264-preset`, `--keyframe-interval`).
+    /// augment's defaults (`--crf`, `--x264-preset`, `--keyframe-interval`), chosen by
+    /// measurement (docs/performance.md, "Video encoding"): x264 ultrafast with a keyframe
+    /// every 5 frames spends about half the encoder CPU of the DexJoCo recorder's
+    /// settings, and the LeRobot dataset convert stream-copies from it reads at random
+    /// faster than the reference converter's (AV1, GOP 2) at 1.4x its size.
     fn default() -> Self {
         Self {
             crf: 21,
-            preset: X264Preset::Veryfast,
-            keyframe_interval: 10,
+            preset: X264Preset::Ultrafast,
+            keyframe_interval: 5,
         }
     }
 }

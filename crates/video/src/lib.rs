@@ -82,9 +82,10 @@ pub enum VideoError {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "codec")]
 pub enum Codec {
-    /// H.264 (libx264), yuv420p, profile high: what the DexJoCo recorder writes (crf 21,
-    /// preset medium). crf 0 is lossless RGB instead (libx264rgb, qp 0, the rendered
-    /// frames bit for bit; large: for measurements and for re-encoding later).
+    /// H.264 (libx264), yuv420p, profile high at most (x264's ultrafast streams are
+    /// Constrained Baseline); the DexJoCo recorder writes crf 21, preset medium. crf 0 is
+    /// lossless RGB instead (libx264rgb, qp 0, the rendered frames bit for bit; large:
+    /// for measurements and for re-encoding later).
     H264 {
         /// Constant rate factor (lower = better; 21 in DexJoCo; 0 lossless).
         crf: u8,
