@@ -60,53 +60,7 @@ fn the_bundle_runs_the_sample_job_with_the_checkout_hidden_and_no_environment() 
     std::os::unix::fs::symlink(bundle.join("bin/dexjoco-data"), links.join("dexjoco-data"))
         .unwrap();
     let work = tmp.path().join("work");
-    fs_err::create_dir_all(&work).unwrap();
-    let demos = bundle.join("share/dexjoco-data/datasets/demos");
-    let script = format!(
-        "set -e; export PATH='{links}':$PATH; cd '{work}'
-         dexjoco-data doctor > doctor.txt
-         dexjoco-data -q ingest '{demos}/click_mouse' '{demos}/bimanual_unlock_ipad'
-         dexjoco-data -q -j 2 augment dexjoco-work/ingest --replays 1 --size 32 --quality fast
-         dexjoco-data -q convert --merge-bimanual > convert.txt
-         dexjoco-data -q stats --dataset dexjoco-work/augment > stats.txt
-         dexjoco-data -q stats --language-eval > language.txt
-         echo sample-job-done",
-        links = links.display(),
-        work = work.display(),
-        demos = demos.display(),
-    );
-    let out = common::hidden_checkout(&script);
-    let doctor = fs_err::read_to_string(work.join("doctor.txt")).unwrap_or_default();
-    assert!(
-        out.status.success() && String::from_utf8_lossy(&out.stdout).contains("sample-job-done"),
-        "the sample job failed from the bundle ({}):\nstdout: {}\nstderr: {}\ndoctor:\n{doctor}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    // doctor found MuJoCo in the bundle and the sample data beside the binary, not in the
-    // checkout.
-    let lib = bundle.join("lib").canonicalize().unwrap();
-    assert!(
-        doctor.contains(&format!("{}/libmujoco.so.3.17.0", lib.display())),
-        "{doctor}"
-    );
-    assert!(
-        doctor.contains("datasets (from share/dexjoco-data beside the binary"),
-        "{doctor}"
-    );
+    let doctor = common::sample_job_with_checkout_hidden(&links, &bundle, &work, "bundle");
     assert!(!doctor.contains(&root().display().to_string()), "{doctor}");
-    // Every stage wrote its output.
-    let report = work.join("dexjoco-work/augment/augment_report.json");
-    let report: serde_json::Value =
-        serde_json::from_str(&fs_err::read_to_string(report).unwrap()).unwrap();
-    // click_mouse has two sample episodes, unlock_ipad one; one replay each.
-    assert_eq!(report["replays"].as_array().unwrap().len(), 3, "{report}");
     assert!(work.join("dexjoco-work/convert").is_dir());
-    assert!(
-        fs_err::read_to_string(work.join("language.txt"))
-            .unwrap()
-            .contains("Jensen"),
-        "the language analysis of the bundle's examples"
-    );
 }

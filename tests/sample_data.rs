@@ -18,11 +18,6 @@ fn sh_block(markdown: &str) -> String {
     markdown[start..start + len].to_owned()
 }
 
-/// Every file under `dir`, by path relative to it.
-fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    dexjoco_testkit::file_tree(dir)
-}
-
 #[test]
 fn the_shipped_samples_are_what_their_readme_commands_make_today() {
     let root = dexjoco_testkit::workspace_root();
@@ -52,8 +47,8 @@ fn the_shipped_samples_are_what_their_readme_commands_make_today() {
         "the README's commands failed:\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let made = tree(&tmp.path().join("datasets/demos"));
-    let mut shipped = tree(&root.join("datasets/demos"));
+    let made = dexjoco_testkit::file_tree(&tmp.path().join("datasets/demos"));
+    let mut shipped = dexjoco_testkit::file_tree(&root.join("datasets/demos"));
     shipped.remove("README.md");
     let names = |t: &BTreeMap<String, Vec<u8>>| t.keys().cloned().collect::<Vec<_>>();
     assert_eq!(

@@ -504,8 +504,18 @@ fn random_reads(
                 backend.to_owned(),
                 items,
             ];
-            let argv: Vec<&str> = argv.iter().map(String::as_str).collect();
-            let (_, _, stdout) = timed(&python()?, &argv)?;
+            let out = Command::new(python()?)
+                .args(&argv)
+                .output()
+                .context("running lerobot_random_read.py")?;
+            anyhow::ensure!(
+                out.status.success(),
+                "lerobot_random_read.py failed on {} ({}):\n{}",
+                root.display(),
+                out.status,
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let stdout = String::from_utf8_lossy(&out.stdout);
             let r: serde_json::Value = serde_json::from_str(stdout.trim())
                 .with_context(|| format!("lerobot_random_read.py printed no JSON: {stdout}"))?;
             reads.push(RandomRead {

@@ -176,22 +176,29 @@ pub fn dead_pid() -> u32 {
     pid
 }
 
-/// Packs this build's binary into a release bundle (`scripts/package.sh`) and extracts it
-/// under `dir`; returns the bundle's folder (`dir/dexjoco-data-<version>-linux-<arch>`).
-pub fn extracted_bundle(dir: &Path) -> PathBuf {
+/// Runs `scripts/package.sh` with `args`; the path it prints (the bundle or the wheel).
+pub fn package(args: &[&std::ffi::OsStr]) -> PathBuf {
     let out = Command::new(dexjoco_testkit::workspace_root().join("scripts/package.sh"))
-        .arg("--bin")
-        .arg(env!("CARGO_BIN_EXE_dexjoco-data"))
-        .arg("--out")
-        .arg(dir)
+        .args(args)
         .output()
         .expect("running scripts/package.sh");
     assert!(
         out.status.success(),
-        "scripts/package.sh failed:\n{}",
+        "scripts/package.sh {args:?} failed:\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let archive = PathBuf::from(String::from_utf8(out.stdout).unwrap().trim());
+    PathBuf::from(String::from_utf8(out.stdout).unwrap().trim())
+}
+
+/// Packs this build's binary into a release bundle (`scripts/package.sh`) and extracts it
+/// under `dir`; returns the bundle's folder (`dir/dexjoco-data-<version>-linux-<arch>`).
+pub fn extracted_bundle(dir: &Path) -> PathBuf {
+    let archive = package(&[
+        "--bin".as_ref(),
+        env!("CARGO_BIN_EXE_dexjoco-data").as_ref(),
+        "--out".as_ref(),
+        dir.as_os_str(),
+    ]);
     let st = Command::new("tar")
         .arg("-xzf")
         .arg(&archive)
@@ -227,4 +234,66 @@ pub fn hidden_checkout(script: &str) -> std::process::Output {
         .arg(wrapped)
         .output()
         .expect("running unshare (util-linux)")
+}
+
+/// The sample job as a user runs it from an installed `dexjoco-data` (`prefix/bin` or a
+/// link to it in `bin`, first on PATH), in `work`, with the checkout hidden and the
+/// environment cleared: doctor, ingest of two demos, augment, convert --merge-bimanual,
+/// stats --dataset, stats --language-eval. Asserts that it finished, that doctor found
+/// MuJoCo in `prefix/lib` and the sample data in `prefix/share/dexjoco-data`, and that
+/// augment and the language analysis wrote their outputs; returns doctor's report.
+/// `what` names the installation in failure messages.
+pub fn sample_job_with_checkout_hidden(
+    bin: &Path,
+    prefix: &Path,
+    work: &Path,
+    what: &str,
+) -> String {
+    fs_err::create_dir_all(work).unwrap();
+    let demos = prefix.join("share/dexjoco-data/datasets/demos");
+    let script = format!(
+        "set -e; export PATH='{bin}':$PATH; cd '{work}'
+         dexjoco-data doctor > doctor.txt
+         dexjoco-data -q ingest '{demos}/click_mouse' '{demos}/bimanual_unlock_ipad'
+         dexjoco-data -q -j 2 augment dexjoco-work/ingest --replays 1 --size 32 --quality fast
+         dexjoco-data -q convert --merge-bimanual > convert.txt
+         dexjoco-data -q stats --dataset dexjoco-work/augment > stats.txt
+         dexjoco-data -q stats --language-eval > language.txt
+         echo sample-job-done",
+        bin = bin.display(),
+        work = work.display(),
+        demos = demos.display(),
+    );
+    let out = hidden_checkout(&script);
+    let doctor = fs_err::read_to_string(work.join("doctor.txt")).unwrap_or_default();
+    assert!(
+        out.status.success() && String::from_utf8_lossy(&out.stdout).contains("sample-job-done"),
+        "the sample job failed from the {what} ({}):\nstdout: {}\nstderr: {}\ndoctor:\n{doctor}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // doctor found MuJoCo and the sample data beside the binary, not in the checkout.
+    let lib = prefix.join("lib").canonicalize().unwrap();
+    assert!(
+        doctor.contains(&format!("{}/libmujoco.so.3.17.0", lib.display())),
+        "{doctor}"
+    );
+    assert!(
+        doctor.contains("datasets (from share/dexjoco-data beside the binary"),
+        "{doctor}"
+    );
+    // Every stage wrote its output.
+    let report = work.join("dexjoco-work/augment/augment_report.json");
+    let report: serde_json::Value =
+        serde_json::from_str(&fs_err::read_to_string(report).unwrap()).unwrap();
+    // click_mouse has two sample episodes, unlock_ipad one; one replay each.
+    assert_eq!(report["replays"].as_array().unwrap().len(), 3, "{report}");
+    assert!(
+        fs_err::read_to_string(work.join("language.txt"))
+            .unwrap()
+            .contains("Jensen"),
+        "the language analysis of the {what}'s examples"
+    );
+    doctor
 }

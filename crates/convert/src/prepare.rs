@@ -376,13 +376,10 @@ impl Cameras<'_> {
         };
         // Joined files cut a source's static leading frames by stream copy, which starts
         // at a keyframe only: augment puts one there; other sources are re-encoded.
-        let cuts_at_keyframe = || {
-            self.skipped == 0
-                || dexjoco_video::keyframe_indices(&src)
-                    .is_ok_and(|keys| keys.binary_search(&self.skipped).is_ok())
-        };
+        let cuts_at_keyframe =
+            self.skipped == 0 || info.keyframes.binary_search(&self.skipped).is_ok();
         let use_source = match self.layout {
-            VideoLayout::Joined => fits && !self.video.reencode && cuts_at_keyframe(),
+            VideoLayout::Joined => fits && !self.video.reencode && cuts_at_keyframe,
             // Every episode's file must end up in the same codec.
             VideoLayout::PerEpisode => {
                 fits && !self.video.reencode

@@ -24,7 +24,6 @@ mod versions;
 pub use depth::{DepthVideoWriter, decode_gray12};
 
 pub use probe::{VideoInfo, frame_times, keyframe_indices, probe, probe_with_ffmpeg_alone};
-use program::locate_ffprobe as ffprobe_program;
 pub use program::{Ffmpeg, FfmpegSource, ffmpeg_program, locate_ffmpeg, locate_ffprobe};
 pub use versions::{EncoderVersions, encoder_versions};
 
@@ -443,6 +442,16 @@ impl Drop for VideoWriter {
 }
 
 pub(crate) fn run(program: PathBuf, args: &[&str], path: &Path) -> Result<Vec<u8>, VideoError> {
+    Ok(run_output(program, args, path)?.stdout)
+}
+
+/// Runs `program` with `args` about the video `path`; its whole output when it succeeds,
+/// else an error naming the program, the file and what it printed on stderr.
+pub(crate) fn run_output(
+    program: PathBuf,
+    args: &[&str],
+    path: &Path,
+) -> Result<std::process::Output, VideoError> {
     let out = Command::new(&program)
         .args(args)
         .output()
@@ -458,7 +467,7 @@ pub(crate) fn run(program: PathBuf, args: &[&str], path: &Path) -> Result<Vec<u8
             message: String::from_utf8_lossy(&out.stderr).trim().to_owned(),
         });
     }
-    Ok(out.stdout)
+    Ok(out)
 }
 
 /// Decodes every frame to RGB8 (rows top to bottom), one `Vec` per frame.

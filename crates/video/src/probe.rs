@@ -2,12 +2,11 @@
 //! ffprobe where there is one, else of ffmpeg alone (`-c copy -f framecrc` and the
 //! input's stream line), as with imageio-ffmpeg's static build, which has no ffprobe.
 
-use std::path::Path;
-use std::process::Command;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::{VideoError, ffmpeg_program, ffprobe_program, run};
+use crate::{VideoError, ffmpeg_program, locate_ffprobe, run, run_output};
 
 /// What a video's first stream is.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -30,6 +29,10 @@ pub struct VideoInfo {
     /// files whose fingerprints differ must not share one file by stream copy.
     #[serde(default)]
     pub extradata: String,
+    /// Indices (in presentation order) of the frames that are keyframes, where decoding
+    /// and a stream copy cut can start. Not serialized.
+    #[serde(skip)]
+    pub keyframes: Vec<usize>,
 }
 
 /// One packet of the first video stream.
@@ -43,8 +46,8 @@ struct Packet {
 
 /// Codec, size, rate, frame count and extradata of a video.
 pub fn probe(path: &Path) -> Result<VideoInfo, VideoError> {
-    match ffprobe_program() {
-        Some(ffprobe) => probe_with_ffprobe(&ffprobe, path),
+    match locate_ffprobe() {
+        Some(ffprobe) => probe_with_ffprobe(ffprobe, path),
         None => Ok(FrameCrc::read(path)?.info),
     }
 }
@@ -60,32 +63,31 @@ pub fn frame_times(path: &Path) -> Result<Vec<f64>, VideoError> {
     Ok(packets(path)?.iter().map(|p| p.pts).collect())
 }
 
-/// Indices (in presentation order) of the frames that are keyframes.
+/// Indices (in presentation order) of the frames that are keyframes ([`VideoInfo::keyframes`]).
 pub fn keyframe_indices(path: &Path) -> Result<Vec<usize>, VideoError> {
-    Ok(packets(path)?
+    Ok(probe(path)?.keyframes)
+}
+
+/// Indices of the keyframes among `packets`, sorted into presentation order.
+fn keyframes_of(mut packets: Vec<Packet>) -> Vec<usize> {
+    packets.sort_by(|a, b| a.pts.total_cmp(&b.pts));
+    packets
         .iter()
         .enumerate()
         .filter_map(|(i, p)| p.key.then_some(i))
-        .collect())
+        .collect()
 }
 
 /// The first video stream's packets, in presentation order.
 fn packets(path: &Path) -> Result<Vec<Packet>, VideoError> {
-    let mut packets = match ffprobe_program() {
+    let mut packets = match locate_ffprobe() {
         Some(ffprobe) => {
-            let p = path.to_string_lossy();
-            let args = [
-                "-v",
-                "error",
-                "-select_streams",
-                "v:0",
-                "-show_entries",
-                "packet=pts_time,flags",
-                "-of",
+            let out = ask_ffprobe(
+                ffprobe,
+                path,
+                &["-show_entries", "packet=pts_time,flags"],
                 "csv=p=0",
-                &p,
-            ];
-            let out = run(ffprobe, &args, path)?;
+            )?;
             String::from_utf8_lossy(&out)
                 .lines()
                 .filter_map(|l| {
@@ -103,21 +105,30 @@ fn packets(path: &Path) -> Result<Vec<Packet>, VideoError> {
     Ok(packets)
 }
 
-fn probe_with_ffprobe(ffprobe: &Path, path: &Path) -> Result<VideoInfo, VideoError> {
+/// ffprobe's answer about the first video stream of `path`: `-v error -select_streams
+/// v:0`, then `ask`, in the output format `format`.
+fn ask_ffprobe(
+    ffprobe: PathBuf,
+    path: &Path,
+    ask: &[&str],
+    format: &str,
+) -> Result<Vec<u8>, VideoError> {
     let p = path.to_string_lossy();
-    let args = [
-        "-v",
-        "error",
-        "-select_streams",
-        "v:0",
+    let mut args = vec!["-v", "error", "-select_streams", "v:0"];
+    args.extend_from_slice(ask);
+    args.extend_from_slice(&["-of", format, &p]);
+    run(ffprobe, &args, path)
+}
+
+fn probe_with_ffprobe(ffprobe: PathBuf, path: &Path) -> Result<VideoInfo, VideoError> {
+    let ask = [
         "-count_packets",
         "-show_streams",
         "-show_data",
-        "-of",
-        "json",
-        &p,
+        "-show_entries",
+        "packet=pts_time,flags",
     ];
-    let out = run(ffprobe.to_path_buf(), &args, path)?;
+    let out = ask_ffprobe(ffprobe, path, &ask, "json")?;
     let bad = |m: &str| failed(path, "ffprobe", m);
     let json: serde_json::Value = serde_json::from_slice(&out).map_err(|e| bad(&e.to_string()))?;
     let s = json["streams"]
@@ -129,6 +140,17 @@ fn probe_with_ffprobe(ffprobe: &Path, path: &Path) -> Result<VideoInfo, VideoErr
         None => rate.parse().unwrap_or(0.0),
     };
     let extradata = hexdump_bytes(s["extradata"].as_str().unwrap_or(""));
+    let packets = json["packets"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|p| {
+            Some(Packet {
+                pts: p["pts_time"].as_str()?.parse().ok()?,
+                key: p["flags"].as_str()?.contains('K'),
+            })
+        })
+        .collect();
     Ok(VideoInfo {
         codec: s["codec_name"].as_str().unwrap_or("").into(),
         profile: s["profile"].as_str().map(Into::into),
@@ -141,6 +163,7 @@ fn probe_with_ffprobe(ffprobe: &Path, path: &Path) -> Result<VideoInfo, VideoErr
             .and_then(|n| n.parse().ok())
             .unwrap_or(0),
         extradata: fingerprint(extradata.len(), adler32(&extradata)),
+        keyframes: keyframes_of(packets),
     })
 }
 
@@ -194,21 +217,22 @@ struct FrameCrc {
 
 impl FrameCrc {
     fn read(path: &Path) -> Result<Self, VideoError> {
-        let program = ffmpeg_program();
-        let out = Command::new(&program)
-            .args(["-hide_banner", "-nostdin", "-i"])
-            .arg(path)
-            .args(["-map", "0:v:0", "-c", "copy", "-f", "framecrc", "-"])
-            .output()
-            .map_err(|source| VideoError::Spawn {
-                program: program.display().to_string(),
-                path: path.into(),
-                source,
-            })?;
+        let p = path.to_string_lossy();
+        let args = [
+            "-hide_banner",
+            "-nostdin",
+            "-i",
+            &p,
+            "-map",
+            "0:v:0",
+            "-c",
+            "copy",
+            "-f",
+            "framecrc",
+            "-",
+        ];
+        let out = run_output(ffmpeg_program(), &args, path)?;
         let log = String::from_utf8_lossy(&out.stderr);
-        if !out.status.success() {
-            return Err(failed(path, "ffmpeg", log.trim()));
-        }
         let stream = log
             .lines()
             .find(|l| l.contains("Stream #0:") && l.contains(": Video: "))
@@ -282,6 +306,7 @@ impl FrameCrc {
             fps,
             frames: packets.len() as u64,
             extradata,
+            keyframes: keyframes_of(packets.clone()),
         };
         Some(Self { info, packets })
     }
