@@ -135,16 +135,8 @@ pub fn python() -> Option<Located> {
             checkout_of_binary()
                 .and_then(|c| recorded(c, "the test venv of the binary's checkout")),
             recorded(PathBuf::from("."), "the test venv of the current folder"),
-            which("python3").map(|p| Located::new(p, "PATH")),
+            dexjoco_video::which("python3").map(|p| Located::new(p, "PATH")),
         ],
         Path::is_file,
     )
-}
-
-/// A program on PATH.
-pub fn which(program: &str) -> Option<PathBuf> {
-    let path = std::env::var_os("PATH")?;
-    std::env::split_paths(&path)
-        .map(|d| d.join(program))
-        .find(|p| p.is_file())
 }

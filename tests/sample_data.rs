@@ -8,6 +8,8 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
 
+mod common;
+
 /// The first ```sh block of a Markdown file.
 fn sh_block(markdown: &str) -> String {
     let start = markdown
@@ -36,16 +38,12 @@ fn the_shipped_samples_are_what_their_readme_commands_make_today() {
         bin.display(),
         std::env::var("PATH").unwrap_or_default()
     );
-    let out = Command::new("sh")
-        .args(["-e", "-c", &script])
-        .env("PATH", path)
-        .current_dir(tmp.path())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "the README's commands failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
+    // The README's commands.
+    common::succeeds(
+        Command::new("sh")
+            .args(["-e", "-c", &script])
+            .env("PATH", path)
+            .current_dir(tmp.path()),
     );
     let made = dexjoco_testkit::file_tree(&tmp.path().join("datasets/demos"));
     let mut shipped = dexjoco_testkit::file_tree(&root.join("datasets/demos"));

@@ -38,15 +38,10 @@ fn is_empty_dir(dir: &Path) -> bool {
 }
 
 fn pip(venv: &Path, args: &[&str]) {
-    let out = Command::new(venv.join("bin/python"))
-        .args(["-m", "pip", "--disable-pip-version-check", "-q"])
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "pip {args:?} failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
+    common::succeeds(
+        Command::new(venv.join("bin/python"))
+            .args(["-m", "pip", "--disable-pip-version-check", "-q"])
+            .args(args),
     );
 }
 
@@ -144,21 +139,13 @@ fn ffmpeg_extra_job(venv: &Path, wheel: &Path, alone: &Path) {
          dexjoco-data doctor > doctor.txt
          dexjoco-data -q ingest '{demos}/click_mouse'
          dexjoco-data -q augment dexjoco-work/ingest --replays 1 --size 32 --quality fast
-         dexjoco-data -q convert
-         echo extra-job-done",
+         dexjoco-data -q convert",
         bin = bin.display(),
         alone = alone.display(),
         demos = demos.display(),
     );
-    let out = common::hidden_checkout(&script);
-    let doctor = fs_err::read_to_string(alone.join("doctor.txt")).unwrap_or_default();
-    assert!(
-        out.status.success() && String::from_utf8_lossy(&out.stdout).contains("extra-job-done"),
-        "augment and convert with imageio-ffmpeg failed ({}):\nstdout: {}\nstderr: {}\ndoctor:\n{doctor}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let doctor =
+        common::job_with_checkout_hidden(&script, alone, "augment and convert with imageio-ffmpeg");
     assert!(
         doctor.contains("imageio_ffmpeg/binaries/ffmpeg-")
             && doctor.contains("found: imageio-ffmpeg's static build")

@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
+use dexjoco_augment::VideoEncoding;
 
 use super::{FirstFrameArgs, GeometryArg, QualityArg, TasksDirArgs};
 
@@ -555,24 +556,24 @@ pub struct VideoEncodingArgs {
     /// x264's constant rate factor of the camera videos (lower: better and larger; 21 is
     /// the DexJoCo recorder's). 0 writes lossless RGB (libx264rgb), the rendered frames
     /// bit for bit, for measuring or re-encoding later (large; convert re-encodes it).
-    #[arg(long, default_value_t = 21, value_name = "CRF", value_parser = clap::value_parser!(u8).range(0..=51))]
+    #[arg(long, default_value_t = VideoEncoding::default().crf, value_name = "CRF", value_parser = clap::value_parser!(u8).range(0..=51))]
     pub crf: u8,
     /// x264's speed preset of the camera videos: ultrafast, superfast, veryfast, faster,
     /// fast, medium (x264's default, the DexJoCo recorder's), slow. The default was chosen
     /// by measurement (docs/performance.md, "Video encoding").
-    #[arg(long, default_value = "ultrafast", value_name = "PRESET")]
+    #[arg(long, default_value_t = VideoEncoding::default().preset, value_name = "PRESET")]
     pub x264_preset: dexjoco_video::X264Preset,
     /// At most N frames from one keyframe to the next in the camera videos. convert
     /// stream-copies them into LeRobot datasets, where a random item decodes from the
     /// keyframe before it: short intervals read fast at training time. 0: x264's own (250).
-    #[arg(long, default_value_t = 5, value_name = "N")]
+    #[arg(long, default_value_t = VideoEncoding::default().keyframe_interval, value_name = "N")]
     pub keyframe_interval: u32,
 }
 
 impl VideoEncodingArgs {
     /// The encoding these flags ask for.
-    pub fn encoding(&self) -> dexjoco_augment::VideoEncoding {
-        dexjoco_augment::VideoEncoding {
+    pub fn encoding(&self) -> VideoEncoding {
+        VideoEncoding {
             crf: self.crf,
             preset: self.x264_preset,
             keyframe_interval: self.keyframe_interval,

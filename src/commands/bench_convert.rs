@@ -54,6 +54,12 @@ fn generate(dir: &Path, episodes: usize, frames: usize, size: u32) -> anyhow::Re
         let ep = dexjoco_core::synth::episode(task, frames, i as u64);
         let d = dir.join(&task.id).join(format!("episode_{i:06}"));
         dexjoco_formats::raw::write_replay_zarr(&d, &ep)?;
+        fs_err::create_dir_all(d.join("videos"))?;
+        if i > 0 {
+            let first = dir.join(&task.id).join("episode_000000/videos/front.mp4");
+            fs_err::copy(first, d.join("videos/front.mp4"))?;
+            continue;
+        }
         // Encoded as augment encodes by default (its keyframe interval decides random reads).
         let encoding = dexjoco_augment::VideoEncoding::default();
         let spec = dexjoco_video::VideoSpec {
@@ -62,12 +68,6 @@ fn generate(dir: &Path, episodes: usize, frames: usize, size: u32) -> anyhow::Re
             fps: 30,
             codec: encoding.codec(),
         };
-        fs_err::create_dir_all(d.join("videos"))?;
-        if i > 0 {
-            let first = dir.join(&task.id).join("episode_000000/videos/front.mp4");
-            fs_err::copy(first, d.join("videos/front.mp4"))?;
-            continue;
-        }
         let mut w = dexjoco_video::VideoWriter::create_with(
             d.join("videos/front.mp4"),
             spec,
@@ -494,6 +494,7 @@ fn random_reads(
             .with_context(|| format!("no LeRobot dataset under {}", dir.display()))?;
         datasets.push(("DexJoCo reference converter (AV1, GOP 2)", root));
     }
+    let python = python()?;
     let mut reads = Vec::new();
     for (dataset, root) in datasets {
         for backend in ["torchcodec", "pyav"] {
@@ -504,7 +505,7 @@ fn random_reads(
                 backend.to_owned(),
                 items,
             ];
-            let out = Command::new(python()?)
+            let out = Command::new(&python)
                 .args(&argv)
                 .output()
                 .context("running lerobot_random_read.py")?;

@@ -236,6 +236,22 @@ pub fn hidden_checkout(script: &str) -> std::process::Output {
         .expect("running unshare (util-linux)")
 }
 
+/// Runs the sh commands `script` (`set -e`; the first runs `dexjoco-data doctor >
+/// doctor.txt` in `work`) with the checkout hidden ([`hidden_checkout`]); asserts that
+/// every command succeeded, naming the job `what`; returns doctor's report.
+pub fn job_with_checkout_hidden(script: &str, work: &Path, what: &str) -> String {
+    let out = hidden_checkout(&format!("{script}\necho job-done"));
+    let doctor = fs_err::read_to_string(work.join("doctor.txt")).unwrap_or_default();
+    assert!(
+        out.status.success() && String::from_utf8_lossy(&out.stdout).contains("job-done"),
+        "{what} failed ({}):\nstdout: {}\nstderr: {}\ndoctor:\n{doctor}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    doctor
+}
+
 /// The sample job as a user runs it from an installed `dexjoco-data` (`prefix/bin` or a
 /// link to it in `bin`, first on PATH), in `work`, with the checkout hidden and the
 /// environment cleared: doctor, ingest of two demos, augment, convert --merge-bimanual,
@@ -258,21 +274,13 @@ pub fn sample_job_with_checkout_hidden(
          dexjoco-data -q -j 2 augment dexjoco-work/ingest --replays 1 --size 32 --quality fast
          dexjoco-data -q convert --merge-bimanual > convert.txt
          dexjoco-data -q stats --dataset dexjoco-work/augment > stats.txt
-         dexjoco-data -q stats --language-eval > language.txt
-         echo sample-job-done",
+         dexjoco-data -q stats --language-eval > language.txt",
         bin = bin.display(),
         work = work.display(),
         demos = demos.display(),
     );
-    let out = hidden_checkout(&script);
-    let doctor = fs_err::read_to_string(work.join("doctor.txt")).unwrap_or_default();
-    assert!(
-        out.status.success() && String::from_utf8_lossy(&out.stdout).contains("sample-job-done"),
-        "the sample job failed from the {what} ({}):\nstdout: {}\nstderr: {}\ndoctor:\n{doctor}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let doctor =
+        job_with_checkout_hidden(&script, work, &format!("the sample job from the {what}"));
     // doctor found MuJoCo and the sample data beside the binary, not in the checkout.
     let lib = prefix.join("lib").canonicalize().unwrap();
     assert!(

@@ -4,8 +4,10 @@
 
 mod common;
 
-use common::{check_items, fixture, fixture_with, load, selection};
-use dexjoco_convert::{ConvertError, ConvertOptions, VideoCodec, VideoOptions, convert};
+use std::path::PathBuf;
+
+use common::{Fixture, check_items, fixture, fixture_with, load, selection};
+use dexjoco_convert::{ConvertError, ConvertOptions, Summary, VideoCodec, VideoOptions, convert};
 use dexjoco_core::NoProgress;
 use serde_json::Value;
 
@@ -18,18 +20,25 @@ fn options(video: VideoOptions) -> ConvertOptions {
     }
 }
 
-#[test]
-fn stream_copied_h264_loads_in_lerobot_with_pyav_and_torchcodec() {
-    let fx = fixture();
+/// `fx` converted with `video` into `dataset/` of a new temporary folder: the folder, the
+/// dataset and convert's summary.
+fn converted(fx: &Fixture, video: VideoOptions) -> (tempfile::TempDir, PathBuf, Summary) {
     let out_dir = tempfile::tempdir().unwrap();
     let out = out_dir.path().join("dataset");
     let summary = convert(
         fx.inputs.iter().cloned().map(Ok),
         &out,
-        &options(VideoOptions::default()),
+        &options(video),
         &NoProgress,
     )
     .unwrap();
+    (out_dir, out, summary)
+}
+
+#[test]
+fn stream_copied_h264_loads_in_lerobot_with_pyav_and_torchcodec() {
+    let fx = fixture();
+    let (out_dir, out, summary) = converted(&fx, VideoOptions::default());
     assert_eq!(
         (summary.episodes, summary.frames, summary.skipped_frames),
         (3, 32, 4)
@@ -78,15 +87,7 @@ fn stream_copied_h264_loads_in_lerobot_with_pyav_and_torchcodec() {
 fn recordings_without_a_keyframe_at_the_cut_are_reencoded_in_their_codec() {
     // As the DexJoCo recorder writes them: no keyframe where the static frames end.
     let fx = fixture_with(false);
-    let out_dir = tempfile::tempdir().unwrap();
-    let out = out_dir.path().join("dataset");
-    let summary = convert(
-        fx.inputs.iter().cloned().map(Ok),
-        &out,
-        &options(VideoOptions::default()),
-        &NoProgress,
-    )
-    .unwrap();
+    let (_out_dir, out, summary) = converted(&fx, VideoOptions::default());
     // Episodes 0 and 1 (static frames) re-encoded to cut, in H.264 like the copied
     // episode 2, though the re-encoding codec is AV1; every file's frames are its
     // episodes' (lerobot-doctor agrees, in `load`).
@@ -107,19 +108,11 @@ fn recordings_without_a_keyframe_at_the_cut_are_reencoded_in_their_codec() {
 #[test]
 fn reencoded_av1_loads_in_lerobot() {
     let fx = fixture();
-    let out_dir = tempfile::tempdir().unwrap();
-    let out = out_dir.path().join("dataset");
     let video = VideoOptions {
         codec: VideoCodec::Av1,
         reencode: true,
     };
-    let summary = convert(
-        fx.inputs.iter().cloned().map(Ok),
-        &out,
-        &options(video),
-        &NoProgress,
-    )
-    .unwrap();
+    let (_out_dir, out, summary) = converted(&fx, video);
     assert_eq!((summary.videos_copied, summary.videos_encoded), (0, 6));
     let info =
         dexjoco_video::probe(&out.join("videos/observation.images.wrist/chunk-000/file-000.mp4"))

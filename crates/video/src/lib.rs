@@ -24,7 +24,7 @@ mod versions;
 pub use depth::{DepthVideoWriter, decode_gray12};
 
 pub use probe::{VideoInfo, frame_times, keyframe_indices, probe, probe_with_ffmpeg_alone};
-pub use program::{Ffmpeg, FfmpegSource, ffmpeg_program, locate_ffmpeg, locate_ffprobe};
+pub use program::{Ffmpeg, FfmpegSource, ffmpeg_program, locate_ffmpeg, locate_ffprobe, which};
 pub use versions::{EncoderVersions, encoder_versions};
 
 /// Errors of video encoding and decoding; each names the file.
@@ -154,6 +154,12 @@ impl X264Preset {
             Self::Medium => "medium",
             Self::Slow => "slow",
         }
+    }
+}
+
+impl std::fmt::Display for X264Preset {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 

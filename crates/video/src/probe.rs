@@ -48,7 +48,7 @@ struct Packet {
 pub fn probe(path: &Path) -> Result<VideoInfo, VideoError> {
     match locate_ffprobe() {
         Some(ffprobe) => probe_with_ffprobe(ffprobe, path),
-        None => Ok(FrameCrc::read(path)?.info),
+        None => probe_with_ffmpeg_alone(path),
     }
 }
 
@@ -68,9 +68,14 @@ pub fn keyframe_indices(path: &Path) -> Result<Vec<usize>, VideoError> {
     Ok(probe(path)?.keyframes)
 }
 
-/// Indices of the keyframes among `packets`, sorted into presentation order.
-fn keyframes_of(mut packets: Vec<Packet>) -> Vec<usize> {
+/// Sorts `packets` into presentation order.
+fn in_presentation_order(mut packets: Vec<Packet>) -> Vec<Packet> {
     packets.sort_by(|a, b| a.pts.total_cmp(&b.pts));
+    packets
+}
+
+/// Indices of the keyframes among `packets` (in presentation order).
+fn keyframes_of(packets: &[Packet]) -> Vec<usize> {
     packets
         .iter()
         .enumerate()
@@ -80,29 +85,38 @@ fn keyframes_of(mut packets: Vec<Packet>) -> Vec<usize> {
 
 /// The first video stream's packets, in presentation order.
 fn packets(path: &Path) -> Result<Vec<Packet>, VideoError> {
-    let mut packets = match locate_ffprobe() {
+    match locate_ffprobe() {
         Some(ffprobe) => {
-            let out = ask_ffprobe(
-                ffprobe,
-                path,
-                &["-show_entries", "packet=pts_time,flags"],
-                "csv=p=0",
-            )?;
-            String::from_utf8_lossy(&out)
-                .lines()
-                .filter_map(|l| {
-                    let (t, flags) = l.trim().split_once(',')?;
-                    Some(Packet {
-                        pts: t.parse().ok()?,
-                        key: flags.contains('K'),
-                    })
-                })
-                .collect()
+            let ask = ["-show_entries", PACKET_ENTRIES];
+            let out = ask_ffprobe(ffprobe, path, &ask, "json")?;
+            let json = parse_json(path, &out)?;
+            Ok(packets_of(&json))
         }
-        None => FrameCrc::read(path)?.packets,
-    };
-    packets.sort_by(|a, b| a.pts.total_cmp(&b.pts));
-    Ok(packets)
+        None => Ok(in_presentation_order(FrameCrc::read(path)?.packets)),
+    }
+}
+
+/// What ffprobe is asked of each packet.
+const PACKET_ENTRIES: &str = "packet=pts_time,flags";
+
+/// The packets of ffprobe's JSON answer, in presentation order.
+fn packets_of(json: &serde_json::Value) -> Vec<Packet> {
+    let packets = json["packets"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|p| {
+            Some(Packet {
+                pts: p["pts_time"].as_str()?.parse().ok()?,
+                key: p["flags"].as_str()?.contains('K'),
+            })
+        })
+        .collect();
+    in_presentation_order(packets)
+}
+
+fn parse_json(path: &Path, out: &[u8]) -> Result<serde_json::Value, VideoError> {
+    serde_json::from_slice(out).map_err(|e| failed(path, "ffprobe", &e.to_string()))
 }
 
 /// ffprobe's answer about the first video stream of `path`: `-v error -select_streams
@@ -126,31 +140,19 @@ fn probe_with_ffprobe(ffprobe: PathBuf, path: &Path) -> Result<VideoInfo, VideoE
         "-show_streams",
         "-show_data",
         "-show_entries",
-        "packet=pts_time,flags",
+        PACKET_ENTRIES,
     ];
     let out = ask_ffprobe(ffprobe, path, &ask, "json")?;
-    let bad = |m: &str| failed(path, "ffprobe", m);
-    let json: serde_json::Value = serde_json::from_slice(&out).map_err(|e| bad(&e.to_string()))?;
+    let json = parse_json(path, &out)?;
     let s = json["streams"]
         .get(0)
-        .ok_or_else(|| bad("no video stream"))?;
+        .ok_or_else(|| failed(path, "ffprobe", "no video stream"))?;
     let rate = s["avg_frame_rate"].as_str().unwrap_or("0/1");
     let fps = match rate.split_once('/') {
         Some((n, d)) => n.parse::<f64>().unwrap_or(0.0) / d.parse::<f64>().unwrap_or(1.0).max(1e-9),
         None => rate.parse().unwrap_or(0.0),
     };
     let extradata = hexdump_bytes(s["extradata"].as_str().unwrap_or(""));
-    let packets = json["packets"]
-        .as_array()
-        .into_iter()
-        .flatten()
-        .filter_map(|p| {
-            Some(Packet {
-                pts: p["pts_time"].as_str()?.parse().ok()?,
-                key: p["flags"].as_str()?.contains('K'),
-            })
-        })
-        .collect();
     Ok(VideoInfo {
         codec: s["codec_name"].as_str().unwrap_or("").into(),
         profile: s["profile"].as_str().map(Into::into),
@@ -163,7 +165,7 @@ fn probe_with_ffprobe(ffprobe: PathBuf, path: &Path) -> Result<VideoInfo, VideoE
             .and_then(|n| n.parse().ok())
             .unwrap_or(0),
         extradata: fingerprint(extradata.len(), adler32(&extradata)),
-        keyframes: keyframes_of(packets),
+        keyframes: keyframes_of(&packets_of(&json)),
     })
 }
 
@@ -212,6 +214,7 @@ fn failed(path: &Path, program: &str, message: &str) -> VideoError {
 /// 224x224, 47 kb/s, 30 fps, ...`).
 struct FrameCrc {
     info: VideoInfo,
+    /// In decoding order, as listed.
     packets: Vec<Packet>,
 }
 
@@ -306,7 +309,7 @@ impl FrameCrc {
             fps,
             frames: packets.len() as u64,
             extradata,
-            keyframes: keyframes_of(packets.clone()),
+            keyframes: keyframes_of(&in_presentation_order(packets.clone())),
         };
         Some(Self { info, packets })
     }

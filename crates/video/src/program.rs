@@ -83,7 +83,7 @@ pub fn locate_ffprobe() -> Option<PathBuf> {
 }
 
 /// `program` in a folder of PATH.
-fn which(program: &str) -> Option<PathBuf> {
+pub fn which(program: &str) -> Option<PathBuf> {
     let path = std::env::var_os("PATH")?;
     std::env::split_paths(&path)
         .map(|d| d.join(program))
