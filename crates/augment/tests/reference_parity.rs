@@ -319,10 +319,6 @@ const FRAGILE_IN_REFERENCE: &[(&str, &str)] = &[
     ),
 ];
 
-/// Tasks whose planner does not yet succeed on this reset of the reference scene (issue
-/// #26 reports what resists); every other task's plan must succeed here.
-const NOT_YET_PLANNED_ON_REFERENCE: &[&str] = &["fold_glasses"];
-
 /// Every successful demonstration replayed through `augment` on the reference scenes
 /// (one replay, the task's first camera, 32 px): success on the plan's last step, state
 /// deviation 0.
@@ -393,9 +389,8 @@ fn every_task_replays_as_the_reference_replays_it() {
         }));
     }
     for c in cases.iter().filter(|c| c.name.ends_with("_demo")) {
-        let resists = NOT_YET_PLANNED_ON_REFERENCE.contains(&c.spec.id.as_str());
         assert!(
-            resists || c.first_success.is_some(),
+            c.first_success.is_some(),
             "{}: the plan on the reference scene did not succeed",
             c.name
         );

@@ -27,6 +27,19 @@ const PINCH_TCP_Z: f64 = 0.145;
 /// pinched near its top.
 const PINCH_X_UPRIGHT: f64 = 0.05;
 const PINCH_TCP_Z_UPRIGHT: f64 = 0.2;
+/// How far behind the front's top the fingertip comes down to tip the glasses forward
+/// (behind the folded temples), along the arc about the front's lower edge (m).
+const TIP_BEHIND: f64 = 0.05;
+/// Where the forward tip's sweep ends: the angle (rad, back from upright) about the
+/// front's lower edge.
+const TIP_TO: f64 = -0.7;
+/// The fingertip's distance from the hinge's axis when folding a temple of glasses
+/// lying face down (m), how far its target leads the temple (rad), where it comes down
+/// behind the temple (rad) and its offset outside the temple (m).
+const LYING_FOLD_R: f64 = 0.14;
+const LYING_FOLD_LEAD: f64 = 0.2;
+const LYING_FOLD_BEHIND: f64 = 0.35;
+const LYING_FOLD_OUT: f64 = 0.015;
 /// The glasses' origin above the case's when let go.
 const RELEASE_Z: f64 = 0.02;
 /// The index fingertip from the TCP (world axes) with the hand pitched fingers-down in
@@ -35,6 +48,9 @@ const RELEASE_Z: f64 = 0.02;
 const TIP: V3 = [-0.0142, 0.0547, -0.1778];
 /// How far the front should stand from the table's near edge after a push back.
 const EDGE_CLEAR: f64 = 0.2;
+/// As [`EDGE_CLEAR`] before the first fold of a face-down plan (the fold and the tip
+/// over move the glasses 0.1-0.15 m toward the edge).
+const EDGE_CLEAR_FIRST: f64 = 0.25;
 /// A fold stops (for a push back) when the front comes this close to the table's edge.
 const EDGE_MIN: f64 = 0.05;
 /// The fingertip's distance from a light hinge (damping under [`DAMPED`]) while folding.
@@ -47,6 +63,11 @@ const DAMPED: f64 = 0.05;
 const FOLD_AT: f64 = 0.85;
 /// As [`FOLD_AT`] for the second temple (clear of the first one's tip, folded by then).
 const FOLD_AT_2: f64 = 0.8;
+/// A damped temple's fold has stalled when the hinge gains less than `STALL_DQ` (rad)
+/// in `STALL_STEPS` steps, within `STALL_NEAR` (rad) of its stop.
+const STALL_DQ: f64 = 0.003;
+const STALL_STEPS: usize = 20;
+const STALL_NEAR: f64 = 0.12;
 /// How far the fingertip's target leads the temple around the hinge (rad).
 const FOLD_LEAD: f64 = 0.06;
 /// Where the fingertip comes down, behind the temple around the hinge (rad).
@@ -56,6 +77,47 @@ const FOLD_OUT: f64 = 0.018;
 /// The fingertip's height above the temple's estimated lowest point while folding.
 const FOLD_DZ: f64 = 0.005;
 
+/// Step counts (and the last press) where the two plans differ: the face-down plan
+/// for temples that sag (see [`temple_sags`]) must fit a longer sequence in the same
+/// step cap, so it moves on sooner after each contact phase.
+struct Pace {
+    /// After a standing fold: the hold before lifting off the temple, and the lift.
+    fold_hold: usize,
+    fold_lift: usize,
+    /// The lift off the front after a push back.
+    push_lift: usize,
+    /// Turning palm-down, the hold after it, and the move above the pinch.
+    turn: usize,
+    turn_hold: usize,
+    above: usize,
+    /// How far (m) the open hand presses the let-go glasses down into the case: a
+    /// temple the pinch has half unfolded lies on top, face down, and is pressed back
+    /// onto the front.
+    press: Option<f64>,
+}
+
+/// The plan for temples that stay where they are put (the built-in scene).
+const STANDING: Pace = Pace {
+    fold_hold: 20,
+    fold_lift: 30,
+    push_lift: 15,
+    turn: 30,
+    turn_hold: 10,
+    above: 40,
+    press: None,
+};
+
+/// The plan for temples that sag (the reference scene).
+const FACE_DOWN: Pace = Pace {
+    fold_hold: 5,
+    fold_lift: 20,
+    push_lift: 10,
+    turn: 20,
+    turn_hold: 1,
+    above: 30,
+    press: Some(0.07),
+};
+
 /// Plans fold_glasses on an environment just restored from its initial state.
 pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let s = env.state();
@@ -64,43 +126,61 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let table = kin::site(rec.env(), "table_top")?[2];
     // The hand pitched fingers-down (formed on the way to the first temple).
     let down = kin::qmul(kin::axis_angle([0.0, 1.0, 0.0], FRAC_PI_2), home);
-    for (joint, other) in [
-        ("glass_joint_0", "glass_joint_1"),
-        ("glass_joint_1", "glass_joint_0"),
-    ] {
-        // When the folding slides the glasses near the table's edge, push them back
-        // and go on folding.
-        let mut approach = if joint == "glass_joint_0" { 110 } else { 45 };
-        for _ in 0..3 {
-            if fold_temple(&mut rec, down, joint, other, approach)? {
-                break;
-            }
-            push_back(&mut rec, down)?;
-            approach = 45;
-        }
+    let sags = temple_sags(rec.env(), "glass_joint_0")? || temple_sags(rec.env(), "glass_joint_1")?;
+    let pace = if sags { &FACE_DOWN } else { &STANDING };
+    if sags {
+        fold_face_down(&mut rec, down, pace)?;
+    } else {
+        fold_standing(&mut rec, down, "glass_joint_0", "glass_joint_1", 110, pace)?;
+        fold_standing(&mut rec, down, "glass_joint_1", "glass_joint_0", 45, pace)?;
+        // Folded, the glasses cannot stand: tip them over backwards (away from the
+        // table's edge) with the fingertip on the top of the front.
+        tip_over_backwards(&mut rec, down)?;
     }
-    // Folded, the glasses cannot stand: tip them over backwards (away from the table's
-    // edge) with the fingertip on the top of the front.
-    tip_over_backwards(&mut rec, down)?;
+    stow(&mut rec, table, home, pace)?;
+    rec.finish(id)
+}
+
+/// Folds sagging temples so that the glasses end face down, temples on top (gravity
+/// unfolds a temple hanging under the front, and keeps one lying on it folded): pushes
+/// the standing glasses away from the table's edge (the fold and the tip-over move them
+/// toward it), folds the first temple standing, tips the glasses over forwards and
+/// folds the second temple down onto the front (the push then presses them onto the
+/// table, where a standing fold drags them).
+fn fold_face_down(rec: &mut Recorder, down: Q, pace: &Pace) -> Result<(), SimError> {
+    let mut approach = 110;
+    if push_back(rec, down, 60, EDGE_CLEAR_FIRST, pace)? {
+        let here = rec.target(0).0;
+        rec.go(0, kin::add(here, [0.0, 0.0, 0.06]), down, POINT, 5)?;
+        approach = 40;
+    }
+    fold_standing(rec, down, "glass_joint_0", "glass_joint_1", approach, pace)?;
+    tip_over_forwards(rec, down)?;
+    fold_lying(rec, down, "glass_joint_1", "glass_joint_0")
+}
+
+/// Turns the hand palm-down, pinches the folded glasses lying on the table, carries
+/// them over the case and lets go inside it.
+fn stow(rec: &mut Recorder, table: f64, home: Q, pace: &Pace) -> Result<(), SimError> {
     // Turn palm-down well above the glasses, and let the glasses settle
     // (folded, they may topple), then come over them.
     let here = rec.target(0).0;
-    rec.go(0, kin::add(here, [0.0, 0.0, 0.06]), home, OPEN, 30)?;
-    rec.wait(10)?;
-    show(&rec, "turned");
+    rec.go(0, kin::add(here, [0.0, 0.0, 0.06]), home, OPEN, pace.turn)?;
+    rec.wait(pace.turn_hold)?;
+    show(rec, "turned");
     // Folded, the glasses no longer stand: they lie on the front. Pinch the front
     // across its width (thumb at one long edge, fingers at the other), low on the table.
     let (at, q) = front_pinch(rec.env(), table, home)?;
-    rec.go(0, kin::add(at, [0.0, 0.0, 0.08]), q, OPEN, 40)?;
+    rec.go(0, kin::add(at, [0.0, 0.0, 0.08]), q, OPEN, pace.above)?;
     rec.settle(0.01, 20)?;
-    show(&rec, "above");
+    show(rec, "above");
     rec.go(0, at, q, OPEN, 30)?;
     rec.settle(0.006, 25)?;
-    show(&rec, "before the pinch");
+    show(rec, "before the pinch");
     rec.snap(0, "glasses_before_pinch");
     rec.go(0, at, q, CLOSE, 25)?;
     rec.wait(10)?;
-    show(&rec, "pinched");
+    show(rec, "pinched");
     rec.snap(0, "glasses_pinched");
     let lift = kin::add(at, [0.0, 0.0, 0.16]);
     rec.go(0, lift, q, CLOSE, 45)?;
@@ -114,28 +194,151 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let low = [over[0], over[1], case[2] + RELEASE_Z - off[2]];
     rec.go(0, low, q, CLOSE, 35)?;
     rec.settle(0.008, 20)?;
-    show(&rec, "lowered");
+    show(rec, "lowered");
     rec.go(0, low, q, OPEN, 20)?;
+    if let Some(press) = pace.press {
+        rec.go(0, kin::add(low, [0.0, 0.0, -press]), q, OPEN, 15)?;
+        show(rec, "pressed");
+        rec.go(0, kin::add(low, [0.0, 0.0, 0.03]), q, OPEN, 10)?;
+    }
     rec.go(0, kin::add(low, [0.0, 0.0, 0.1]), q, OPEN, 40)?;
-    show(&rec, "released");
+    show(rec, "released");
     rec.wait(80)?;
-    show(&rec, "end");
-    rec.finish(id)
+    show(rec, "end");
+    Ok(())
+}
+
+/// Folds the temple on hinge `joint` with the glasses standing; when the folding slides
+/// them near the table's edge, pushes them back and goes on folding.
+fn fold_standing(
+    rec: &mut Recorder,
+    down: Q,
+    joint: &str,
+    other: &str,
+    mut approach: usize,
+    pace: &Pace,
+) -> Result<(), SimError> {
+    for _ in 0..3 {
+        if fold_temple(rec, down, joint, other, approach, pace)? {
+            break;
+        }
+        push_back(rec, down, 45, EDGE_CLEAR, pace)?;
+        approach = 45;
+    }
+    Ok(())
+}
+
+/// Folds the temple on hinge `joint` with the glasses lying face down (the hinge's axis
+/// level, the temple pointing up): the fingertip sweeps it around the axis toward the
+/// other hinge (`other`) and down onto the front, in a closed loop as [`fold_temple`].
+fn fold_lying(rec: &mut Recorder, down: Q, joint: &str, other: &str) -> Result<(), SimError> {
+    let e = rec.env();
+    // Where the index fingertip (its collision capsule's centre) is from the TCP now:
+    // the temple is a thin wire, so the sweep needs the fingertip itself.
+    let tip = super::geom_of_body(e, "ff_tip")
+        .map(|g| kin::sub(e.data().geom_xpos()[g], kin::tcp(e, 0).0))
+        .unwrap_or(TIP);
+    let (j, b) = joint_body(e, joint)?;
+    let stop = e.data().model().jnt_range()[j][1] - 0.02;
+    let r = LYING_FOLD_R;
+    let at = |centre: V3, e1: V3, e2: V3, a: f64| {
+        let b = a - LYING_FOLD_OUT / r;
+        let p = kin::add(
+            centre,
+            kin::add(kin::scale(e1, r * b.cos()), kin::scale(e2, r * b.sin())),
+        );
+        kin::sub(p, tip)
+    };
+    // The temple swings as the glasses land: aim from above, let it come to rest,
+    // then aim again from where it is.
+    let (centre, e1, e2) = sweep_plane(e, j, b, other)?;
+    let start = at(centre, e1, e2, -LYING_FOLD_BEHIND);
+    rec.go(0, kin::add(start, [0.0, 0.0, 0.08]), down, POINT, 30)?;
+    rec.wait(5)?;
+    let (centre, e1, e2) = sweep_plane(rec.env(), j, b, other)?;
+    let angle = |v: V3| dot(v, e2).atan2(dot(v, e1));
+    let start = at(centre, e1, e2, -LYING_FOLD_BEHIND);
+    rec.go(0, kin::add(start, [0.0, 0.0, 0.08]), down, POINT, 10)?;
+    rec.go(0, start, down, POINT, 20)?;
+    rec.settle(0.006, 20)?;
+    show(rec, &format!("at lying {joint}"));
+    rec.snap(0, &format!("glasses_at_lying_{joint}"));
+    let (mut best, mut best_at) = (f64::NEG_INFINITY, 0);
+    for k in 0..300_usize {
+        let e = rec.env();
+        if debug() && k.is_multiple_of(25) {
+            show(rec, &format!("  {k}"));
+        }
+        let q = kin::joint(e, joint)?;
+        if q > stop || rec.done() {
+            break;
+        }
+        if q > best + STALL_DQ {
+            (best, best_at) = (q, k);
+        } else if q > stop - STALL_NEAR && k - best_at > STALL_STEPS {
+            break;
+        }
+        let (centre, u, _) = sweep_plane(e, j, b, other)?;
+        let a = angle(u) + LYING_FOLD_LEAD;
+        rec.go(0, at(centre, e1, e2, a), down, POINT, 1)?;
+    }
+    show(rec, &format!("folded lying {joint}"));
+    rec.snap(0, &format!("glasses_lying_{joint}"));
+    let here = rec.target(0).0;
+    rec.go(0, kin::add(here, [0.0, 0.0, 0.06]), down, POINT, 15)?;
+    Ok(())
+}
+
+/// The plane of a lying fold's sweep about hinge `j` (moving body `b`): its centre, the
+/// temple's direction from the axis now, and the direction toward hinge `other`
+/// square to it (both square to the axis).
+fn sweep_plane(e: &TaskEnv, j: usize, b: usize, other: &str) -> Result<(V3, V3, V3), SimError> {
+    let d = e.data();
+    let h = d.xanchor()[j];
+    let n = d.xaxis()[j];
+    let (c, _) = body_box(e, b);
+    let off = kin::sub(kin::add(d.xpos()[b], kin::mulv(&d.xmat()[b], c)), h);
+    let u = unit(kin::sub(off, kin::scale(n, dot(off, n))));
+    let to = kin::sub(kin::anchor(e, other)?, h);
+    let w = unit(kin::sub(to, kin::scale(n, dot(to, n))));
+    Ok((h, u, unit(kin::sub(w, kin::scale(u, dot(w, u))))))
+}
+
+/// The joint id of `joint` and the id of the body it moves.
+fn joint_body(e: &TaskEnv, joint: &str) -> Result<(usize, usize), SimError> {
+    let m = e.data().model();
+    let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
+        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
+    Ok((j, m.jnt_bodyid()[j] as usize))
+}
+
+fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn unit(a: V3) -> V3 {
+    kin::scale(a, 1.0 / kin::norm(a))
 }
 
 /// Pushes the standing glasses away from the table's near edge (the folds push them
 /// toward it): the fingertip comes down in front of the lower front and moves it back
 /// until the front is [`EDGE_CLEAR`] from the edge.
-fn push_back(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
+fn push_back(
+    rec: &mut Recorder,
+    down: Q,
+    approach: usize,
+    clear: f64,
+    pace: &Pace,
+) -> Result<bool, SimError> {
     let e = rec.env();
     let (fc, fm, half) = front(e)?;
     let edge = table_near_edge(e)?;
-    let need = (edge + EDGE_CLEAR - fc[0]).min(0.15);
+    let need = (edge + clear - fc[0]).min(0.15);
     if debug() {
         eprintln!("table edge {edge:.3} front {:.3} push {need:.3}", fc[0]);
     }
     if need < 0.01 {
-        return Ok(());
+        return Ok(false);
     }
     let mut back = kin::horizontal([fm[0], fm[3], fm[6]]);
     if back[0] < 0.0 {
@@ -149,7 +352,7 @@ fn push_back(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
         kin::sub(kin::add(p0, [0.0, 0.0, 0.1]), TIP),
         down,
         POINT,
-        45,
+        approach,
     )?;
     rec.settle(0.01, 10)?;
     rec.go(0, kin::sub(p0, TIP), down, POINT, 20)?;
@@ -161,10 +364,10 @@ fn push_back(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
         kin::add(kin::sub(here, kin::scale(back, 0.02)), [0.0, 0.0, 0.08]),
         down,
         POINT,
-        15,
+        pace.push_lift,
     )?;
     show(rec, "pushed back");
-    Ok(())
+    Ok(true)
 }
 
 /// The x of the table's near edge (the robot's side): the bounding box of the body
@@ -186,11 +389,14 @@ fn show(rec: &Recorder, what: &str) {
     if debug() {
         let e = rec.env();
         eprintln!(
-            "{what}: step {} joints {:.3} {:.3} glass {:.3?} front {:.3?}",
+            "{what}: step {} joints {:.3} {:.3} glass {:.3?} up {:.2?} front {:.3?}",
             e.steps(),
             kin::joint(e, "glass_joint_0").unwrap_or(f64::NAN),
             kin::joint(e, "glass_joint_1").unwrap_or(f64::NAN),
             kin::body(e, "glass").map(|b| b.0).unwrap_or_default(),
+            front(e)
+                .map(|f| [f.1[2], f.1[5], f.1[8]])
+                .unwrap_or_default(),
             front(e).ok(),
         );
     }
@@ -204,6 +410,7 @@ fn fold_temple(
     joint: &str,
     other: &str,
     approach: usize,
+    pace: &Pace,
 ) -> Result<bool, SimError> {
     let e = rec.env();
     let hinge = kin::anchor(e, joint)?;
@@ -252,21 +459,43 @@ fn fold_temple(
     rec.go(0, first, down, POINT, 25)?;
     rec.settle(0.006, 25)?;
     show(rec, &format!("at {joint}"));
+    if debug() {
+        eprintln!(
+            "  tcp {:.3?} target {:.3?}",
+            kin::tcp(rec.env(), 0).0,
+            rec.target(0).0
+        );
+    }
     rec.snap(0, &format!("glasses_at_{joint}"));
     // Closed loop: the fingertip's target leads the temple by FOLD_LEAD around the
     // hinge, both read again every step (the glasses slide a little while pushed).
     let edge = table_near_edge(rec.env())?;
     let mut clear = true;
+    // A damped temple may stall short of its limit while the push drags the glasses:
+    // near the limit, a stall ends the fold.
+    let stalls = hinge_damped(rec.env(), joint)?;
+    let (mut best, mut best_at) = (f64::NEG_INFINITY, 0);
     for k in 0..400_usize {
         let e = rec.env();
         if debug() && k.is_multiple_of(25) {
             show(rec, &format!("  {k}"));
+            eprintln!(
+                "  tcp {:.3?} target {:.3?}",
+                kin::tcp(rec.env(), 0).0,
+                rec.target(0).0
+            );
         }
         if front(e)?.0[0] < edge + EDGE_MIN {
             clear = false;
             break;
         }
-        if kin::joint(e, joint)? > stop || rec.done() {
+        let q = kin::joint(e, joint)?;
+        if q > stop || rec.done() {
+            break;
+        }
+        if q > best + STALL_DQ {
+            (best, best_at) = (q, k);
+        } else if stalls && q > stop - STALL_NEAR && k - best_at > STALL_STEPS {
             break;
         }
         let hinge = kin::anchor(e, joint)?;
@@ -275,11 +504,17 @@ fn fold_temple(
         let p = [hinge[0] + fold_r * a.cos(), hinge[1] + fold_r * a.sin(), z];
         rec.go(0, kin::sub(p, TIP), down, POINT, 1)?;
     }
-    rec.wait(20)?;
+    rec.wait(pace.fold_hold)?;
     show(rec, &format!("folded {joint}"));
     rec.snap(0, &format!("glasses_{joint}"));
     let here = rec.target(0).0;
-    rec.go(0, kin::add(here, [0.0, 0.0, 0.12]), down, POINT, 30)?;
+    rec.go(
+        0,
+        kin::add(here, [0.0, 0.0, 0.12]),
+        down,
+        POINT,
+        pace.fold_lift,
+    )?;
     Ok(clear)
 }
 
@@ -311,6 +546,78 @@ fn tip_over_backwards(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
         show(rec, "tipped over");
     }
     Ok(())
+}
+
+/// Lays the folded glasses face down (temples on top): the fingertip comes down behind
+/// the top of the front (behind the folded temples) and sweeps forward on an arc about
+/// the front's lower edge until they fall over toward the robot.
+fn tip_over_forwards(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
+    let e = rec.env();
+    let (fc, fm, half) = front(e)?;
+    let up = [fm[2], fm[5], fm[8]];
+    if up[2] < 0.5 {
+        show(rec, "lying already");
+        return Ok(());
+    }
+    let mut back = kin::horizontal([fm[0], fm[3], fm[6]]);
+    if back[0] < 0.0 {
+        back = [-back[0], -back[1], 0.0];
+    }
+    // The pivot: the front's lower edge; the lean: the front's angle back from upright.
+    let pivot = kin::sub(fc, kin::scale(up, half[2]));
+    let lean = (up[0] * back[0] + up[1] * back[1]).atan2(up[2]);
+    let r = 2.0 * half[2] - 0.01;
+    let at = |a: f64| {
+        let p = kin::add(
+            pivot,
+            kin::add(kin::scale(back, r * a.sin()), [0.0, 0.0, r * a.cos()]),
+        );
+        kin::sub(p, TIP)
+    };
+    let a0 = lean + TIP_BEHIND / r;
+    rec.go(0, kin::add(at(a0), [0.0, 0.0, 0.06]), down, POINT, 30)?;
+    rec.go(0, at(a0), down, POINT, 15)?;
+    const SWEEP: usize = 40;
+    for k in 1..=SWEEP {
+        let a = a0 + (TIP_TO - a0) * k as f64 / SWEEP as f64;
+        rec.go(0, at(a), down, POINT, 1)?;
+    }
+    let here = rec.target(0).0;
+    rec.go(0, kin::add(here, [0.0, 0.0, 0.06]), down, POINT, 15)?;
+    show(rec, "tipped forwards");
+    rec.wait(5)?;
+    rec.snap(0, "glasses_tipped");
+    Ok(())
+}
+
+/// Whether hinge `joint` is damped (see [`DAMPED`]).
+fn hinge_damped(e: &TaskEnv, joint: &str) -> Result<bool, SimError> {
+    let m = e.data().model();
+    let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
+        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
+    Ok(m.dof_damping()[m.jnt_dofadr()[j] as usize] >= DAMPED)
+}
+
+/// Whether gravity can turn the temple on hinge `joint` against the hinge's friction
+/// loss when the hinge's axis lies level (the glasses lying down): its weight times
+/// its centre of mass's distance from the axis exceeds the friction loss.
+fn temple_sags(e: &TaskEnv, joint: &str) -> Result<bool, SimError> {
+    let m = e.data().model();
+    let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
+        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
+    let b = m.jnt_bodyid()[j] as usize;
+    let d = e.data();
+    let axis = d.xaxis()[j];
+    let r = kin::sub(d.xipos()[b], d.xanchor()[j]);
+    let along = r[0] * axis[0] + r[1] * axis[1] + r[2] * axis[2];
+    let lever = kin::norm(kin::sub(r, kin::scale(axis, along)));
+    let g = kin::norm(m.ffi().opt.gravity);
+    let torque = m.body_mass()[b] * g * lever;
+    let friction = m.dof_frictionloss()[m.jnt_dofadr()[j] as usize];
+    if debug() {
+        eprintln!("{joint}: gravity torque {torque:.4} friction loss {friction:.4}");
+    }
+    Ok(torque > friction)
 }
 
 /// The TCP target and orientation that pinch the front: across its width when the
