@@ -40,8 +40,6 @@ const LYING_FOLD_R: f64 = 0.14;
 const LYING_FOLD_LEAD: f64 = 0.2;
 const LYING_FOLD_BEHIND: f64 = 0.35;
 const LYING_FOLD_OUT: f64 = 0.015;
-/// The glasses' origin above the case's when let go.
-const RELEASE_Z: f64 = 0.02;
 /// The index fingertip from the TCP (world axes) with the hand pitched fingers-down in
 /// the [`POINT`] pose (measured on the built-in robot, which has the reference's
 /// kinematics).
@@ -90,6 +88,9 @@ struct Pace {
     turn: usize,
     turn_hold: usize,
     above: usize,
+    /// The glasses' origin above the case's when let go (m): the face-down glasses
+    /// hang tilted from the pinch, and let go lower they land flat.
+    release_z: f64,
     /// How far (m) the open hand presses the let-go glasses down into the case: a
     /// temple the pinch has half unfolded lies on top, face down, and is pressed back
     /// onto the front.
@@ -104,6 +105,7 @@ const STANDING: Pace = Pace {
     turn: 30,
     turn_hold: 10,
     above: 40,
+    release_z: 0.02,
     press: None,
 };
 
@@ -115,6 +117,7 @@ const FACE_DOWN: Pace = Pace {
     turn: 20,
     turn_hold: 1,
     above: 30,
+    release_z: 0.0,
     press: Some(0.07),
 };
 
@@ -191,7 +194,7 @@ fn stow(rec: &mut Recorder, table: f64, home: Q, pace: &Pace) -> Result<(), SimE
     let over = [case[0] - off[0], case[1] - off[1], lift[2]];
     rec.go(0, over, q, CLOSE, 70)?;
     rec.settle(0.01, 20)?;
-    let low = [over[0], over[1], case[2] + RELEASE_Z - off[2]];
+    let low = [over[0], over[1], case[2] + pace.release_z - off[2]];
     rec.go(0, low, q, CLOSE, 35)?;
     rec.settle(0.008, 20)?;
     show(rec, "lowered");
@@ -256,7 +259,6 @@ fn fold_lying(rec: &mut Recorder, down: Q, joint: &str, other: &str) -> Result<(
     rec.go(0, kin::add(start, [0.0, 0.0, 0.08]), down, POINT, 30)?;
     rec.wait(5)?;
     let (centre, e1, e2) = sweep_plane(rec.env(), j, b, other)?;
-    let angle = |v: V3| dot(v, e2).atan2(dot(v, e1));
     let start = at(centre, e1, e2, -LYING_FOLD_BEHIND);
     rec.go(0, kin::add(start, [0.0, 0.0, 0.08]), down, POINT, 10)?;
     rec.go(0, start, down, POINT, 20)?;
@@ -278,9 +280,9 @@ fn fold_lying(rec: &mut Recorder, down: Q, joint: &str, other: &str) -> Result<(
         } else if q > stop - STALL_NEAR && k - best_at > STALL_STEPS {
             break;
         }
-        let (centre, u, _) = sweep_plane(e, j, b, other)?;
-        let a = angle(u) + LYING_FOLD_LEAD;
-        rec.go(0, at(centre, e1, e2, a), down, POINT, 1)?;
+        // The plane as it is now (the glasses may still be settling).
+        let (centre, u, v) = sweep_plane(e, j, b, other)?;
+        rec.go(0, at(centre, u, v, LYING_FOLD_LEAD), down, POINT, 1)?;
     }
     show(rec, &format!("folded lying {joint}"));
     rec.snap(0, &format!("glasses_lying_{joint}"));
