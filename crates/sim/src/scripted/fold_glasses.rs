@@ -1,9 +1,11 @@
 //! The fold_glasses planner: with the hand pitched fingers-down, the straight index
 //! fingertip folds each temple, swept around its hinge in a closed loop (the target
-//! leads the temple); the folded glasses cannot stand, so the fingertip tips them over
-//! backwards (away from the table's edge) when they still stand; then the hand turns
-//! palm-down, pinches the front (thin side when standing, across its height when lying),
-//! carries the glasses over the case and lets go inside it.
+//! leads the temple); then the hand turns palm-down, pinches the front (thin side when
+//! standing, across its height when lying), carries the glasses over the case and lets
+//! go inside it. Temples that stay put (the built-in hinges) are both folded standing and
+//! the glasses tipped over backwards; temples that gravity unfolds (see [`temple_sags`])
+//! end face down, on top of the front: one folded standing, the glasses tipped over
+//! forwards, the other folded down onto the front.
 
 use std::f64::consts::FRAC_PI_2;
 
