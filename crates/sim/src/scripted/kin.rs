@@ -97,6 +97,16 @@ pub(crate) fn horizontal(v: V3) -> V3 {
     [v[0] / n, v[1] / n, 0.0]
 }
 
+/// The dot product of `a` and `b`.
+pub(crate) fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// `a` scaled to unit length.
+pub(crate) fn unit(a: V3) -> V3 {
+    scale(a, 1.0 / norm(a))
+}
+
 /// The length of `a`.
 pub(crate) fn norm(a: V3) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()

@@ -11,6 +11,11 @@ use std::f64::consts::FRAC_PI_2;
 
 use dexjoco_core::HAND_DOF;
 
+mod face_down;
+mod model;
+
+use self::face_down::{fold_face_down, temple_sags};
+use self::model::{body_box, box_centre, front, hinge_damped, joint_body, table_near_edge, temple};
 use super::kin::{self, Q, V3};
 use super::{CLOSE, OPEN, Planned, Recorder, debug};
 use crate::env::TaskEnv;
@@ -29,28 +34,12 @@ const PINCH_TCP_Z: f64 = 0.145;
 /// pinched near its top.
 const PINCH_X_UPRIGHT: f64 = 0.05;
 const PINCH_TCP_Z_UPRIGHT: f64 = 0.2;
-/// How far behind the front's top the fingertip comes down to tip the glasses forward
-/// (behind the folded temples), along the arc about the front's lower edge (m).
-const TIP_BEHIND: f64 = 0.05;
-/// Where the forward tip's sweep ends: the angle (rad, back from upright) about the
-/// front's lower edge.
-const TIP_TO: f64 = -0.7;
-/// The fingertip's distance from the hinge's axis when folding a temple of glasses
-/// lying face down (m), how far its target leads the temple (rad), where it comes down
-/// behind the temple (rad) and its offset outside the temple (m).
-const LYING_FOLD_R: f64 = 0.14;
-const LYING_FOLD_LEAD: f64 = 0.2;
-const LYING_FOLD_BEHIND: f64 = 0.35;
-const LYING_FOLD_OUT: f64 = 0.015;
 /// The index fingertip from the TCP (world axes) with the hand pitched fingers-down in
 /// the [`POINT`] pose (measured on the built-in robot, which has the reference's
 /// kinematics).
 const TIP: V3 = [-0.0142, 0.0547, -0.1778];
 /// How far the front should stand from the table's near edge after a push back.
 const EDGE_CLEAR: f64 = 0.2;
-/// As [`EDGE_CLEAR`] before the first fold of a face-down plan (the fold and the tip
-/// over move the glasses 0.1-0.15 m toward the edge).
-const EDGE_CLEAR_FIRST: f64 = 0.25;
 /// A fold stops (for a push back) when the front comes this close to the table's edge.
 const EDGE_MIN: f64 = 0.05;
 /// The fingertip's distance from a light hinge (damping under [`DAMPED`]) while folding.
@@ -146,24 +135,6 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     rec.finish(id)
 }
 
-/// Folds sagging temples so that the glasses end face down, temples on top (gravity
-/// unfolds a temple hanging under the front, and keeps one lying on it folded): pushes
-/// the standing glasses away from the table's edge (the fold and the tip-over move them
-/// toward it), folds the first temple standing, tips the glasses over forwards and
-/// folds the second temple down onto the front (the push then presses them onto the
-/// table, where a standing fold drags them).
-fn fold_face_down(rec: &mut Recorder, down: Q, pace: &Pace) -> Result<(), SimError> {
-    let mut approach = 110;
-    if push_back(rec, down, 60, EDGE_CLEAR_FIRST, pace)? {
-        let here = rec.target(0).0;
-        rec.go(0, kin::add(here, [0.0, 0.0, 0.06]), down, POINT, 5)?;
-        approach = 40;
-    }
-    fold_standing(rec, down, "glass_joint_0", "glass_joint_1", approach, pace)?;
-    tip_over_forwards(rec, down)?;
-    fold_lying(rec, down, "glass_joint_1", "glass_joint_0")
-}
-
 /// Turns the hand palm-down, pinches the folded glasses lying on the table, carries
 /// them over the case and lets go inside it.
 fn stow(rec: &mut Recorder, table: f64, home: Q, pace: &Pace) -> Result<(), SimError> {
@@ -233,97 +204,6 @@ fn fold_standing(
     Ok(())
 }
 
-/// Folds the temple on hinge `joint` with the glasses lying face down (the hinge's axis
-/// level, the temple pointing up): the fingertip sweeps it around the axis toward the
-/// other hinge (`other`) and down onto the front, in a closed loop as [`fold_temple`].
-fn fold_lying(rec: &mut Recorder, down: Q, joint: &str, other: &str) -> Result<(), SimError> {
-    let e = rec.env();
-    // Where the index fingertip (its collision capsule's centre) is from the TCP now:
-    // the temple is a thin wire, so the sweep needs the fingertip itself.
-    let tip = super::geom_of_body(e, "ff_tip")
-        .map(|g| kin::sub(e.data().geom_xpos()[g], kin::tcp(e, 0).0))
-        .unwrap_or(TIP);
-    let (j, b) = joint_body(e, joint)?;
-    let stop = e.data().model().jnt_range()[j][1] - 0.02;
-    let r = LYING_FOLD_R;
-    let at = |centre: V3, e1: V3, e2: V3, a: f64| {
-        let b = a - LYING_FOLD_OUT / r;
-        let p = kin::add(
-            centre,
-            kin::add(kin::scale(e1, r * b.cos()), kin::scale(e2, r * b.sin())),
-        );
-        kin::sub(p, tip)
-    };
-    // The temple swings as the glasses land: aim from above, let it come to rest,
-    // then aim again from where it is.
-    let (centre, e1, e2) = sweep_plane(e, j, b, other)?;
-    let start = at(centre, e1, e2, -LYING_FOLD_BEHIND);
-    rec.go(0, kin::add(start, [0.0, 0.0, 0.08]), down, POINT, 30)?;
-    rec.wait(5)?;
-    let (centre, e1, e2) = sweep_plane(rec.env(), j, b, other)?;
-    let start = at(centre, e1, e2, -LYING_FOLD_BEHIND);
-    rec.go(0, kin::add(start, [0.0, 0.0, 0.08]), down, POINT, 10)?;
-    rec.go(0, start, down, POINT, 20)?;
-    rec.settle(0.006, 20)?;
-    show(rec, &format!("at lying {joint}"));
-    rec.snap(0, &format!("glasses_at_lying_{joint}"));
-    let (mut best, mut best_at) = (f64::NEG_INFINITY, 0);
-    for k in 0..300_usize {
-        let e = rec.env();
-        if debug() && k.is_multiple_of(25) {
-            show(rec, &format!("  {k}"));
-        }
-        let q = kin::joint(e, joint)?;
-        if q > stop || rec.done() {
-            break;
-        }
-        if q > best + STALL_DQ {
-            (best, best_at) = (q, k);
-        } else if q > stop - STALL_NEAR && k - best_at > STALL_STEPS {
-            break;
-        }
-        // The plane as it is now (the glasses may still be settling).
-        let (centre, u, v) = sweep_plane(e, j, b, other)?;
-        rec.go(0, at(centre, u, v, LYING_FOLD_LEAD), down, POINT, 1)?;
-    }
-    show(rec, &format!("folded lying {joint}"));
-    rec.snap(0, &format!("glasses_lying_{joint}"));
-    let here = rec.target(0).0;
-    rec.go(0, kin::add(here, [0.0, 0.0, 0.06]), down, POINT, 15)?;
-    Ok(())
-}
-
-/// The plane of a lying fold's sweep about hinge `j` (moving body `b`): its centre, the
-/// temple's direction from the axis now, and the direction toward hinge `other`
-/// square to it (both square to the axis).
-fn sweep_plane(e: &TaskEnv, j: usize, b: usize, other: &str) -> Result<(V3, V3, V3), SimError> {
-    let d = e.data();
-    let h = d.xanchor()[j];
-    let n = d.xaxis()[j];
-    let (c, _) = body_box(e, b);
-    let off = kin::sub(kin::add(d.xpos()[b], kin::mulv(&d.xmat()[b], c)), h);
-    let u = unit(kin::sub(off, kin::scale(n, dot(off, n))));
-    let to = kin::sub(kin::anchor(e, other)?, h);
-    let w = unit(kin::sub(to, kin::scale(n, dot(to, n))));
-    Ok((h, u, unit(kin::sub(w, kin::scale(u, dot(w, u))))))
-}
-
-/// The joint id of `joint` and the id of the body it moves.
-fn joint_body(e: &TaskEnv, joint: &str) -> Result<(usize, usize), SimError> {
-    let m = e.data().model();
-    let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
-        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
-    Ok((j, m.jnt_bodyid()[j] as usize))
-}
-
-fn dot(a: V3, b: V3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn unit(a: V3) -> V3 {
-    kin::scale(a, 1.0 / kin::norm(a))
-}
-
 /// Pushes the standing glasses away from the table's near edge (the folds push them
 /// toward it): the fingertip comes down in front of the lower front and moves it back
 /// until the front is [`EDGE_CLEAR`] from the edge.
@@ -374,20 +254,6 @@ fn push_back(
     Ok(true)
 }
 
-/// The x of the table's near edge (the robot's side): the bounding box of the body
-/// holding site `table_top`.
-fn table_near_edge(e: &TaskEnv) -> Result<f64, SimError> {
-    let m = e.data().model();
-    let s = crate::checker::name_id(m, dexjoco_core::NameKind::Site, "table_top")
-        .ok_or_else(|| SimError::Spec("the scene has no Site 'table_top'".into()))?;
-    let b = m.site_bodyid()[s] as usize;
-    let (c, h) = body_box(e, b);
-    let d = e.data();
-    let xm = d.xmat()[b];
-    let x = d.xpos()[b][0] + kin::mulv(&xm, c)[0];
-    Ok(x - (0..3).map(|i| xm[i].abs() * h[i]).sum::<f64>())
-}
-
 /// In debug mode, prints the temples' joints and the glasses' position after a phase.
 fn show(rec: &Recorder, what: &str) {
     if debug() {
@@ -432,12 +298,7 @@ fn fold_temple(
     let sign = (a1 - a0).signum();
     let first_time = joint == "glass_joint_0";
     // The fold stops just short of the hinge's limit.
-    let stop = {
-        let m = e.data().model();
-        let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
-            .ok_or_else(|| SimError::Spec(format!("no joint {joint}")))?;
-        m.jnt_range()[j][1] - 0.02
-    };
+    let stop = e.data().model().jnt_range()[joint_body(e, joint)?.0][1] - 0.02;
     if kin::joint(e, joint)? > stop {
         // Folded already (pushing the glasses back may fold a temple).
         return Ok(true);
@@ -552,78 +413,6 @@ fn tip_over_backwards(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
     Ok(())
 }
 
-/// Lays the folded glasses face down (temples on top): the fingertip comes down behind
-/// the top of the front (behind the folded temples) and sweeps forward on an arc about
-/// the front's lower edge until they fall over toward the robot.
-fn tip_over_forwards(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
-    let e = rec.env();
-    let (fc, fm, half) = front(e)?;
-    let up = [fm[2], fm[5], fm[8]];
-    if up[2] < 0.5 {
-        show(rec, "lying already");
-        return Ok(());
-    }
-    let mut back = kin::horizontal([fm[0], fm[3], fm[6]]);
-    if back[0] < 0.0 {
-        back = [-back[0], -back[1], 0.0];
-    }
-    // The pivot: the front's lower edge; the lean: the front's angle back from upright.
-    let pivot = kin::sub(fc, kin::scale(up, half[2]));
-    let lean = (up[0] * back[0] + up[1] * back[1]).atan2(up[2]);
-    let r = 2.0 * half[2] - 0.01;
-    let at = |a: f64| {
-        let p = kin::add(
-            pivot,
-            kin::add(kin::scale(back, r * a.sin()), [0.0, 0.0, r * a.cos()]),
-        );
-        kin::sub(p, TIP)
-    };
-    let a0 = lean + TIP_BEHIND / r;
-    rec.go(0, kin::add(at(a0), [0.0, 0.0, 0.06]), down, POINT, 30)?;
-    rec.go(0, at(a0), down, POINT, 15)?;
-    const SWEEP: usize = 40;
-    for k in 1..=SWEEP {
-        let a = a0 + (TIP_TO - a0) * k as f64 / SWEEP as f64;
-        rec.go(0, at(a), down, POINT, 1)?;
-    }
-    let here = rec.target(0).0;
-    rec.go(0, kin::add(here, [0.0, 0.0, 0.06]), down, POINT, 15)?;
-    show(rec, "tipped forwards");
-    rec.wait(5)?;
-    rec.snap(0, "glasses_tipped");
-    Ok(())
-}
-
-/// Whether hinge `joint` is damped (see [`DAMPED`]).
-fn hinge_damped(e: &TaskEnv, joint: &str) -> Result<bool, SimError> {
-    let m = e.data().model();
-    let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
-        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
-    Ok(m.dof_damping()[m.jnt_dofadr()[j] as usize] >= DAMPED)
-}
-
-/// Whether gravity can turn the temple on hinge `joint` against the hinge's friction
-/// loss when the hinge's axis lies level (the glasses lying down): its weight times
-/// its centre of mass's distance from the axis exceeds the friction loss.
-fn temple_sags(e: &TaskEnv, joint: &str) -> Result<bool, SimError> {
-    let m = e.data().model();
-    let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
-        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
-    let b = m.jnt_bodyid()[j] as usize;
-    let d = e.data();
-    let axis = d.xaxis()[j];
-    let r = kin::sub(d.xipos()[b], d.xanchor()[j]);
-    let along = r[0] * axis[0] + r[1] * axis[1] + r[2] * axis[2];
-    let lever = kin::norm(kin::sub(r, kin::scale(axis, along)));
-    let g = kin::norm(m.ffi().opt.gravity);
-    let torque = m.body_mass()[b] * g * lever;
-    let friction = m.dof_frictionloss()[m.jnt_dofadr()[j] as usize];
-    if debug() {
-        eprintln!("{joint}: gravity torque {torque:.4} friction loss {friction:.4}");
-    }
-    Ok(torque > friction)
-}
-
 /// The TCP target and orientation that pinch the front: across its width when the
 /// glasses lie (thumb at one long edge, fingers at the other), the thin front near its
 /// top when they still stand; fingers away from the robot.
@@ -656,48 +445,6 @@ fn front_pinch(e: &TaskEnv, table: f64, home: Q) -> Result<(V3, Q), SimError> {
     Ok((at, q))
 }
 
-/// The union of the collision geoms' bounding boxes of body `b`, in the body's frame:
-/// its centre and half sizes.
-fn body_box(e: &TaskEnv, b: usize) -> (V3, V3) {
-    let m = e.data().model();
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for g in 0..m.ffi().ngeom as usize {
-        if m.geom_bodyid()[g] as usize != b
-            || (m.geom_contype()[g] == 0 && m.geom_conaffinity()[g] == 0)
-        {
-            continue;
-        }
-        let bb = m.geom_aabb()[g];
-        let r = kin::qmat(m.geom_quat()[g]);
-        for k in 0..8 {
-            let c: V3 = std::array::from_fn(|i| {
-                let s = if k >> i & 1 == 1 { 1.0 } else { -1.0 };
-                bb[i] + s * bb[3 + i]
-            });
-            let p = kin::add(m.geom_pos()[g], kin::mulv(&r, c));
-            for i in 0..3 {
-                lo[i] = lo[i].min(p[i]);
-                hi[i] = hi[i].max(p[i]);
-            }
-        }
-    }
-    let c = std::array::from_fn(|i| (lo[i] + hi[i]) / 2.0);
-    let h = std::array::from_fn(|i| (hi[i] - lo[i]) / 2.0);
-    (c, h)
-}
-
-/// The centre (world) of the bounding box of the temple on hinge `joint` (the body the
-/// joint moves).
-fn temple(e: &TaskEnv, joint: &str) -> Result<V3, SimError> {
-    let m = e.data().model();
-    let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
-        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
-    let b = m.jnt_bodyid()[j] as usize;
-    let (c, _) = body_box(e, b);
-    let d = e.data();
-    Ok(kin::add(d.xpos()[b], kin::mulv(&d.xmat()[b], c)))
-}
-
 /// Where the fingertip pushes the temple on hinge `joint` (damped: see [`DAMPED`]): its
 /// distance from the hinge,
 /// [`FOLD_AT`] of the temple's reach (near its tip, so the push beats the tip's friction
@@ -706,14 +453,11 @@ fn temple(e: &TaskEnv, joint: &str) -> Result<V3, SimError> {
 /// hinge down to the box's bottom over twice the horizontal distance to the box's centre
 /// (the straight finger, pointing down, spans the temple's height).
 fn fold_at(e: &TaskEnv, joint: &str, t: f64) -> Result<(f64, f64), SimError> {
+    let (j, b) = joint_body(e, joint)?;
     let m = e.data().model();
-    let j = crate::checker::name_id(m, dexjoco_core::NameKind::Joint, joint)
-        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
-    let b = m.jnt_bodyid()[j] as usize;
-    let (c, h) = body_box(e, b);
-    let d = e.data();
-    let xm = d.xmat()[b];
-    let centre = kin::add(d.xpos()[b], kin::mulv(&xm, c));
+    let (_, h) = body_box(e, b);
+    let xm = e.data().xmat()[b];
+    let centre = box_centre(e, b);
     let bottom = centre[2] - (0..3).map(|i| xm[6 + i].abs() * h[i]).sum::<f64>();
     let hinge = kin::anchor(e, joint)?;
     if m.dof_damping()[m.jnt_dofadr()[j] as usize] < DAMPED {
@@ -728,27 +472,4 @@ fn fold_at(e: &TaskEnv, joint: &str, t: f64) -> Result<(f64, f64), SimError> {
         );
     }
     Ok((reach * t, hinge[2] - (hinge[2] - bottom) * t + FOLD_DZ))
-}
-
-/// The front of the glasses (the collision geoms of body `glass`): its bounding box's
-/// centre (world), a row-major matrix whose columns are the box's thin, wide and tall
-/// axes (world; the tall one pointing up when the glasses stand), and its half sizes
-/// along them.
-fn front(e: &TaskEnv) -> Result<(V3, [f64; 9], V3), SimError> {
-    let m = e.data().model();
-    let b = crate::checker::name_id(m, dexjoco_core::NameKind::Body, "glass")
-        .ok_or_else(|| SimError::Spec("the scene has no Body 'glass'".into()))?;
-    let (c, h) = body_box(e, b);
-    let d = e.data();
-    let xm = d.xmat()[b];
-    let mut order = [0, 1, 2];
-    order.sort_by(|&a, &b| h[a].total_cmp(&h[b]));
-    let [thin, tall, wide] = order;
-    let col = |i: usize| [xm[i], xm[3 + i], xm[6 + i]];
-    let up = col(tall);
-    let s = if up[2] < 0.0 { -1.0 } else { 1.0 };
-    let (a, w, u) = (col(thin), col(wide), kin::scale(up, s));
-    let fm = [a[0], w[0], u[0], a[1], w[1], u[1], a[2], w[2], u[2]];
-    let centre = kin::add(d.xpos()[b], kin::mulv(&xm, c));
-    Ok((centre, fm, [h[thin], h[wide], h[tall]]))
 }
