@@ -37,7 +37,7 @@ fn main() -> ExitCode {
         Command::Convert(args) => commands::convert::run(&cli.global, args),
         Command::Stats(args) => commands::stats::run(&cli.global, args),
         Command::Eval(args) => commands::eval::run(&cli.global, args),
-        Command::EvalWorker(args) => commands::eval::run_worker(&args),
+        Command::EvalWorker(_) => commands::eval::run_worker(),
         Command::Scripted(args) => settings::ScriptedSettings::resolve(&args, &cli.global)
             .and_then(commands::scripted::run),
     };

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use super::{QualityArg, TasksDirArgs, positive_seconds};
+use super::{FirstFrameArgs, QualityArg, TasksDirArgs, positive_seconds};
 
 /// `eval`.
 #[derive(Debug, Args)]
@@ -119,7 +119,9 @@ pub struct EvalArgs {
     /// drop keys they do not know).
     #[arg(long)]
     pub privileged_keys: bool,
-    /// Seconds the server may take to answer one observation.
+    /// Seconds each wait for the server may last, in wall-clock time whatever the server
+    /// sends meanwhile: the connection, the websocket handshake, its metadata, and each
+    /// answer (sending the observation included). Past it: exit 1 naming the wait.
     #[arg(long, default_value_t = 120.0, value_name = "SECONDS", value_parser = positive_seconds)]
     pub deadline: f64,
     /// Seconds to keep retrying a refused connection at the start (0: once).
@@ -128,6 +130,18 @@ pub struct EvalArgs {
     /// The folder of task specs.
     #[command(flatten)]
     pub tasks: TasksDirArgs,
+    /// EGL devices (indices as `doctor` lists them) assigned to the -j worker processes
+    /// round-robin (default on a node with several GPUs: all of them).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        env = "DEXJOCO_EGL_DEVICES",
+        value_name = "LIST"
+    )]
+    pub egl_devices: Vec<usize>,
+    /// The -j worker processes' first-frame deadline.
+    #[command(flatten)]
+    pub first_frame: FirstFrameArgs,
 }
 
 /// `WxH`, both even and positive (H.264 video).
@@ -145,13 +159,6 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((parse(w)?, parse(h)?))
 }
 
-/// A worker process of `eval` (started by it).
+/// `eval-worker`: internal, started by `eval -j N` (JSON lines on stdin/stdout).
 #[derive(Debug, Args)]
-pub struct EvalWorkerArgs {
-    /// The run's output folder (holding the job).
-    pub out: PathBuf,
-    /// Worker processes of the run.
-    pub workers: usize,
-    /// This worker's slot.
-    pub slot: usize,
-}
+pub struct EvalWorkerArgs {}

@@ -44,15 +44,15 @@ pub fn run(global: &GlobalArgs, args: AugmentArgs) -> anyhow::Result<ExitStatus>
         return print_plan(&config, workers);
     }
     let out = config.out.clone();
-    let executor = Executor::Processes(WorkerProcesses {
-        egl_devices,
-        first_frame_timeout,
-        ..WorkerProcesses::new(
+    let executor = Executor::Processes(
+        WorkerProcesses::new(
             std::env::current_exe().context("locating the dexjoco-data binary")?,
-            worker_args(global),
+            worker_args(global, "augment-worker"),
             workers,
         )
-    });
+        .with_egl_devices(egl_devices)
+        .with_first_frame_timeout(first_frame_timeout),
+    );
     let bar = Bar::new("augment", global.quiet);
     let started = std::time::Instant::now();
     let report = augment_with(&config, &executor, &bar)
@@ -181,8 +181,9 @@ fn early_error(e: AugmentError) -> anyhow::Error {
     }
 }
 
-/// The arguments that start this binary as an augment worker, with the same logging.
-fn worker_args(global: &GlobalArgs) -> Vec<std::ffi::OsString> {
+/// The arguments that start this binary as a worker (`augment-worker`, `eval-worker`),
+/// with the same logging.
+pub(crate) fn worker_args(global: &GlobalArgs, command: &str) -> Vec<std::ffi::OsString> {
     let mut args: Vec<std::ffi::OsString> = Vec::new();
     if global.quiet {
         args.push("-q".into());
@@ -190,18 +191,24 @@ fn worker_args(global: &GlobalArgs) -> Vec<std::ffi::OsString> {
     for _ in 0..global.verbose {
         args.push("-v".into());
     }
-    args.push("augment-worker".into());
+    args.push(command.into());
     args
 }
 
-/// Runs `augment-worker` (started by `augment`). Its messages to the parent go through a
-/// copy of the stdout it was given, and stdout itself then points at stderr: whatever a
-/// library prints (a driver's notice, a C library's printf) cannot corrupt the messages.
-pub fn run_worker() -> anyhow::Result<ExitStatus> {
+/// The channel of a worker process (`augment-worker`, `eval-worker`) to its parent: the
+/// stdin it was given, and a copy of the stdout it was given; stdout itself then points at
+/// stderr, so that whatever a library prints (a driver's notice, a C library's printf)
+/// cannot corrupt the messages.
+pub(crate) fn worker_channel() -> anyhow::Result<(std::io::StdinLock<'static>, std::fs::File)> {
     let messages = rustix::io::dup(std::io::stdout()).context("duplicating stdout")?;
     rustix::stdio::dup2_stdout(std::io::stderr()).context("pointing stdout at stderr")?;
-    let stdin = std::io::stdin().lock();
-    dexjoco_augment::serve_worker(stdin, std::fs::File::from(messages))?;
+    Ok((std::io::stdin().lock(), std::fs::File::from(messages)))
+}
+
+/// Runs `augment-worker` (started by `augment`).
+pub fn run_worker() -> anyhow::Result<ExitStatus> {
+    let (input, output) = worker_channel()?;
+    dexjoco_augment::serve_worker(input, output)?;
     Ok(ExitStatus::Success)
 }
 

@@ -321,15 +321,15 @@ const LIMIT: &str = "render-only limit (trajectory states, no stepping, no encod
 
 /// `count` worker processes of this binary, dealt over the node's GPUs as `augment` does.
 fn processes(args: &BenchAugmentSettings, count: usize) -> anyhow::Result<Executor> {
-    Ok(Executor::Processes(WorkerProcesses {
-        first_frame_timeout: args.first_frame_timeout,
-        egl_devices: crate::settings::render_workers(Some(count), Vec::new()).1,
-        ..WorkerProcesses::new(
+    Ok(Executor::Processes(
+        WorkerProcesses::new(
             std::env::current_exe()?,
             vec!["-q".into(), "augment-worker".into()],
             count,
         )
-    }))
+        .with_egl_devices(crate::settings::render_workers(Some(count), Vec::new()).1)
+        .with_first_frame_timeout(args.first_frame_timeout),
+    ))
 }
 
 /// What every configuration shares.

@@ -4,13 +4,21 @@
 
 use dexjoco_eval::{EvalError, EvalSummary};
 
-use crate::cli::{EvalArgs, EvalWorkerArgs, GlobalArgs};
+use crate::cli::{EvalArgs, GlobalArgs};
 use crate::exit::{CliError, ExitStatus};
 use crate::settings::EvalSettings;
 
 /// Runs `eval`.
 pub fn run(global: &GlobalArgs, args: EvalArgs) -> anyhow::Result<ExitStatus> {
     let EvalSettings { config, executor } = EvalSettings::resolve(args, global)?;
+    let executor = match executor {
+        Some(w) => dexjoco_eval::Executor::Processes(dexjoco_eval::WorkerProcesses {
+            program: std::env::current_exe()?,
+            args: crate::commands::augment::worker_args(global, "eval-worker"),
+            ..w
+        }),
+        None => dexjoco_eval::Executor::InProcess,
+    };
     let bar = crate::progress::Bar::new("eval", global.quiet);
     let result = dexjoco_eval::evaluate(&config, &executor, &bar);
     bar.finish();
@@ -54,8 +62,9 @@ fn cli_error(e: EvalError) -> anyhow::Error {
     .into()
 }
 
-/// Runs an `eval` worker process.
-pub fn run_worker(args: &EvalWorkerArgs) -> anyhow::Result<ExitStatus> {
-    dexjoco_eval::serve_worker(&args.out, args.slot, args.workers).map_err(cli_error)?;
+/// Runs `eval-worker` (started by `eval -j N`).
+pub fn run_worker() -> anyhow::Result<ExitStatus> {
+    let (input, output) = crate::commands::augment::worker_channel()?;
+    dexjoco_eval::serve_worker(input, output).map_err(cli_error)?;
     Ok(ExitStatus::Success)
 }

@@ -2,14 +2,15 @@
 
 use super::*;
 use crate::cli::EvalArgs;
-use dexjoco_eval::{EvalConfig, EvalOptions, EvalTask, Executor};
+use dexjoco_eval::{EvalConfig, EvalOptions, EvalTask, WorkerProcesses};
 
 /// `eval`.
 pub struct EvalSettings {
     /// The run.
     pub config: EvalConfig,
-    /// Where its episodes run.
-    pub executor: Executor,
+    /// Its worker processes (`-j N`, N > 1; the program and its arguments are the
+    /// command's to fill in), or `None` to run the episodes in this process.
+    pub executor: Option<WorkerProcesses>,
 }
 
 impl EvalSettings {
@@ -40,6 +41,8 @@ impl EvalSettings {
             server_wait,
             step_cap,
             tasks,
+            egl_devices,
+            first_frame,
         } = args;
         let tasks_dir = tasks.tasks_dir.clone();
         let known = task_set(&tasks)?;
@@ -54,14 +57,7 @@ impl EvalSettings {
         }
         eval_task.check(spec, rand_full).map_err(eval_usage)?;
         check_numbers(replan_ratio, server_wait)?;
-        let out = output.unwrap_or_else(|| {
-            global.work_dir.join("eval").join(format!(
-                "{}{}_seed{}",
-                eval_task.task,
-                if rand_full { "_rand_full" } else { "" },
-                global.seed
-            ))
-        });
+        let out = output.unwrap_or_else(|| default_out(global, &eval_task.task, rand_full));
         let read = reads(
             &[],
             &[
@@ -97,7 +93,13 @@ impl EvalSettings {
             server_wait_secs: server_wait,
             step_cap: step_cap.map(|n| n as usize),
         };
-        let executor = executor(global.jobs.unwrap_or(1), &out)?;
+        check_egl_choice(&egl_devices)?;
+        let executor = workers(
+            global.jobs.unwrap_or(1),
+            egl_devices,
+            first_frame.duration(),
+            &options,
+        );
         Ok(Self {
             config: EvalConfig {
                 task: eval_task,
@@ -113,21 +115,37 @@ impl EvalSettings {
     }
 }
 
-/// `-j N` environments: worker processes (`eval-worker`), each with its connection.
-fn executor(workers: usize, out: &Path) -> anyhow::Result<Executor> {
-    Ok(if workers > 1 {
-        Executor::Processes {
-            program: std::env::current_exe()?,
-            args: vec![
-                "eval-worker".into(),
-                out.display().to_string(),
-                workers.to_string(),
-            ],
-            workers,
-        }
-    } else {
-        Executor::InProcess
-    })
+/// `<work-dir>/eval/<task>[_rand_full]_seed<seed>`, the reference's folder name.
+fn default_out(global: &GlobalArgs, task: &str, rand_full: bool) -> PathBuf {
+    let full = if rand_full { "_rand_full" } else { "" };
+    global
+        .work_dir
+        .join("eval")
+        .join(format!("{task}{full}_seed{}", global.seed))
+}
+
+/// `-j N` environments (N > 1): worker processes (`eval-worker`), each with its renderer
+/// and connection, dealt over the node's GPUs as augment's are. A worker may stay silent
+/// while it connects and waits for answers: its silence deadline covers the server's
+/// waits (--server-wait and four --deadline) as well as ten first-frame deadlines.
+fn workers(
+    jobs: usize,
+    egl_devices: Vec<usize>,
+    first_frame: std::time::Duration,
+    options: &EvalOptions,
+) -> Option<WorkerProcesses> {
+    if jobs <= 1 {
+        return None;
+    }
+    let (_, egl_devices) = render_workers(Some(jobs), egl_devices);
+    let mut w = WorkerProcesses::new(PathBuf::new(), Vec::new(), jobs)
+        .with_egl_devices(egl_devices)
+        .with_first_frame_timeout(first_frame);
+    let server = std::time::Duration::from_secs_f64(
+        options.server_wait_secs + 4.0 * options.deadline_secs + 60.0,
+    );
+    w.silence_timeout = w.silence_timeout.max(server);
+    Some(w)
 }
 
 /// Usage errors for numbers out of range.

@@ -66,6 +66,55 @@ pub enum AugmentError {
     /// be used.
     #[error(transparent)]
     Randomization(#[from] dexjoco_sim::SimError),
+    /// The disk is full (ENOSPC, EDQUOT): the run stopped at the first write that failed.
+    #[error(
+        "the disk is full, the run stopped: {message}{}{}; what was written before is kept: free space \
+         (or augment into another --out) and run again to render the rest",
+        free.map(|b| format!("; {} free", human_bytes(b))).unwrap_or_default(),
+        needed.map(|b| format!(", the replays still to render need about {}", human_bytes(b))).unwrap_or_default()
+    )]
+    OutOfSpace {
+        /// What failed (the file named).
+        message: String,
+        /// Bytes free on the output's file system.
+        free: Option<u64>,
+        /// Bytes the rest of the run needs, estimated from the replays written.
+        needed: Option<u64>,
+    },
+}
+
+/// Bytes in words (`3.2 MB`).
+fn human_bytes(b: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "kB", "MB", "GB", "TB"];
+    let mut v = b as f64;
+    let mut unit = 0;
+    while v >= 1000.0 && unit + 1 < UNITS.len() {
+        v /= 1000.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{b} B")
+    } else {
+        format!("{v:.1} {}", UNITS[unit])
+    }
+}
+
+impl From<dexjoco_workers::PoolError> for AugmentError {
+    fn from(e: dexjoco_workers::PoolError) -> Self {
+        use dexjoco_workers::PoolError;
+        match e {
+            PoolError::RenderingUnavailable { device, reason } => {
+                Self::RenderingUnavailable { device, reason }
+            }
+            // A unit's failure is run-wide only when the disk is full.
+            PoolError::RunWide(message) => Self::OutOfSpace {
+                message,
+                free: None,
+                needed: None,
+            },
+            e => Self::Input(e.to_string()),
+        }
+    }
 }
 
 /// Maps an I/O error with the file it concerns.

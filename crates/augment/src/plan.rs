@@ -224,6 +224,34 @@ fn gcd(a: usize, b: usize) -> usize {
     if b == 0 { a } else { gcd(b, a % b) }
 }
 
+/// Bytes per rendered frame (each camera's frame counted) of the replays of `tasks`
+/// already in `out`: their folders' bytes over their steps x cameras; `None` when none
+/// is there.
+pub(crate) fn bytes_per_frame(out: &Path, tasks: &BTreeSet<&str>, cameras: usize) -> Option<f64> {
+    let (mut bytes, mut frames) = (0u64, 0u64);
+    for ((task, _), records) in existing_replays(out, tasks) {
+        for rec in records.values() {
+            bytes += tree_bytes(&out.join(&task).join(&rec.name));
+            frames += (rec.steps * cameras) as u64;
+        }
+    }
+    (frames > 0).then(|| bytes as f64 / frames as f64)
+}
+
+/// The bytes of the files under `dir`.
+fn tree_bytes(dir: &Path) -> u64 {
+    let Ok(rd) = fs_err::read_dir(dir) else {
+        return 0;
+    };
+    rd.flatten()
+        .map(|e| match e.file_type() {
+            Ok(t) if t.is_dir() => tree_bytes(&e.path()),
+            Ok(_) => e.metadata().map_or(0, |m| m.len()),
+            Err(_) => 0,
+        })
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

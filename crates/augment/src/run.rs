@@ -23,7 +23,7 @@ use crate::plan::{
 use crate::render::UnitJob;
 use crate::report::{AugmentReport, EpisodeOutcome, FailedUnit, contact_sheet, write_report};
 use crate::staging::Outcome;
-use crate::worker::{Executor, LocalInputs, UnitResult, WorkerPool, run_jobs};
+use crate::worker::{Executor, LocalInputs, UnitResult, WorkerPool, run_jobs, start_pool};
 
 /// Runs the augment stage on this process's threads.
 pub fn augment(
@@ -90,7 +90,8 @@ pub fn augment_with(
         sources: &sources,
         assets: &assets,
     };
-    let (results, mut times) = run_jobs(executor, pool, &jobs, &local, config, cameras, progress)?;
+    let (results, mut times) = run_jobs(executor, pool, &jobs, &local, config, cameras, progress)
+        .map_err(|e| with_space_needed(e, config, &jobs, cameras))?;
     times.physics += validation_seconds;
     if config.shard.is_none() {
         let _ = fs_err::remove_dir(&staging);
@@ -117,6 +118,28 @@ pub fn augment_with(
         }
     }
     Ok(report)
+}
+
+/// A full disk, with the space free on the output's file system and an estimate of what
+/// the units still to render need (their frames at the bytes per frame of the replays
+/// already in the output). Other errors unchanged.
+fn with_space_needed(
+    e: AugmentError,
+    config: &AugmentConfig,
+    jobs: &[(usize, UnitJob)],
+    cameras: usize,
+) -> AugmentError {
+    let AugmentError::OutOfSpace { message, .. } = e else {
+        return e;
+    };
+    let frames: u64 = jobs.iter().map(|(_, j)| j.frames(cameras)).sum();
+    let tasks: BTreeSet<&str> = jobs.iter().map(|(_, j)| j.task.as_str()).collect();
+    let per_frame = crate::plan::bytes_per_frame(&config.out, &tasks, cameras);
+    AugmentError::OutOfSpace {
+        message,
+        free: dexjoco_formats::fs::free_bytes(&config.out),
+        needed: per_frame.map(|b| (b * frames as f64) as u64),
+    }
 }
 
 /// Reads the inputs (skipping those that cannot be replayed); fails when none can be.
@@ -154,8 +177,7 @@ fn start_workers(
         .filter(|(_, o)| !o.is_empty())
         .map(|(s, _)| s.spec.id.clone())
         .collect();
-    let preload: Vec<String> = preload.into_iter().collect();
-    WorkerPool::start(executor, config, &preload, to_render)
+    start_pool(executor, config, preload.into_iter().collect(), to_render)
 }
 
 /// Loads each task's assets once, and the settings that decide the output's bytes.

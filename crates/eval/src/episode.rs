@@ -65,7 +65,7 @@ struct Rollout {
 }
 
 /// Runs episode `k` from `state0` into the staging folder `dir` (videos, rollout);
-/// returns its record.
+/// returns its record. `tick` is called after every step.
 pub(crate) fn run_episode(
     stage: &mut Stage,
     k: usize,
@@ -73,6 +73,7 @@ pub(crate) fn run_episode(
     inference: &mut Inference,
     dir: &Path,
     server_metadata: &serde_json::Value,
+    tick: &mut dyn FnMut(),
 ) -> Result<EpisodeRecord, EvalError> {
     let what = format!("{} episode {k}", stage.spec.id);
     let seed = episode_seed(stage.config.options.seed, k);
@@ -107,6 +108,7 @@ pub(crate) fn run_episode(
         k,
         start: &start,
         what: &what,
+        tick,
     };
     let rollout = looper.run(inference, &mut videos)?;
     for (_, w) in videos {
@@ -159,6 +161,7 @@ struct Loop<'a> {
     k: usize,
     start: &'a [f64],
     what: &'a str,
+    tick: &'a mut dyn FnMut(),
 }
 
 impl Loop<'_> {
@@ -253,6 +256,7 @@ impl Loop<'_> {
         out.states.push(self.env.state());
         let v = self.env.step(&action).map_err(sim_err(self.what))?;
         out.actions.push(action);
+        (self.tick)();
         Ok(v)
     }
 

@@ -71,6 +71,14 @@ pub enum EvalError {
     /// A worker process failed.
     #[error("{0}")]
     Worker(String),
+    /// A record of an earlier run in the output folder cannot be used.
+    #[error("'{}': {message}", path.display())]
+    Record {
+        /// The record file.
+        path: PathBuf,
+        /// What is wrong, and what to do.
+        message: String,
+    },
 }
 
 impl EvalError {

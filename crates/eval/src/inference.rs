@@ -8,11 +8,10 @@
 use std::sync::mpsc::{Receiver, Sender, TryRecvError};
 use std::time::Instant;
 
-use dexjoco_core::ArmSetup;
 use rmpv::Value;
 
 use crate::error::EvalError;
-use crate::protocol::{Answer, PolicyClient};
+use crate::protocol::PolicyClient;
 
 /// A chunk ready to merge: its rows and the step of the observation it answers.
 pub(crate) struct Chunk {
@@ -28,42 +27,43 @@ pub(crate) enum Inference {
         latency: usize,
         pending: Option<(Chunk, usize)>,
         seconds: Vec<f64>,
-        setup: ArmSetup,
     },
     /// Asked on a thread; merged when it arrives.
     RealTime {
         ask: Sender<(Value, usize)>,
-        answers: Receiver<Result<(Answer, usize, f64), EvalError>>,
+        answers: Receiver<Result<(Chunk, f64), EvalError>>,
         in_flight: bool,
         seconds: Vec<f64>,
-        setup: ArmSetup,
         uri: String,
     },
 }
 
 impl Inference {
     /// Deterministic inference over `client`.
-    pub(crate) fn modelled(client: PolicyClient, latency: usize, setup: ArmSetup) -> Self {
+    pub(crate) fn modelled(client: PolicyClient, latency: usize) -> Self {
         Self::Modelled {
             client: Box::new(client),
             latency,
             pending: None,
             seconds: Vec::new(),
-            setup,
         }
     }
 
     /// Real-time inference: `client` moves to a thread of its own.
-    pub(crate) fn real_time(client: PolicyClient, uri: &str, setup: ArmSetup) -> Self {
+    pub(crate) fn real_time(client: PolicyClient, uri: &str) -> Self {
         let (ask, asked) = std::sync::mpsc::channel::<(Value, usize)>();
         let (tell, answers) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
             let mut client = client;
             for (obs, step) in asked {
                 let started = Instant::now();
-                let r = client
-                    .infer(&obs)
-                    .map(|a| (a, step, started.elapsed().as_secs_f64()));
+                let r = client.infer(&obs, step).map(|actions| {
+                    let chunk = Chunk {
+                        actions,
+                        obs_step: step,
+                    };
+                    (chunk, started.elapsed().as_secs_f64())
+                });
                 let failed = r.is_err();
                 if tell.send(r).is_err() || failed {
                     break;
@@ -76,7 +76,6 @@ impl Inference {
             answers,
             in_flight: false,
             seconds: Vec::new(),
-            setup,
             uri: uri.to_owned(),
         }
     }
@@ -97,12 +96,10 @@ impl Inference {
                 latency,
                 pending,
                 seconds,
-                setup,
             } => {
                 let started = Instant::now();
-                let answer = client.infer(&obs)?;
+                let actions = client.infer(&obs, step)?;
                 seconds.push(started.elapsed().as_secs_f64());
-                let actions = checked(answer, *setup, step, &uri_of(client))?;
                 *pending = Some((
                     Chunk {
                         actions,
@@ -143,19 +140,14 @@ impl Inference {
                 answers,
                 in_flight,
                 seconds,
-                setup,
                 uri,
                 ..
             } => match answers.try_recv() {
                 Ok(r) => {
-                    let (answer, step, s) = r?;
+                    let (chunk, s) = r?;
                     *in_flight = false;
                     seconds.push(s);
-                    let actions = checked(answer, *setup, step, uri)?;
-                    Ok(Some(Chunk {
-                        actions,
-                        obs_step: step,
-                    }))
+                    Ok(Some(chunk))
                 }
                 Err(TryRecvError::Empty) => Ok(None),
                 Err(TryRecvError::Disconnected) => Err(EvalError::Server {
@@ -188,6 +180,13 @@ impl Inference {
         }
     }
 
+    /// Closes the connection (in real time, the thread closes it once its channel ends).
+    pub(crate) fn close(self) {
+        if let Self::Modelled { client, .. } = self {
+            client.close();
+        }
+    }
+
     /// The seconds each answer took since the last call.
     pub(crate) fn take_seconds(&mut self) -> Vec<f64> {
         match self {
@@ -196,44 +195,4 @@ impl Inference {
             }
         }
     }
-}
-
-fn uri_of(client: &PolicyClient) -> String {
-    client.uri().to_owned()
-}
-
-/// The chunk's rows when the answer is one: at least one row, each as wide as the
-/// policy's action layout, every value finite.
-fn checked(
-    answer: Answer,
-    setup: ArmSetup,
-    step: usize,
-    uri: &str,
-) -> Result<Vec<Vec<f64>>, EvalError> {
-    let width = setup.action_rotvec_dim();
-    let bad = |message: String| EvalError::Answer {
-        uri: uri.to_owned(),
-        message: format!("the chunk answering the observation of step {step}: {message}"),
-    };
-    if answer.actions.is_empty() {
-        return Err(bad("no actions (shape (0, ...))".into()));
-    }
-    if let Some(w) = answer.actions.iter().map(Vec::len).find(|w| *w != width) {
-        return Err(bad(format!(
-            "shape ({}, {w}); a {} policy answers ({}, {width}): xyz, rotation vector and 16 hand \
-             joints per arm",
-            answer.actions.len(),
-            match setup {
-                ArmSetup::SingleArm => "one-arm",
-                ArmSetup::Bimanual => "two-arm",
-            },
-            answer.actions.len()
-        )));
-    }
-    for (i, row) in answer.actions.iter().enumerate() {
-        if let Some(c) = row.iter().position(|v| !v.is_finite()) {
-            return Err(bad(format!("row {i}, column {c} is {}", row[c])));
-        }
-    }
-    Ok(answer.actions)
 }

@@ -25,8 +25,6 @@ pub const STAGING: &str = ".staging";
 pub const EPISODE_RECORD: &str = dexjoco_formats::raw::EVAL_RECORD;
 /// The run's record.
 pub const RUN_RECORD: &str = "eval_run.json";
-/// The configuration worker processes read.
-pub const WORKER_CONFIG: &str = ".eval-worker.json";
 
 /// One evaluated episode, as `episode.json` holds it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -100,7 +98,9 @@ impl EpisodeRecord {
     }
 }
 
-/// The episodes already complete in `out` (from their records), by index.
+/// The episodes already complete in `out` (from their records), by index. An episode
+/// folder whose record is missing or cannot be read is an error naming it: the episode
+/// is never evaluated again into a folder that exists.
 pub fn done_episodes(out: &Path) -> Result<BTreeMap<usize, (PathBuf, EpisodeRecord)>, EvalError> {
     let mut done = BTreeMap::new();
     let Ok(rd) = fs_err::read_dir(out) else {
@@ -112,14 +112,45 @@ pub fn done_episodes(out: &Path) -> Result<BTreeMap<usize, (PathBuf, EpisodeReco
         if !name.starts_with("episode_") || !e.path().is_dir() {
             continue;
         }
-        let Ok(bytes) = fs_err::read(e.path().join(EPISODE_RECORD)) else {
-            continue;
-        };
-        if let Ok(r) = serde_json::from_slice::<EpisodeRecord>(&bytes) {
-            done.insert(r.episode, (e.path(), r));
+        let path = e.path().join(EPISODE_RECORD);
+        let r = read_record(&path)?;
+        if let Some((other, _)) = done.get(&r.episode) {
+            return Err(unreadable(
+                &path,
+                &format!(
+                    "episode {} is also recorded in '{}'",
+                    r.episode,
+                    PathBuf::from(other).display()
+                ),
+            ));
         }
+        done.insert(r.episode, (e.path(), r));
     }
     Ok(done)
+}
+
+/// An episode folder's record.
+fn read_record(path: &Path) -> Result<EpisodeRecord, EvalError> {
+    let bytes = match fs_err::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(unreadable(path, "the episode folder has no record"));
+        }
+        Err(e) => return Err(unreadable(path, &e.to_string())),
+    };
+    serde_json::from_slice(&bytes).map_err(|e| unreadable(path, &e.to_string()))
+}
+
+/// A record that cannot be used, named with what to do.
+fn unreadable(path: &Path, why: &str) -> EvalError {
+    let folder = path.parent().unwrap_or(path);
+    EvalError::Record {
+        path: path.to_path_buf(),
+        message: format!(
+            "{why}; to evaluate that episode again, delete its folder '{}' and rerun",
+            folder.display()
+        ),
+    }
 }
 
 /// The staging folder of episode `k`.
@@ -138,6 +169,15 @@ pub fn commit_episode(
     dexjoco_formats::write_atomic(&staged.join(EPISODE_RECORD), &json)?;
     dexjoco_formats::fs::sync_tree(staged)?;
     let to = out.join(record.folder_name(record_digits));
+    if to.exists() {
+        return Err(unreadable(
+            &to.join(EPISODE_RECORD),
+            &format!(
+                "episode {} was evaluated again into a folder that exists",
+                record.episode
+            ),
+        ));
+    }
     fs_err::rename(staged, &to).map_err(io_err("rename", staged))?;
     dexjoco_formats::fs::sync_dir(out)?;
     Ok(to)

@@ -1,15 +1,17 @@
 //! A whole evaluation run: the episodes' initial states (drawn from `--seed` as
 //! `scripted` draws its resets, or given), the episodes a previous run left to do, the
-//! episodes run here or on worker processes (each with its own connection to the policy
-//! server), the marker and the run's record. One writer per output folder (its `.lock`).
+//! episodes run here or on worker processes (`dexjoco-workers`' pool: each worker with
+//! its own renderer, EGL device and connection to the policy server, an episode whose
+//! worker died retried once on a fresh one, every worker killed when the run fails), the
+//! marker and the run's record. One writer per output folder (its `.lock`).
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use dexjoco_core::{Progress, TaskSpec};
 use dexjoco_formats::DirLock;
 use dexjoco_sim::{SceneSource, TaskEnv, load_task_scene};
+use dexjoco_workers::{JobSet, WorkerPool, WorkerProcesses};
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
@@ -18,8 +20,7 @@ use crate::episode::run_episode;
 use crate::error::{EvalError, io_err, sim_err};
 use crate::inference::Inference;
 use crate::output::{
-    EpisodeRecord, RUN_RECORD, STAGING, WORKER_CONFIG, commit_episode, done_episodes, staging_dir,
-    write_marker,
+    EpisodeRecord, RUN_RECORD, STAGING, commit_episode, done_episodes, staging_dir, write_marker,
 };
 use crate::protocol::PolicyClient;
 use crate::stage::{Stage, run_spec};
@@ -54,16 +55,8 @@ pub fn initial_states(config: &EvalConfig, spec: &TaskSpec) -> Result<Vec<Vec<f6
 pub enum Executor {
     /// In this process, one after the other.
     InProcess,
-    /// On `workers` processes started as `program args... <slot>`, each running the
-    /// episodes of its slot (see [`serve_worker`]).
-    Processes {
-        /// The program (`dexjoco-data`).
-        program: PathBuf,
-        /// Its arguments before the slot number.
-        args: Vec<String>,
-        /// How many.
-        workers: usize,
-    },
+    /// On worker processes (`dexjoco-data eval-worker`), each taking the next episode.
+    Processes(WorkerProcesses),
 }
 
 /// What a run did.
@@ -90,20 +83,34 @@ impl EvalSummary {
     }
 }
 
-/// What worker processes read (`<out>/.eval-worker.json`).
+/// What a worker process is told first: the run, and every episode's initial state.
 #[derive(Debug, Serialize, Deserialize)]
-struct WorkerJob {
-    config: EvalConfig,
-    todo: Vec<usize>,
-    states: Vec<Vec<f64>>,
+pub(crate) struct WorkerHello {
+    pub(crate) config: EvalConfig,
+    pub(crate) states: Vec<Vec<f64>>,
 }
 
-/// What a worker says on stdout, one JSON line per episode.
+/// What a worker says of an episode it finished (and committed).
 #[derive(Debug, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-enum WorkerLine {
-    Done { episode: usize, success: bool },
-    Error { message: String },
+pub(crate) struct EpisodeDone {
+    pub(crate) episode: usize,
+    pub(crate) success: bool,
+}
+
+/// Episodes finished and successful, on the progress bar.
+struct Tally<'a> {
+    finished: AtomicUsize,
+    successes: AtomicUsize,
+    progress: &'a dyn Progress,
+}
+
+impl Tally<'_> {
+    fn add(&self, n: usize, successes: usize) {
+        let f = self.finished.fetch_add(n, Ordering::SeqCst) + n;
+        let s = self.successes.fetch_add(successes, Ordering::SeqCst) + successes;
+        self.progress
+            .advance(n as u64, &format!("{s} of {f} successful"));
+    }
 }
 
 /// Runs the evaluation: the episodes not already in `config.out`, then the marker
@@ -119,8 +126,8 @@ pub fn evaluate(
     config.task.check(&spec, config.options.rand_full)?;
     let states = initial_states(config, &spec)?;
     // The server first: no server, nothing to do (and nothing written).
-    let client = connect(config)?;
-    let metadata = crate::wire::to_json(client.metadata());
+    let client = connect(config, &spec)?;
+    let metadata = client.metadata().clone();
     fs_err::create_dir_all(out).map_err(io_err("create", out))?;
     let _lock = DirLock::acquire(out)?;
     let staging = out.join(STAGING);
@@ -133,44 +140,34 @@ pub fn evaluate(
         .filter(|k| !done.contains_key(k))
         .collect();
     progress.start(config.options.episodes as u64);
-    let mut successes = done.values().filter(|(_, r)| r.success).count();
-    progress.advance(done.len() as u64, &tally(successes, done.len()));
-    let mut finished = done.len();
-    let mut on_done = |success: bool| {
-        finished += 1;
-        successes += usize::from(success);
-        progress.advance(1, &tally(successes, finished));
+    let tally = Tally {
+        finished: AtomicUsize::new(0),
+        successes: AtomicUsize::new(0),
+        progress,
     };
+    tally.add(done.len(), done.values().filter(|(_, r)| r.success).count());
     let result = match executor {
-        Executor::Processes { workers, .. } if *workers > 1 && todo.len() > 1 => {
+        Executor::Processes(w) if w.count > 1 && todo.len() > 1 => {
             client.close();
-            let job = WorkerJob {
-                config: config.clone(),
-                todo: todo.clone(),
-                states: states.clone(),
-            };
-            run_on_processes(executor, &job, &mut on_done)
+            run_on_processes(w, config, &states, &todo, &tally)
         }
-        _ => run_episodes(config, &todo, &states, client, &metadata, |r| {
-            on_done(r.success);
+        _ => run_episodes(config, &todo, &states, client, &metadata, &mut |r| {
+            tally.add(1, usize::from(r.success));
             Ok(())
         }),
     };
     let _ = fs_err::remove_dir_all(&staging);
-    let _ = fs_err::remove_file(out.join(WORKER_CONFIG));
     result?;
     finish(config, out, &metadata, todo.len())
 }
 
-fn tally(successes: usize, finished: usize) -> String {
-    format!("{successes} of {finished} successful")
-}
-
-fn connect(config: &EvalConfig) -> Result<PolicyClient, EvalError> {
+/// A connection to the run's server, its answers checked against the task's action width.
+pub(crate) fn connect(config: &EvalConfig, spec: &TaskSpec) -> Result<PolicyClient, EvalError> {
     PolicyClient::connect(
         &config.uri,
         std::time::Duration::from_secs_f64(config.options.server_wait_secs),
         std::time::Duration::from_secs_f64(config.options.deadline_secs),
+        crate::decode::Limits::for_width(spec.setup.action_rotvec_dim()),
     )
 }
 
@@ -243,156 +240,142 @@ fn run_episodes(
     states: &[Vec<f64>],
     client: PolicyClient,
     metadata: &serde_json::Value,
-    mut on_done: impl FnMut(&EpisodeRecord) -> Result<(), EvalError>,
+    on_done: &mut dyn FnMut(&EpisodeRecord) -> Result<(), EvalError>,
 ) -> Result<(), EvalError> {
     if todo.is_empty() {
         client.close();
         return Ok(());
     }
     let mut stage = Stage::new(config)?;
-    let setup = stage.spec.setup;
-    let mut inference = if config.options.real_time {
-        Inference::real_time(client, &config.uri, setup)
-    } else {
-        Inference::modelled(client, config.options.latency_steps, setup)
-    };
+    let mut inference = inference_over(config, client);
     for &k in todo {
-        let dir = staging_dir(&config.out, k);
-        if dir.exists() {
-            fs_err::remove_dir_all(&dir).map_err(io_err("remove", &dir))?;
-        }
-        let record = match run_episode(&mut stage, k, &states[k], &mut inference, &dir, metadata) {
-            Ok(r) => r,
-            Err(e) => {
-                let _ = fs_err::remove_dir_all(&dir);
-                return Err(e);
-            }
-        };
-        commit_episode(
-            &config.out,
-            &dir,
-            &record,
-            config.options.record_pressed_digits,
+        let record = run_one(
+            &mut stage,
+            &mut inference,
+            k,
+            &states[k],
+            metadata,
+            &mut || {},
         )?;
         on_done(&record)?;
     }
     Ok(())
 }
 
-/// Runs the job on worker processes, counting their episodes as they finish; the first
-/// worker's error stops the others.
-fn run_on_processes(
-    executor: &Executor,
-    job: &WorkerJob,
-    on_done: &mut dyn FnMut(bool),
-) -> Result<(), EvalError> {
-    let Executor::Processes {
-        program,
-        args,
-        workers,
-    } = executor
-    else {
-        unreachable!("processes only")
-    };
-    let path = job.config.out.join(WORKER_CONFIG);
-    let bytes = serde_json::to_vec(job).expect("serializable");
-    dexjoco_formats::write_atomic(&path, &bytes)?;
-    let n = (*workers).min(job.todo.len());
-    let (tx, rx) = std::sync::mpsc::channel::<(usize, Option<String>)>();
-    let mut children = Vec::new();
-    for slot in 0..n {
-        let mut cmd = Command::new(program);
-        cmd.args(args)
-            .arg(slot.to_string())
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit());
-        dexjoco_sim::share_llvmpipe_threads(&mut cmd, n);
-        let mut child = cmd.spawn().map_err(|e| {
-            EvalError::Worker(format!(
-                "cannot start a worker '{}': {e}",
-                program.display()
-            ))
-        })?;
-        let stdout = BufReader::new(child.stdout.take().expect("piped"));
-        let tx = tx.clone();
-        std::thread::spawn(move || {
-            for line in stdout.lines() {
-                let Ok(line) = line else { break };
-                if tx.send((slot, Some(line))).is_err() {
-                    return;
-                }
-            }
-            let _ = tx.send((slot, None));
-        });
-        children.push(child);
+/// Answers over `client`, modelled or in real time as the run says.
+pub(crate) fn inference_over(config: &EvalConfig, client: PolicyClient) -> Inference {
+    if config.options.real_time {
+        Inference::real_time(client, &config.uri)
+    } else {
+        Inference::modelled(client, config.options.latency_steps)
     }
-    drop(tx);
-    let mut failure: Option<EvalError> = None;
-    let mut open = n;
-    while open > 0 {
-        let Ok((slot, line)) = rx.recv() else { break };
-        let Some(line) = line else {
-            open -= 1;
-            let status = children[slot].wait().map_err(io_err("wait for", program))?;
-            if !status.success() && failure.is_none() {
-                failure = Some(EvalError::Worker(format!(
-                    "worker {slot} ended with {status} before finishing its episodes"
-                )));
-            }
-            continue;
-        };
-        match serde_json::from_str::<WorkerLine>(&line) {
-            Ok(WorkerLine::Done { success, .. }) => on_done(success),
-            Ok(WorkerLine::Error { message }) => {
-                if failure.is_none() {
-                    failure = Some(EvalError::Worker(message));
-                }
-                for c in &mut children {
-                    let _ = c.kill();
-                }
-            }
-            Err(_) => tracing::debug!("worker {slot}: {line}"),
-        }
-    }
-    for c in &mut children {
-        let _ = c.wait();
-    }
-    failure.map_or(Ok(()), Err)
 }
 
-/// A worker process's side: reads the job in `out`, runs the episodes of slot `slot`
-/// of `workers` (every `workers`-th of the job's list) over a connection of its own, and
-/// says each on stdout as it completes.
-pub fn serve_worker(out: &Path, slot: usize, workers: usize) -> Result<(), EvalError> {
-    let path = out.join(WORKER_CONFIG);
-    let bytes = fs_err::read(&path).map_err(io_err("read", &path))?;
-    let job: WorkerJob = serde_json::from_slice(&bytes)
-        .map_err(|e| EvalError::Worker(format!("'{}': {e}", path.display())))?;
-    let mine: Vec<usize> = job
-        .todo
-        .iter()
-        .copied()
-        .skip(slot)
-        .step_by(workers.max(1))
-        .collect();
-    let say = |line: &WorkerLine| {
-        println!("{}", serde_json::to_string(line).expect("serializable"));
-    };
-    let result = connect(&job.config).and_then(|client| {
-        let metadata = crate::wire::to_json(client.metadata());
-        run_episodes(&job.config, &mine, &job.states, client, &metadata, |r| {
-            say(&WorkerLine::Done {
-                episode: r.episode,
-                success: r.success,
-            });
-            Ok(())
-        })
-    });
-    if let Err(e) = &result {
-        say(&WorkerLine::Error {
-            message: crate::error::one_line(e),
-        });
+/// Runs episode `k` into its staging folder and commits it into place; `tick` is called
+/// every step and once before the commit. A failed episode leaves nothing.
+pub(crate) fn run_one(
+    stage: &mut Stage,
+    inference: &mut Inference,
+    k: usize,
+    state0: &[f64],
+    metadata: &serde_json::Value,
+    tick: &mut dyn FnMut(),
+) -> Result<EpisodeRecord, EvalError> {
+    let out = stage.config.out.clone();
+    let dir = staging_dir(&out, k);
+    if dir.exists() {
+        fs_err::remove_dir_all(&dir).map_err(io_err("remove", &dir))?;
     }
-    result
+    let record = match run_episode(stage, k, state0, inference, &dir, metadata, tick) {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = fs_err::remove_dir_all(&dir);
+            return Err(e);
+        }
+    };
+    tick();
+    let digits = stage.config.options.record_pressed_digits;
+    commit_episode(&out, &dir, &record, digits)?;
+    Ok(record)
+}
+
+/// The episodes of a run as the worker schedule sees them: in index order, each a job;
+/// a failed attempt's staging folder removed.
+struct Episodes<'a> {
+    hello: WorkerHello,
+    todo: &'a [usize],
+    tally: &'a Tally<'a>,
+}
+
+impl JobSet for Episodes<'_> {
+    type Hello = WorkerHello;
+    type Job = usize;
+    type Done = EpisodeDone;
+
+    fn hello(&self) -> &WorkerHello {
+        &self.hello
+    }
+
+    fn len(&self) -> usize {
+        self.todo.len()
+    }
+
+    fn job(&self, k: usize) -> &usize {
+        &self.todo[k]
+    }
+
+    fn key(&self, k: usize) -> String {
+        format!("episode {}", self.todo[k])
+    }
+
+    fn clear(&self, k: usize) {
+        let _ = fs_err::remove_dir_all(staging_dir(&self.hello.config.out, self.todo[k]));
+    }
+
+    fn retrying(&self, k: usize, reason: &str, _redone: u64) {
+        self.tally
+            .progress
+            .note(&format!("retrying {}: {reason}", self.key(k)));
+    }
+
+    fn done(&self, _k: usize, done: &EpisodeDone) {
+        self.tally.add(1, usize::from(done.success));
+    }
+
+    fn note(&self, message: &str) {
+        self.tally.progress.note(message);
+    }
+}
+
+/// Runs episodes `todo` on worker processes; the first failure (a server that answers
+/// badly, an episode whose worker died twice) stops the run, and every worker is ended.
+fn run_on_processes(
+    w: &WorkerProcesses,
+    config: &EvalConfig,
+    states: &[Vec<f64>],
+    todo: &[usize],
+    tally: &Tally<'_>,
+) -> Result<(), EvalError> {
+    let episodes = Episodes {
+        hello: WorkerHello {
+            config: config.clone(),
+            states: states.to_vec(),
+        },
+        todo,
+        tally,
+    };
+    let pool = WorkerPool::start(w, &episodes.hello, todo.len())
+        .map_err(|e| EvalError::Worker(e.to_string()))?;
+    let results = dexjoco_workers::run_jobs(w, pool, &episodes)
+        .map_err(|e| EvalError::Worker(e.to_string()))?;
+    let failed: Vec<String> = todo
+        .iter()
+        .zip(results)
+        .filter_map(|(k, r)| r.err().map(|why| format!("episode {k}: {why}")))
+        .collect();
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(EvalError::Worker(failed.join("; ")))
+    }
 }

@@ -155,6 +155,25 @@ impl Stage {
         })
     }
 
+    /// Draws one frame of the scene as it loads, from its first camera (a worker tells
+    /// its parent that the renderer works once this returns).
+    pub(crate) fn warm_up(&mut self) -> Result<(), EvalError> {
+        let mut data = dexjoco_sim::mujoco_rs::prelude::MjData::new(self.scene.model.clone());
+        data.forward();
+        let camera = self
+            .views
+            .iter()
+            .find_map(|(_, v)| match v {
+                View::Fixed(id) => Some(*id),
+                View::Random => None,
+            })
+            .unwrap_or(0);
+        self.renderer
+            .update_scene(&mut data, dexjoco_sim::CameraView::Fixed(camera));
+        self.renderer.draw().map_err(sim_err(&self.spec.id))?;
+        Ok(())
+    }
+
     /// The camera of an env image key.
     pub(crate) fn view(&self, key: &str) -> View {
         self.views

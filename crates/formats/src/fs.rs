@@ -510,6 +510,44 @@ pub fn is_non_empty_dir(dir: &Path) -> bool {
     fs_err::read_dir(dir).is_ok_and(|mut d| d.next().is_some())
 }
 
+/// Whether `e`, or any error it comes from, is a full disk or an exhausted quota: an
+/// I/O error ENOSPC or EDQUOT, or a program's message that says so (ffmpeg prints
+/// `strerror`'s words). A full disk concerns a whole run, not one of its inputs.
+pub fn out_of_space(e: &(dyn std::error::Error + 'static)) -> bool {
+    const WORDS: [&str; 2] = ["No space left on device", "Disk quota exceeded"];
+    let mut next = Some(e);
+    while let Some(e) = next {
+        if let Some(io) = e.downcast_ref::<std::io::Error>()
+            && (matches!(
+                io.kind(),
+                std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded
+            ) || matches!(io.raw_os_error(), Some(28 | 122)))
+        {
+            return true;
+        }
+        let text = e.to_string();
+        if WORDS.iter().any(|w| text.contains(w)) {
+            return true;
+        }
+        next = e.source();
+    }
+    false
+}
+
+/// The bytes free for an unprivileged writer on the file system holding `path` (or its
+/// nearest existing ancestor), when the system says.
+pub fn free_bytes(path: &Path) -> Option<u64> {
+    let mut p = Some(path);
+    while let Some(dir) = p {
+        if dir.exists() {
+            let s = rustix::fs::statvfs(dir).ok()?;
+            return Some(s.f_bavail.saturating_mul(s.f_frsize));
+        }
+        p = dir.parent();
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,13 +10,16 @@
 //! <store>/<task>/episode_000000/.dexjoco-ingest.json   this episode's manifest entry
 //! <store>/quarantine/<id>/reason.json         a rejected input's manifest entry
 //! <store>/quarantine/<id>/source/...          a copy of the rejected input
-//! <store>/.staging/                           work in progress (removed on open)
+//! <store>/.staging/<n>/                       work in progress, one folder per input of
+//!                                             the run (removed on open)
 //! <store>/.lock                               the pid of the process using the store
 //! ```
 //! An episode is written whole under `.staging/` and renamed into place, so a store never
 //! holds half an episode. Each landed folder carries its own manifest entry, so an
 //! interrupted run's manifest is rebuilt on the next open. Ids are the first 16 hex
-//! digits of the SHA-256 of the input's bytes, so re-running on the same input skips it.
+//! digits of the SHA-256 of the input's bytes, so re-running on the same input skips it;
+//! of several inputs with the same content in one run, the first in input order lands and
+//! the others are named duplicates, whatever the thread timing.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -292,11 +295,16 @@ impl Store {
         // Batches keep memory bounded and commit in input order, so indices do not
         // depend on thread timing; each batch is durable before the next starts.
         let batch = (rayon::current_num_threads() * 4).max(8);
-        for chunk in sources.chunks(batch) {
+        for (b, chunk) in sources.chunks(batch).enumerate() {
             let prepared: Vec<Prepared> = chunk
                 .par_iter()
-                .map(|s| {
-                    let p = self.prepare(s, opts, &staging);
+                .enumerate()
+                .map(|(i, s)| {
+                    // Each input is staged in a folder of its own (its position in the
+                    // run): inputs of the same content never share one. Which of them
+                    // lands is decided at commit, in input order.
+                    let slot = staging.join(format!("{:06}", b * batch + i));
+                    let p = self.prepare(s, opts, &slot);
                     progress.advance(1, &s.path.display().to_string());
                     p
                 })
@@ -342,7 +350,8 @@ impl Store {
         Ok(next)
     }
 
-    fn prepare(&self, source: &Source, opts: &IngestOptions, staging: &Path) -> Prepared {
+    /// Reads, checks and stages `source` in `slot` (a staging folder of its own).
+    fn prepare(&self, source: &Source, opts: &IngestOptions, slot: &Path) -> Prepared {
         let (hash, bytes, content) = match hash_source(source) {
             Ok(x) => x,
             Err(e) => {
@@ -370,7 +379,7 @@ impl Store {
                     problems: name_problems(e.problems(), &source.path, &id),
                     notes: Vec::new(),
                 };
-                return self.quarantine(source, entry, staging, 0);
+                return self.quarantine(source, entry, slot, 0);
             }
         };
         let id = hash[..16].to_owned();
@@ -402,7 +411,7 @@ impl Store {
             problems: Vec::new(),
             notes: Vec::new(),
         };
-        match self.read_and_stage(source, content, opts, staging, &mut entry) {
+        match self.read_and_stage(source, content, opts, slot, &mut entry) {
             Ok(staged) => Prepared {
                 source: source.clone(),
                 entry,
@@ -423,7 +432,7 @@ impl Store {
                 entry.problems = name_problems(e.problems(), &source.path, &id);
                 entry.status = Status::Quarantined;
                 entry.path = Path::new(QUARANTINE).join(&id);
-                self.quarantine(source, entry, staging, bytes)
+                self.quarantine(source, entry, slot, bytes)
             }
         }
     }
@@ -433,7 +442,7 @@ impl Store {
         source: &Source,
         content: Option<Vec<u8>>,
         opts: &IngestOptions,
-        staging: &Path,
+        slot: &Path,
         entry: &mut ManifestEntry,
     ) -> std::result::Result<PathBuf, StageFailure> {
         let read = source.read_with(
@@ -459,7 +468,7 @@ impl Store {
         if !problems.is_empty() {
             return Err(StageFailure::Input(IngestError::Invalid(problems)));
         }
-        let dir = staging.join(&entry.id);
+        let dir = slot.join(&entry.id);
         if dir.exists() {
             fs_err::remove_dir_all(&dir)
                 .map_err(io_err("remove", &dir))
@@ -476,13 +485,13 @@ impl Store {
         Ok(dir)
     }
 
-    /// Copies a rejected input and its reason into staging, to be renamed under
+    /// Copies a rejected input and its reason into its staging `slot`, to be renamed under
     /// `quarantine/<id>/` on commit.
     fn quarantine(
         &self,
         source: &Source,
         mut entry: ManifestEntry,
-        staging: &Path,
+        slot: &Path,
         bytes: u64,
     ) -> Prepared {
         tracing::warn!(
@@ -490,7 +499,7 @@ impl Store {
             "rejected: {}",
             entry.problems.first().map(ToString::to_string).unwrap_or_default()
         );
-        let dir = staging.join(format!("q-{}", entry.id));
+        let dir = slot.join(format!("q-{}", entry.id));
         let _ = fs_err::remove_dir_all(&dir);
         let copied = (|| -> dexjoco_formats::Result<()> {
             let dest = dir.join("source");

@@ -1,27 +1,21 @@
 //! Running units of work: on this process's threads, or on worker processes (each with
 //! its own MuJoCo model and EGL renderer, so rendering scales over cores and GPUs).
 //!
-//! Worker processes speak JSON lines over their stdin/stdout (`protocol`). The parent
-//! sends a `hello` with the run's configuration, then one `job` at a time; the worker
-//! says which EGL device its renderer opened (`device`) and that it drew its first frame
-//! (`ready`), then answers each job with `frames` (rendered frame counts, as they happen)
-//! and `done` (the replays' outcomes and where the time went) or `error`.
-//!
-//! `process` starts and watches one worker: a worker that has not drawn its first frame
-//! within the first-frame deadline (a hung EGL driver) is killed and named with its
-//! device. `schedule` hands units to worker slots: a worker that dies mid-unit (a crash, a
-//! kill) is replaced, its unit's staging removed and the unit retried once, then reported
-//! as failed; a stalled worker's slot is retired and its unit goes to another worker;
-//! when no slot can render, the run fails. Either way the unit's replays appear whole or
-//! not at all. `serve` is the worker's side. `executor` says where units run and how
-//! worker processes start; `threads` runs units on this process's threads instead.
+//! Worker processes are `dexjoco-workers`' (JSON lines over stdin/stdout, first-frame and
+//! silence deadlines, an EGL device each, a unit retried once after its worker died,
+//! workers killed on drop); `protocol` is what augment says inside it: the `hello` with
+//! the run's configuration, a unit to render, and a rendered unit's outcomes. `jobs` is
+//! the schedule's view of the units, `serve` the worker's side, `threads` runs units on
+//! this process's threads instead. A full disk anywhere (ENOSPC, EDQUOT) is run-wide: the
+//! first stops the run.
 
 mod executor;
-mod process;
+mod jobs;
 mod protocol;
-mod schedule;
 mod serve;
 mod threads;
+
+use std::sync::atomic::AtomicU64;
 
 use dexjoco_core::Progress;
 
@@ -31,14 +25,34 @@ use crate::profile::StageTimes;
 use crate::render::UnitJob;
 
 pub use dexjoco_sim::share_llvmpipe_threads;
+pub use dexjoco_workers::{DEFAULT_FIRST_FRAME_TIMEOUT, WorkerPool, WorkerProcesses};
+pub use executor::Executor;
 pub(crate) use executor::UnitResult;
-pub use executor::{DEFAULT_FIRST_FRAME_TIMEOUT, Executor, WorkerProcesses};
-pub(crate) use process::WorkerPool;
 pub use serve::{FAULT_ENV, STALL_ENV, serve_worker};
 pub(crate) use threads::LocalInputs;
 
+/// Starts the worker processes of `executor` ahead of the units (none for threads; no
+/// more than `max_units`), preloading the scenes of `preload`.
+pub(crate) fn start_pool(
+    executor: &Executor,
+    config: &AugmentConfig,
+    preload: Vec<String>,
+    max_units: usize,
+) -> Result<WorkerPool, AugmentError> {
+    match executor {
+        Executor::Threads => Ok(WorkerPool::empty()),
+        Executor::Processes(w) => {
+            let hello = protocol::Hello {
+                config: config.clone(),
+                preload,
+            };
+            Ok(WorkerPool::start(w, &hello, max_units)?)
+        }
+    }
+}
+
 /// Runs every job (index-aligned results), retrying a failed one once; also returns where
-/// the rendering's time went, summed over the units.
+/// the rendering's time went, summed over the units. A full disk stops the run.
 pub(crate) fn run_jobs(
     executor: &Executor,
     pool: WorkerPool,
@@ -51,13 +65,33 @@ pub(crate) fn run_jobs(
     let total: u64 = jobs.iter().map(|(_, j)| j.frames(cameras)).sum();
     progress.phase("render", total);
     match executor {
-        Executor::Threads => Ok(threads::run_on_threads(
-            jobs, local, config, total, progress,
-        )),
+        Executor::Threads => threads::run_on_threads(jobs, local, config, total, progress),
         // Nothing to render: the pool's workers, which have written nothing, end on drop.
         Executor::Processes(_) if jobs.is_empty() => Ok((Vec::new(), StageTimes::default())),
         Executor::Processes(w) => {
-            schedule::run_on_processes(w, pool, jobs, config, cameras, total, progress)
+            let units = jobs::Units {
+                hello: protocol::Hello {
+                    config: config.clone(),
+                    preload: Vec::new(),
+                },
+                jobs,
+                cameras,
+                total,
+                progress,
+                extra: AtomicU64::new(0),
+            };
+            let results = dexjoco_workers::run_jobs(w, pool, &units)?;
+            let mut times = StageTimes::default();
+            let results = results
+                .into_iter()
+                .map(|r| {
+                    r.map(|done| {
+                        times.add(&done.times);
+                        done.outcomes
+                    })
+                })
+                .collect();
+            Ok((results, times))
         }
     }
 }

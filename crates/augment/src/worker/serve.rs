@@ -9,8 +9,10 @@ use std::sync::Arc;
 
 use dexjoco_core::TaskSet;
 use dexjoco_formats::Source as FoundSource;
+use dexjoco_workers::serve::{FromParent, tell};
+use dexjoco_workers::{Failure, SLOT_ENV};
 
-use super::protocol::{FromWorker, SLOT_ENV, ToWorker, send};
+use super::protocol::{FromWorker, Hello, UnitDone};
 use crate::assets::{TaskAssets, load_assets};
 use crate::config::AugmentConfig;
 use crate::error::AugmentError;
@@ -50,14 +52,9 @@ enum NotStarted {
 /// The worker side: reads the `hello` and `job` lines from `input`, renders each unit,
 /// answers on `output`. Returns when `input` ends.
 pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), AugmentError> {
-    let mut lines = input.lines();
-    let io = |e: std::io::Error| AugmentError::Input(format!("worker: {e}"));
-    let Some(first) = lines.next() else {
+    let mut parent = FromParent::new(input);
+    let Some(Hello { config, preload }) = parent.hello().map_err(AugmentError::Input)? else {
         return Ok(());
-    };
-    let (config, preload) = match serde_json::from_str::<ToWorker>(&first.map_err(io)?) {
-        Ok(ToWorker::Hello { config, preload }) => (*config, preload),
-        _ => return Err(AugmentError::Input("worker: expected a hello first".into())),
     };
     let tasks = TaskSet::with_dir(config.tasks_dir.as_deref())
         .map_err(|e| AugmentError::Input(format!("task specs: {e}")))?;
@@ -69,23 +66,29 @@ pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), A
         stall: stalls_here(),
     };
     state.preload(&preload, &mut output);
-    for line in lines {
-        let job = match serde_json::from_str::<ToWorker>(&line.map_err(io)?) {
-            Ok(ToWorker::Job(j)) => *j,
-            _ => return Err(AugmentError::Input("worker: expected a job".into())),
-        };
+    while let Some((attempt, job)) = parent.job::<UnitJob>().map_err(AugmentError::Input)? {
+        let job = UnitJob { attempt, ..job };
         let msg = match state.prepare(&job, &mut output) {
             Err(NotStarted::CannotRender(why)) => FromWorker::CannotRender(why),
-            Err(NotStarted::Unit(e)) => FromWorker::Error(e.to_string()),
+            Err(NotStarted::Unit(e)) => FromWorker::Failed(failure(&e)),
             Ok(assets) => match state.render(&job, &assets, &mut output) {
-                Ok((outcomes, times)) => FromWorker::Done { outcomes, times },
-                Err(e) => FromWorker::Error(e.to_string()),
+                Ok((outcomes, times)) => FromWorker::Done(UnitDone { outcomes, times }),
+                Err(e) => FromWorker::Failed(failure(&e)),
             },
         };
-        send(&mut output, &msg).map_err(io)?;
+        tell(&mut output, &msg);
     }
     close_renderer();
     Ok(())
+}
+
+/// A unit's failure: run-wide when the disk is full.
+fn failure(e: &AugmentError) -> Failure {
+    if dexjoco_formats::fs::out_of_space(e) {
+        Failure::run_wide(e.to_string())
+    } else {
+        Failure::job(e.to_string())
+    }
 }
 
 /// Whether the stall hook names this worker's slot.
@@ -95,15 +98,6 @@ fn stalls_here() -> bool {
     };
     list.split(',')
         .any(|s| s.trim() == "all" || s.trim() == slot)
-}
-
-/// Sends a message; a failed write means the parent has ended (killed): stop at once,
-/// before anything more is written or renamed into place.
-fn tell(output: &mut dyn Write, msg: &FromWorker) {
-    if send(output, msg).is_err() {
-        tracing::debug!("the augment run that started this worker has ended");
-        std::process::exit(1);
-    }
 }
 
 impl WorkerState {
@@ -193,7 +187,7 @@ impl WorkerState {
             .filter(|(key, k)| *key == job.key() && k.parse::<u32>().is_ok_and(|k| job.attempt < k))
             .is_some();
         render_unit(job, &inputs, &mut |n| {
-            tell(output, &FromWorker::Frames(n));
+            tell(output, &FromWorker::Progress(n));
             if abort && n > 0 {
                 tracing::warn!("{FAULT_ENV}: dying mid-unit, as a crash would");
                 std::process::exit(134);

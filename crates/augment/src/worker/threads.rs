@@ -1,7 +1,9 @@
-//! Units on this process's rayon threads, side by side, each retried once.
+//! Units on this process's rayon threads, side by side, each retried once; a full disk
+//! stops the run (no unit starts after it).
 
 use std::collections::BTreeMap;
-use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
 
 use dexjoco_core::Progress;
 use rayon::prelude::*;
@@ -9,6 +11,7 @@ use rayon::prelude::*;
 use super::executor::UnitResult;
 use crate::assets::TaskAssets;
 use crate::config::AugmentConfig;
+use crate::error::AugmentError;
 use crate::inputs::Source;
 use crate::profile::{EncoderClock, StageTimes};
 use crate::render::{UnitInputs, UnitJob, close_renderer, render_unit};
@@ -21,15 +24,18 @@ pub(crate) struct LocalInputs<'a> {
 }
 
 /// Runs every job on this process's threads (index-aligned results), retrying a failed
-/// one once; also returns where the rendering's time went, summed over the units.
+/// one once; also returns where the rendering's time went, summed over the units. Fails
+/// at the first full disk.
 pub(super) fn run_on_threads(
     jobs: &[(usize, UnitJob)],
     local: &LocalInputs<'_>,
     config: &AugmentConfig,
     total: u64,
     progress: &dyn Progress,
-) -> (Vec<UnitResult>, StageTimes) {
+) -> Result<(Vec<UnitResult>, StageTimes), AugmentError> {
     let extra = std::sync::atomic::AtomicU64::new(0);
+    let stopped = AtomicBool::new(false);
+    let full_disk = OnceLock::new();
     // Units run side by side in this process: each unit's share of the finished encoders'
     // CPU time cannot be told apart, so it is taken once, for all of them.
     let encoders = EncoderClock::start();
@@ -45,6 +51,9 @@ pub(super) fn run_on_threads(
             };
             let mut first = None;
             for attempt in 0..2 {
+                if stopped.load(Ordering::SeqCst) {
+                    return Err("the run stopped".into());
+                }
                 let mut job = job.clone();
                 job.attempt = attempt;
                 let mut done = 0;
@@ -58,6 +67,11 @@ pub(super) fn run_on_threads(
                     Err(e) => {
                         tracing::warn!(unit = %job.key(), "unit failed (attempt {}): {e}", attempt + 1);
                         job.clear_staging(&config.out);
+                        if dexjoco_formats::fs::out_of_space(&e) {
+                            stopped.store(true, Ordering::SeqCst);
+                            let _ = full_disk.set(e.to_string());
+                            return Err(e.to_string());
+                        }
                         // The retry renders these frames again.
                         let more =
                             extra.fetch_add(done, std::sync::atomic::Ordering::SeqCst) + done;
@@ -73,6 +87,13 @@ pub(super) fn run_on_threads(
     // Close every worker thread's renderer (and its EGL context) now, rather than at
     // process exit while other threads are still alive.
     rayon::broadcast(|_| close_renderer());
+    if let Some(message) = full_disk.into_inner() {
+        return Err(AugmentError::OutOfSpace {
+            message,
+            free: None,
+            needed: None,
+        });
+    }
     let mut times = StageTimes::default();
     let results = attempts
         .into_iter()
@@ -84,5 +105,5 @@ pub(super) fn run_on_threads(
         })
         .collect();
     times.encode_cpu = encoders.seconds();
-    (results, times)
+    Ok((results, times))
 }

@@ -1,42 +1,49 @@
-//! One worker process as the parent sees it: started with its share of the machine, its
-//! messages read on a thread of their own, and deadlines: a renderer must draw its first
-//! frame within the first-frame deadline of its opening, and a rendering worker that then
-//! says nothing for ten times as long is taken for hung.
+//! One worker process as the parent sees it: started with its share of the machine and
+//! its EGL device, its messages read on a thread of their own, and deadlines: a renderer
+//! must draw its first frame within the first-frame deadline of its opening, and a worker
+//! that has drawn and then says nothing for the silence deadline is taken for hung.
+//! Killed and reaped when dropped unless closed, so that no error path leaves one behind.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
-use super::executor::{Executor, WorkerProcesses};
-use super::protocol::{FromWorker, SLOT_ENV, ToWorker, send};
-use crate::config::AugmentConfig;
-use crate::error::AugmentError;
+use serde::Serialize;
+use serde::de::DeserializeOwned;
 
-/// How many first-frame deadlines a rendering worker may stay silent.
-const SILENCE_FACTOR: u32 = 10;
+use crate::PoolError;
+use crate::protocol::{FromWorker, SLOT_ENV, ToWorker, send};
+use crate::spec::WorkerProcesses;
 
 /// How long a closing worker may take to exit before it is killed.
 const CLOSE_GRACE: Duration = Duration::from_secs(30);
 
+/// How often a waiting parent looks whether the run was stopped.
+const STOP_POLL: Duration = Duration::from_millis(100);
+
 /// Why a worker gave no answer.
-pub(super) enum Silence {
-    /// It ended (crashed, killed, said something unreadable) or went silent while
-    /// rendering; the worker is gone.
+#[derive(Debug)]
+pub(crate) enum Silence {
+    /// It ended (crashed, killed, said something unreadable) or went silent after drawing;
+    /// the worker is gone.
     Ended(String),
     /// It cannot render: its renderer failed to open or to draw a first frame in time (it
     /// was killed), or it ended before drawing one.
     CannotRender(String),
+    /// The run was stopped (another job's run-wide failure): the worker was killed.
+    Stopped,
 }
 
-/// One running worker process; killed and reaped when dropped unless closed.
-pub(super) struct Worker {
+/// One running worker process.
+pub(crate) struct Worker {
     child: Child,
     stdin: Option<ChildStdin>,
     /// Its stdout's lines; `None` once stdout ended.
     lines: Receiver<Option<String>>,
     slot: usize,
-    /// The EGL device the parent assigned (`--egl-devices`).
+    /// The EGL device the parent assigned.
     assigned: Option<usize>,
     /// The device its renderer reported opening.
     device: Option<String>,
@@ -44,33 +51,32 @@ pub(super) struct Worker {
     ready: bool,
     /// When its current renderer began to open (or the worker started).
     opening_since: Instant,
-    timeout: Duration,
+    first_frame: Duration,
+    silence: Duration,
 }
 
 impl Worker {
     /// Starts the worker of `slot`, one of `busy` rendering processes (its share of
     /// llvmpipe's threads), and sends it the run's configuration.
-    pub(super) fn spawn(
+    pub(crate) fn spawn<H: Serialize>(
         w: &WorkerProcesses,
         slot: usize,
         busy: usize,
-        config: &AugmentConfig,
-        preload: &[String],
-    ) -> Result<Self, AugmentError> {
+        hello: &H,
+    ) -> Result<Self, PoolError> {
         let mut cmd = Command::new(&w.program);
         cmd.args(&w.args)
             .env(SLOT_ENV, slot.to_string())
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit());
-        let assigned =
-            (!w.egl_devices.is_empty()).then(|| w.egl_devices[slot % w.egl_devices.len()]);
+        let assigned = w.device_of(slot);
         if let Some(dev) = assigned {
             cmd.env(dexjoco_sim::EGL_DEVICE_ENV, dev.to_string());
         }
         dexjoco_sim::share_llvmpipe_threads(&mut cmd, busy);
         let mut child = cmd.spawn().map_err(|e| {
-            AugmentError::Input(format!(
+            PoolError::Start(format!(
                 "cannot start a worker process '{}': {e}",
                 w.program.display()
             ))
@@ -98,43 +104,49 @@ impl Worker {
             device: None,
             ready: false,
             opening_since: Instant::now(),
-            timeout: w.first_frame_timeout,
-        };
-        let hello = ToWorker::Hello {
-            config: Box::new(config.clone()),
-            preload: preload.to_vec(),
+            first_frame: w.first_frame_timeout,
+            silence: w.silence_timeout,
         };
         // On failure the worker is dropped: killed and reaped.
         worker
-            .send(&hello)
-            .map_err(|_| AugmentError::Input(format!("worker process {slot} ended at once")))?;
+            .send(&ToWorker::<&H, ()>::Hello(hello))
+            .map_err(|_| PoolError::Start(format!("worker process {slot} ended at once")))?;
         Ok(worker)
     }
 
-    pub(super) fn send(&mut self, msg: &ToWorker) -> Result<(), Silence> {
+    /// Sends a message.
+    pub(crate) fn send<T: Serialize>(&mut self, msg: &T) -> Result<(), Silence> {
         let stdin = self.stdin.as_mut().expect("open until closed");
         send(stdin, msg).map_err(|e| self.ended(&e.to_string()))
     }
 
-    /// The next message about the unit, or why there is none.
-    pub(super) fn receive(&mut self) -> Result<FromWorker, Silence> {
+    /// The next message about the job, or why there is none; the worker is killed as soon
+    /// as `stop` is set.
+    pub(crate) fn receive<D: DeserializeOwned>(
+        &mut self,
+        stop: &AtomicBool,
+    ) -> Result<FromWorker<D>, Silence> {
+        let mut heard = Instant::now();
         loop {
             let (deadline, silence) = if self.ready {
-                (Instant::now() + self.timeout * SILENCE_FACTOR, true)
+                (heard + self.silence, true)
             } else {
-                (self.opening_since + self.timeout, false)
+                (self.opening_since + self.first_frame, false)
             };
-            let line = match self
-                .lines
-                .recv_timeout(deadline.saturating_duration_since(Instant::now()))
-            {
+            if stop.load(Ordering::SeqCst) {
+                self.kill();
+                return Err(Silence::Stopped);
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            let line = match self.lines.recv_timeout(left.min(STOP_POLL)) {
                 Ok(line) => line,
+                Err(RecvTimeoutError::Timeout) if !left.is_zero() => continue,
                 Err(RecvTimeoutError::Timeout) if silence => {
                     self.kill();
-                    let secs = (self.timeout * SILENCE_FACTOR).as_secs_f64();
                     return Err(Silence::Ended(format!(
-                        "worker process {} sent nothing for {secs} s while rendering ({}); it was killed",
+                        "worker process {} sent nothing for {} s after drawing ({}); it was killed",
                         self.slot,
+                        self.silence.as_secs_f64(),
                         self.device_words()
                     )));
                 }
@@ -144,6 +156,7 @@ impl Worker {
             let Some(line) = line else {
                 return Err(self.ended("its output ended"));
             };
+            heard = Instant::now();
             match serde_json::from_str(&line) {
                 Ok(FromWorker::Opening) => {
                     self.ready = false;
@@ -160,7 +173,7 @@ impl Worker {
                     )));
                 }
                 Ok(msg) => {
-                    if matches!(msg, FromWorker::Frames(n) if n > 0) {
+                    if matches!(msg, FromWorker::Progress(n) if n > 0) {
                         self.ready = true;
                     }
                     return Ok(msg);
@@ -168,7 +181,8 @@ impl Worker {
                 Err(e) => {
                     self.kill();
                     return Err(self.ended(&format!(
-                        "unreadable message from a worker process ({e}): {line}"
+                        "unreadable message from a worker process ({e}): {}",
+                        &line[..line.floor_char_boundary(300)]
                     )));
                 }
             }
@@ -190,7 +204,7 @@ impl Worker {
         format!(
             "worker process {} drew no frame within {} s of opening its renderer ({}); it was killed",
             self.slot,
-            self.timeout.as_secs_f64(),
+            self.first_frame.as_secs_f64(),
             self.device_words()
         )
     }
@@ -203,7 +217,7 @@ impl Worker {
             Err(e) => format!("{what}; the worker process ended ({e})"),
         };
         if self.ready {
-            Silence::Ended(how)
+            Silence::Ended(format!("worker process {}: {how}", self.slot))
         } else {
             Silence::CannotRender(format!(
                 "worker process {} ended before its renderer drew ({}): {how}",
@@ -215,7 +229,7 @@ impl Worker {
 
     /// Ends the worker after its last job: its stdin closes and it exits, or is killed
     /// after a grace period.
-    pub(super) fn close(mut self) {
+    pub(crate) fn close(mut self) {
         drop(self.stdin.take());
         let until = Instant::now() + CLOSE_GRACE;
         while Instant::now() < until {
@@ -245,42 +259,41 @@ impl Drop for Worker {
 }
 
 /// Worker processes started ahead of the jobs: they load their scenes and renderers while
-/// the parent loads and simulates, so that loading is not paid twice in a row. Workers
-/// not taken by [`WorkerPool::into_slots`] (nothing to render, or the run stopped before
-/// rendering) are ended on drop: they have written nothing.
-pub(crate) struct WorkerPool {
-    workers: Vec<Worker>,
+/// the parent prepares, so that loading is not paid twice in a row. Workers not taken by
+/// the schedule (nothing to do, or the run stopped before) are ended on drop: they have
+/// written nothing.
+pub struct WorkerPool {
+    pub(crate) workers: Vec<Worker>,
 }
 
 impl WorkerPool {
-    /// Starts `w.count` workers (no more than `max_units`, the most units the run can
-    /// have: none when it is 0) that preload the scenes of `tasks`, each with its share of
-    /// the cores; none for the thread executor.
-    pub(crate) fn start(
-        executor: &Executor,
-        config: &AugmentConfig,
-        tasks: &[String],
-        max_units: usize,
-    ) -> Result<Self, AugmentError> {
-        let mut pool = Self {
+    /// No worker started ahead: the schedule starts each slot's worker when it takes a job.
+    pub fn empty() -> Self {
+        Self {
             workers: Vec::new(),
-        };
-        if let Executor::Processes(w) = executor {
-            let count = w.count.min(max_units);
-            if count == 0 {
-                tracing::debug!("nothing to render: no worker process started");
-            }
-            for slot in 0..count {
-                pool.workers
-                    .push(Worker::spawn(w, slot, count, config, tasks)?);
-            }
         }
-        Ok(pool)
+    }
+
+    /// Starts `min(w.count, max_jobs)` workers (none when `max_jobs` is 0), each sent
+    /// `hello` and given its share of the cores.
+    pub fn start<H: Serialize>(
+        w: &WorkerProcesses,
+        hello: &H,
+        max_jobs: usize,
+    ) -> Result<Self, PoolError> {
+        let count = w.count.min(max_jobs);
+        if count == 0 {
+            tracing::debug!("nothing to do: no worker process started");
+        }
+        let workers = (0..count)
+            .map(|slot| Worker::spawn(w, slot, count, hello))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self { workers })
     }
 
     /// One entry per slot: the started workers first, `None` for slots that start theirs
     /// when they take a job; workers beyond `slots` are ended.
-    pub(super) fn into_slots(mut self, slots: usize) -> Vec<Option<Worker>> {
+    pub(crate) fn into_slots(mut self, slots: usize) -> Vec<Option<Worker>> {
         let keep = slots.min(self.workers.len());
         let mut out: Vec<Option<Worker>> = self.workers.drain(..keep).map(Some).collect();
         out.resize_with(slots, || None);

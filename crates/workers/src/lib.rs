@@ -1,0 +1,57 @@
+//! Worker processes for the stages that render (`augment`, `eval`): each with its own
+//! MuJoCo model and EGL renderer, so work scales over cores and GPUs, started, watched
+//! and ended in one place.
+//!
+//! - [`protocol`]: JSON lines over the workers' stdin/stdout: the parent sends a `hello`
+//!   (the stage's configuration), then one `job` at a time; the worker says that its
+//!   renderer is opening, on which EGL device, that it drew its first frame, how far the
+//!   job has come, and how it ended (a failure says whether it stops the whole run);
+//! - [`WorkerProcesses`]: how workers start (program, count, an EGL device each, round
+//!   robin, and their share of llvmpipe's threads), the first-frame and silence
+//!   deadlines, and a renderer probe that fails a machine that cannot render before any
+//!   work is spent;
+//! - [`WorkerPool`]: workers started ahead (they load while the parent prepares); every
+//!   worker is killed and reaped when dropped, so no error path leaves one behind;
+//! - [`run_jobs`]: the schedule: jobs heaviest first; a worker that dies mid-job is
+//!   replaced and the job retried once (its leftovers cleared by the stage); a worker that
+//!   cannot render retires its slot; a run-wide failure stops the run and kills the other
+//!   workers;
+//! - [`serve`]: the worker's side.
+
+pub mod protocol;
+pub mod serve;
+
+mod process;
+mod schedule;
+mod spec;
+
+pub use process::WorkerPool;
+pub use protocol::{Failure, FromWorker, SLOT_ENV, ToWorker};
+pub use schedule::{JobResult, JobSet, run_jobs};
+pub use spec::{DEFAULT_FIRST_FRAME_TIMEOUT, WorkerProcesses, probe_renderer};
+
+/// Why a run on worker processes could not go on.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PoolError {
+    /// A worker process could not be started.
+    #[error("{0}")]
+    Start(String),
+    /// Offscreen rendering does not work on a device the workers would render on.
+    #[error("offscreen rendering is unavailable on {device}: {reason}")]
+    RenderingUnavailable {
+        /// The EGL device, in words.
+        device: String,
+        /// Why no context opened there.
+        reason: String,
+    },
+    /// Every worker was retired: none could render.
+    #[error("{0}")]
+    NoRenderer(String),
+    /// A job failed in a way that concerns the whole run (its message).
+    #[error("{0}")]
+    RunWide(String),
+    /// A slot of the schedule panicked.
+    #[error("a worker slot of this process failed (a bug: please report it)")]
+    Bug,
+}
