@@ -7,51 +7,11 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Command, Output};
 
-use common::{dexjoco, free_port, said};
+use common::{PolicyServer as Server, dexjoco, free_port, said};
 use dexjoco_core::TaskSet;
-
-/// A policy server process (killed on drop).
-struct Server {
-    child: Child,
-    port: u16,
-}
-
-impl Server {
-    /// Starts `policy_server.py <args>` on a free port; returns once it listens.
-    fn start(args: &[&str]) -> Self {
-        let port = free_port();
-        let script = dexjoco_testkit::workspace_root().join("tests/python/policy_server.py");
-        let mut child = Command::new(dexjoco_testkit::reference_python())
-            .arg(script)
-            .args(["--port", &port.to_string()])
-            .args(args)
-            .env(
-                "DEXJOCO_REFERENCE_CODE",
-                dexjoco_testkit::reference_code_dir(),
-            )
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("the reference venv's Python runs");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        assert!(line.starts_with("listening"), "policy server: {line:?}");
-        Self { child, port }
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
 
 fn run(cmd: &mut Command) -> Output {
     cmd.output().unwrap()
@@ -375,7 +335,7 @@ fn a_bad_server_is_named_and_leaves_no_half_episode() {
         ("error", "the policy failed on purpose", vec![]),
         (
             "close",
-            "the connection ended while waiting for an answer",
+            "the connection ended while waiting for its answer",
             vec![],
         ),
     ] {

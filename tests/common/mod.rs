@@ -1,8 +1,9 @@
 //! Helpers shared by the CLI tests.
 #![allow(dead_code)]
 
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output};
+use std::process::{Child, Command, Output, Stdio};
 
 /// Variables that change what the binary does: removed from every test's environment, so
 /// that a developer's shell (or a Slurm / Kubernetes job running the tests) cannot leak in.
@@ -29,10 +30,17 @@ const BEHAVIOUR_ENV: &[&str] = &[
 /// environment.
 pub fn dexjoco() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_dexjoco-data"));
-    for var in BEHAVIOUR_ENV {
-        c.env_remove(var);
-    }
+    without_behaviour_env(&mut c);
     c
+}
+
+/// `cmd` with [`BEHAVIOUR_ENV`] removed from its environment (for a wrapper that runs
+/// the binary).
+pub fn without_behaviour_env(cmd: &mut Command) -> &mut Command {
+    for var in BEHAVIOUR_ENV {
+        cmd.env_remove(var);
+    }
+    cmd
 }
 
 /// A command's exit code and both streams, for assertion messages.
@@ -304,4 +312,45 @@ pub fn sample_job_with_checkout_hidden(
         "the language analysis of the {what}'s examples"
     );
     doctor
+}
+
+/// A policy server process (`tests/python/policy_server.py`: openpi's own
+/// `WebsocketPolicyServer` from the reference code, in the reference venv), killed on drop.
+pub struct PolicyServer {
+    child: Child,
+    /// Its port on 127.0.0.1.
+    pub port: u16,
+}
+
+impl PolicyServer {
+    /// Starts `policy_server.py <args>` on a free port; returns once it listens.
+    pub fn start(args: &[&str]) -> Self {
+        let port = free_port();
+        let script = dexjoco_testkit::workspace_root().join("tests/python/policy_server.py");
+        let mut child = Command::new(dexjoco_testkit::reference_python())
+            .arg(script)
+            .args(["--port", &port.to_string()])
+            .args(args)
+            .env(
+                "DEXJOCO_REFERENCE_CODE",
+                dexjoco_testkit::reference_code_dir(),
+            )
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("the reference venv's Python runs");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        assert!(line.starts_with("listening"), "policy server: {line:?}");
+        Self { child, port }
+    }
+}
+
+impl Drop for PolicyServer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
 }
