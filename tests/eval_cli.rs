@@ -518,3 +518,165 @@ fn our_first_observation_is_the_reference_clients() {
         );
     }
 }
+
+#[test]
+fn an_unreadable_record_is_named_and_its_episode_not_evaluated_again() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    let server = Server::start(&["hold"]);
+    let args = ["--episodes", "2", "--step-cap", "20"];
+    let o = eval(&server, "hammer_nail", &out, &args);
+    assert_eq!(o.status.code(), Some(0), "{}", said(&o));
+    let (dir, _) = episode(&out, 0);
+    let record = dir.join("episode.json");
+    let bytes = fs_err::read(&record).unwrap();
+    let before = names(&out);
+    for (what, expect) in [
+        ("truncated", "EOF while parsing"),
+        ("missing", "the episode folder has no record"),
+    ] {
+        match what {
+            "truncated" => fs_err::write(&record, &bytes[..bytes.len() / 2]).unwrap(),
+            _ => fs_err::remove_file(&record).unwrap(),
+        }
+        let o = eval(&server, "hammer_nail", &out, &args);
+        let s = said(&o);
+        assert_eq!(o.status.code(), Some(1), "{what}: {s}");
+        assert!(
+            s.contains(&record.display().to_string())
+                && s.contains(expect)
+                && s.contains("delete its folder"),
+            "{what}: {s}"
+        );
+        assert_eq!(names(&out), before, "{what}: nothing evaluated again");
+    }
+    // Deleting the folder, as the error says, evaluates that episode again.
+    fs_err::remove_dir_all(&dir).unwrap();
+    let o = eval(&server, "hammer_nail", &out, &args);
+    let s = said(&o);
+    assert_eq!(o.status.code(), Some(0), "{s}");
+    assert!(s.contains("1 evaluated now"), "{s}");
+    assert_eq!(names(&out), before);
+}
+
+/// Processes whose environment holds `DEXJOCO_TEST_MARK=<mark>` and whose command line
+/// holds `word`.
+fn marked(mark: &str, word: &str) -> Vec<u32> {
+    let needle = format!("DEXJOCO_TEST_MARK={mark}");
+    fs_err::read_dir("/proc")
+        .unwrap()
+        .flatten()
+        .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|pid| {
+            let has = |file: &str, what: &[u8]| {
+                std::fs::read(format!("/proc/{pid}/{file}"))
+                    .is_ok_and(|b| b.split(|&c| c == 0).any(|v| v == what))
+            };
+            has("environ", needle.as_bytes()) && has("cmdline", word.as_bytes())
+        })
+        .collect()
+}
+
+/// Starts `eval -j 2` of 3 episodes in the background, marked; returns it once a worker
+/// is mid-episode (its staging folder exists), with the workers' pids.
+fn eval_with_workers_mid_episode(
+    server: &Server,
+    out: &Path,
+    mark: &str,
+) -> (std::process::Child, Vec<u32>) {
+    let child = dexjoco()
+        .env("DEXJOCO_TEST_MARK", mark)
+        .args(["eval", "--task", "hammer_nail", "-j", "2"])
+        .args(["--episodes", "3", "--step-cap", "150", "--seed", "2"])
+        .args(["--render-size", "32x32", "--no-videos", "--quality", "fast"])
+        .args(["--host", "127.0.0.1", "--port", &server.port.to_string()])
+        .args(["--server-wait", "0", "--output"])
+        .arg(out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    while !out.join(".staging").is_dir()
+        || fs_err::read_dir(out.join(".staging")).map_or(0, |d| d.count()) == 0
+    {
+        assert!(started.elapsed().as_secs() < 120, "no episode started");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let workers = marked(mark, "eval-worker");
+    assert!(!workers.is_empty(), "no worker process found");
+    (child, workers)
+}
+
+#[test]
+fn a_worker_killed_mid_episode_is_replaced_and_its_episode_redone() {
+    let tmp = tempfile::tempdir().unwrap();
+    let server = Server::start(&["hold"]);
+    // A worker killed mid-episode: its episode goes to a fresh worker.
+    let out = tmp.path().join("killed-worker");
+    let mark = format!("worker-{}", std::process::id());
+    let (child, workers) = eval_with_workers_mid_episode(&server, &out, &mark);
+    assert!(
+        Command::new("kill")
+            .args(["-KILL", &workers[0].to_string()])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let o = child.wait_with_output().unwrap();
+    let s = said(&o);
+    assert_eq!(o.status.code(), Some(0), "{s}");
+    assert!(
+        s.contains("episode 0 failed, retrying it once")
+            || s.contains("episode 1 failed, retrying it once"),
+        "{s}"
+    );
+    assert!(!out.join(".staging").exists(), "{:?}", names(&out));
+    // The parent killed mid-episode: its workers end at their next step, nothing is
+    // committed without it, and the rerun completes the run.
+    let again = tmp.path().join("killed-parent");
+    let mark = format!("parent-{}", std::process::id());
+    let (mut child, _) = eval_with_workers_mid_episode(&server, &again, &mark);
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let started = std::time::Instant::now();
+    while !marked(&mark, "eval-worker").is_empty() {
+        assert!(
+            started.elapsed().as_secs() < 10,
+            "workers outlived their run"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let o = eval(
+        &server,
+        "hammer_nail",
+        &again,
+        &["--episodes", "3", "--step-cap", "150", "--seed", "2"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", said(&o));
+    assert!(!again.join(".staging").exists());
+    // Both runs hold the rollouts of an uninterrupted one.
+    let whole = tmp.path().join("whole");
+    let o = eval(
+        &server,
+        "hammer_nail",
+        &whole,
+        &["--episodes", "3", "--step-cap", "150", "--seed", "2"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", said(&o));
+    for run in [&out, &again] {
+        assert_eq!(names(run), names(&whole));
+        for k in 0..3 {
+            let (a, _) = episode(run, k);
+            let (b, _) = episode(&whole, k);
+            for f in ["replay.zarr/data/action/0.0", "replay.zarr/data/state/0.0"] {
+                assert_eq!(
+                    fs_err::read(a.join(f)).unwrap(),
+                    fs_err::read(b.join(f)).unwrap(),
+                    "{}: episode {k}: {f}",
+                    run.display()
+                );
+            }
+        }
+    }
+}

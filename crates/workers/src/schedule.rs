@@ -311,10 +311,11 @@ impl<J: JobSet> Slots<'_, J> {
     /// the job's result.
     fn failed(&self, taken: &mut Taken<'_, J::Done>, reason: String, done: u64) {
         let key = self.jobs.key(taken.k);
-        tracing::warn!(job = %key, "failed (attempt {}): {reason}", taken.attempt + 1);
         if taken.attempt > 0 || self.stop.load(Ordering::SeqCst) {
+            tracing::warn!("{key} failed (attempt {}): {reason}", taken.attempt + 1);
             return self.finish(taken, Err(reason));
         }
+        tracing::warn!("{key} failed, retrying it once: {reason}");
         let k = taken.k;
         self.jobs.retrying(k, &reason, done);
         self.settle(taken, |s| s.queue.push_back((k, 1)));
