@@ -161,7 +161,7 @@ fn a_finalize_with_nothing_left_starts_no_worker_and_needs_no_renderer() {
     assert_eq!(again.status.code(), Some(3), "{again_err}");
     assert!(!again_err.contains("started worker process"), "{again_err}");
     assert!(
-        again_err.contains("nothing to render: no worker process started"),
+        again_err.contains("nothing to do: no worker process started"),
         "{again_err}"
     );
     assert_eq!(dexjoco_testkit::file_tree(&out.join("click_mouse")), before);
