@@ -348,3 +348,52 @@ fn one_writer_per_output_folder_but_the_shards_of_one_split_share_it() {
         .unwrap();
     assert_eq!(o.status.code(), Some(2), "{o:?}");
 }
+
+#[test]
+fn a_full_disk_stops_the_run_with_exit_1_and_a_rerun_with_space_completes_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let whole = tmp.path().join("whole");
+    ok(&augment(2, &whole, &[]).output().unwrap());
+    // The same run into a file system of 150 KiB (about two of the four replays), in a
+    // mount namespace of its own; what it leaves is copied out before the mount goes.
+    let (mnt, kept) = (tmp.path().join("small"), tmp.path().join("kept"));
+    fs_err::create_dir_all(&mnt).unwrap();
+    let run = augment(2, &mnt.join("aug"), &[]);
+    let mut c = Command::new("unshare");
+    common::without_behaviour_env(&mut c)
+        .current_dir(dexjoco_testkit::workspace_root())
+        .env("DEXJOCO_LOG", "warn")
+        .env("MNT", &mnt)
+        .env("KEPT", &kept)
+        .args(["-m", "sh", "-c"])
+        .arg(
+            "mount -t tmpfs -o size=150k tmpfs \"$MNT\" || exit 99; \"$@\"; s=$?; \
+             cp -a \"$MNT/aug\" \"$KEPT\"; exit $s",
+        )
+        .arg("sh")
+        .arg(run.get_program())
+        .args(run.get_args());
+    let out = c.output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("the disk is full, the run stopped")
+            && stderr.contains("No space left on device")
+            && stderr.contains(&mnt.join("aug").display().to_string())
+            && stderr.contains("free"),
+        "{stderr}"
+    );
+    // Nothing partial: whole replays (each with its record) and no staging left.
+    let staged = fs_err::read_dir(kept.join(".staging")).map_or(0, Iterator::count);
+    assert_eq!(staged, 0, "{stderr}");
+    let replays: Vec<_> = fs_err::read_dir(kept.join("click_mouse"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .collect();
+    assert!(replays.len() < 4, "the run was not stopped: {replays:?}");
+    assert!(replays.iter().all(|r| r.join("replay.json").is_file()));
+    // With space, the rerun renders the rest: the bytes of the uninterrupted run.
+    ok(&augment(2, &kept, &[]).output().unwrap());
+    assert!(tree(&kept) == tree(&whole), "the completed run differs");
+}

@@ -224,8 +224,8 @@ fn gcd(a: usize, b: usize) -> usize {
     if b == 0 { a } else { gcd(b, a % b) }
 }
 
-/// Bytes per rendered frame (each camera's frame counted) of the replays of `tasks`
-/// already in `out`: their folders' bytes over their steps x cameras; `None` when none
+/// Disk space per rendered frame (each camera's frame counted) of the replays of `tasks`
+/// already in `out`: their folders' space over their steps x cameras; `None` when none
 /// is there.
 pub(crate) fn bytes_per_frame(out: &Path, tasks: &BTreeSet<&str>, cameras: usize) -> Option<f64> {
     let (mut bytes, mut frames) = (0u64, 0u64);
@@ -238,16 +238,20 @@ pub(crate) fn bytes_per_frame(out: &Path, tasks: &BTreeSet<&str>, cameras: usize
     (frames > 0).then(|| bytes as f64 / frames as f64)
 }
 
-/// The bytes of the files under `dir`.
+/// The disk space the files and folders under `dir` take (allocated blocks, which is
+/// what fills a disk: a small file takes a whole block).
 fn tree_bytes(dir: &Path) -> u64 {
+    use std::os::unix::fs::MetadataExt;
     let Ok(rd) = fs_err::read_dir(dir) else {
         return 0;
     };
     rd.flatten()
-        .map(|e| match e.file_type() {
-            Ok(t) if t.is_dir() => tree_bytes(&e.path()),
-            Ok(_) => e.metadata().map_or(0, |m| m.len()),
-            Err(_) => 0,
+        .map(|e| {
+            let own = e.metadata().map_or(0, |m| m.blocks() * 512);
+            match e.file_type() {
+                Ok(t) if t.is_dir() => own + tree_bytes(&e.path()),
+                _ => own,
+            }
         })
         .sum()
 }

@@ -121,7 +121,7 @@ pub fn augment_with(
 }
 
 /// A full disk, with the space free on the output's file system and an estimate of what
-/// the units still to render need (their frames at the bytes per frame of the replays
+/// the replays still to render need (their frames at the bytes per frame of the replays
 /// already in the output). Other errors unchanged.
 fn with_space_needed(
     e: AugmentError,
@@ -132,8 +132,21 @@ fn with_space_needed(
     let AugmentError::OutOfSpace { message, .. } = e else {
         return e;
     };
-    let frames: u64 = jobs.iter().map(|(_, j)| j.frames(cameras)).sum();
     let tasks: BTreeSet<&str> = jobs.iter().map(|(_, j)| j.task.as_str()).collect();
+    let on_disk = crate::plan::existing_replays(&config.out, &tasks);
+    // The replays of the run's units that are not in place.
+    let frames: u64 = jobs
+        .iter()
+        .map(|(_, j)| {
+            let done = on_disk.get(&(j.task.clone(), j.episode.clone()));
+            let left = j
+                .replays
+                .iter()
+                .filter(|r| done.is_none_or(|d| !d.contains_key(r)))
+                .count();
+            (j.physics.frames * cameras * left) as u64
+        })
+        .sum();
     let per_frame = crate::plan::bytes_per_frame(&config.out, &tasks, cameras);
     AugmentError::OutOfSpace {
         message,
