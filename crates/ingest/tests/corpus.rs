@@ -457,3 +457,59 @@ fn discovery_finds_raw_folders_and_mcap_files_and_survives_link_loops() {
     .unwrap();
     assert_eq!(one[0].path, root.join("a/click_mouse/episode_000000"));
 }
+
+#[test]
+fn inputs_of_the_same_content_land_once_the_same_way_every_time() {
+    // Issue #44: same-content inputs staged in one folder raced (about 1 run in 20 failed
+    // with "Directory not empty"). Six copies of a good log, three of a raw folder and
+    // three of a rejected file, ingested 40 times over into fresh stores on 4 threads.
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in");
+    let ok = good_inputs(&input);
+    for k in 0..5 {
+        fs_err::copy(&ok[2], input.join(format!("copy_{k}.mcap"))).unwrap();
+    }
+    for k in 0..2 {
+        dexjoco_formats::fs::copy_tree(
+            &ok[0],
+            &input.join(format!("copies_{k}/click_mouse/episode_000000")),
+        )
+        .unwrap();
+    }
+    for k in 0..3 {
+        fs_err::write(input.join(format!("empty_{k}.mcap")), b"").unwrap();
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(4)
+        .build()
+        .unwrap();
+    let mut first: Option<(
+        Vec<(PathBuf, Outcome)>,
+        std::collections::BTreeMap<String, Vec<u8>>,
+    )> = None;
+    for n in 0..40 {
+        let store = tmp.path().join(format!("store-{n}"));
+        let summary = pool.install(|| run(&input, &store, false));
+        let outcomes: Vec<(PathBuf, Outcome)> = summary
+            .sources
+            .iter()
+            .map(|s| (s.source.clone(), s.outcome))
+            .collect();
+        assert!(!store.join(".staging").exists(), "run {n}");
+        // One landed copy per content: the first in input order, the others duplicates.
+        assert_eq!(summary.count(Outcome::Landed), 3, "run {n}: {outcomes:?}");
+        assert_eq!(
+            summary.count(Outcome::Duplicate),
+            5 + 2,
+            "run {n}: {outcomes:?}"
+        );
+        let tree = dexjoco_testkit::file_tree(&store);
+        match &first {
+            None => first = Some((outcomes, tree)),
+            Some((o, t)) => {
+                assert_eq!(&outcomes, o, "run {n}: other outcomes");
+                assert!(&tree == t, "run {n}: another store");
+            }
+        }
+    }
+}
