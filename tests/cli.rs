@@ -62,6 +62,88 @@ fn usage_errors_exit_2() {
 }
 
 #[test]
+fn flags_refuse_what_the_tools_below_them_refuse_before_any_work() {
+    // Issue #44: each value was accepted and failed (or panicked, or aborted) later.
+    let dir = tempfile::tempdir().unwrap();
+    let demo = dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000");
+    let demo = demo.to_str().unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &["augment", demo, "--keyframe-interval", "4294967295"],
+            "--keyframe-interval",
+        ),
+        (&["augment", demo, "--size", "8194"], "--size"),
+        (
+            &["augment", demo, "--first-frame-timeout", "1e300"],
+            "--first-frame-timeout",
+        ),
+        (&["render", "--size", "100000"], "--size"),
+        (&["render", "--width", "9000"], "--width"),
+        (&["render", "--video", "--fps", "4294967295"], "--fps"),
+        (&["bench", "render", "--size", "9000"], "--size"),
+        (
+            &["eval", "--task", "hammer_nail", "--deadline", "1e300"],
+            "--deadline",
+        ),
+        (
+            &["eval", "--task", "hammer_nail", "--server-wait", "1e300"],
+            "--server-wait",
+        ),
+        (
+            &[
+                "eval",
+                "--task",
+                "hammer_nail",
+                "--render-size",
+                "100000x100000",
+            ],
+            "--render-size",
+        ),
+        (
+            &["eval", "--task", "hammer_nail", "--episodes", "100001"],
+            "--episodes",
+        ),
+    ];
+    for (args, flag) in cases {
+        let out = run(args, dir.path());
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(flag), "{args:?}: {err}");
+        assert!(
+            !dir.path().join("dexjoco-work").exists(),
+            "{args:?} wrote something"
+        );
+    }
+    // The largest keyframe interval accepted is one x264 takes.
+    let out = run(
+        &[
+            "augment",
+            demo,
+            "--replays",
+            "1",
+            "--size",
+            "32",
+            "--quality",
+            "fast",
+            "--max-frames",
+            "6",
+            "--keep-failed",
+            "--keyframe-interval",
+            "2147483647",
+        ],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
+    assert!(
+        dir.path()
+            .join("dexjoco-work/augment/click_mouse/episode_000000__r00/videos/third_person.mp4")
+            .is_file(),
+        "{}",
+        text(&out.stderr)
+    );
+}
+
+#[test]
 fn doctor_reports_mujoco_egl_and_ffmpeg() {
     let dir = tempfile::tempdir().unwrap();
     let out = run(&["doctor", "--json"], dir.path());

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use super::{FirstFrameArgs, QualityArg, TasksDirArgs, positive_seconds};
+use super::{FirstFrameArgs, QualityArg, TasksDirArgs, positive_seconds, seconds_or_zero};
 
 /// `eval`.
 #[derive(Debug, Args)]
@@ -55,8 +55,8 @@ pub struct EvalArgs {
     /// The prompt sent with every observation (default: the config's or the task's).
     #[arg(long)]
     pub prompt: Option<String>,
-    /// Episodes to evaluate.
-    #[arg(long, default_value_t = 50, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    /// Episodes to evaluate (at most 100000).
+    #[arg(long, default_value_t = 50, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
     pub episodes: usize,
     /// Visual randomization per episode: the first camera moved to a pose of the camera
     /// pool (`random_camera`), lights and the table texture (the paper's rand-full).
@@ -125,7 +125,7 @@ pub struct EvalArgs {
     #[arg(long, default_value_t = 120.0, value_name = "SECONDS", value_parser = positive_seconds)]
     pub deadline: f64,
     /// Seconds to keep retrying a refused connection at the start (0: once).
-    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS", value_parser = seconds_or_zero)]
     pub server_wait: f64,
     /// The folder of task specs.
     #[command(flatten)]
@@ -144,7 +144,7 @@ pub struct EvalArgs {
     pub first_frame: FirstFrameArgs,
 }
 
-/// `WxH`, both even and positive (H.264 video).
+/// `WxH`, both even, positive and at most the renderer's largest side (H.264 video).
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s
         .split_once(['x', 'X'])
@@ -153,8 +153,13 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
         v.trim()
             .parse::<u32>()
             .ok()
-            .filter(|v| *v > 0 && v % 2 == 0)
-            .ok_or_else(|| format!("'{v}' in '{s}' is not an even positive number of pixels"))
+            .filter(|v| *v > 0 && v % 2 == 0 && *v <= dexjoco_sim::MAX_IMAGE_SIDE)
+            .ok_or_else(|| {
+                format!(
+                    "'{v}' in '{s}' is not an even number of pixels from 2 to {}",
+                    dexjoco_sim::MAX_IMAGE_SIDE
+                )
+            })
     };
     Ok((parse(w)?, parse(h)?))
 }

@@ -180,9 +180,20 @@ pub struct TasksDirArgs {
 fn positive_seconds(s: &str) -> Result<f64, String> {
     s.parse::<f64>()
         .ok()
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .ok_or_else(|| format!("'{s}' is not a positive number of seconds"))
+        .filter(|v| v.is_finite() && *v > 0.0 && *v <= MAX_SECONDS)
+        .ok_or_else(|| format!("'{s}' is not a number of seconds above 0 and at most a year"))
 }
+
+/// A number of seconds from 0 to a year.
+fn seconds_or_zero(s: &str) -> Result<f64, String> {
+    s.parse::<f64>()
+        .ok()
+        .filter(|v| (0.0..=MAX_SECONDS).contains(v))
+        .ok_or_else(|| format!("'{s}' is not a number of seconds from 0 to a year"))
+}
+
+/// The longest time a flag may give (a year): longer ones would overflow a clock.
+pub const MAX_SECONDS: f64 = 365.0 * 24.0 * 3600.0;
 
 /// The renderer's meshes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

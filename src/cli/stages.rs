@@ -329,8 +329,9 @@ pub struct AugmentArgs {
     /// (repeatable), e.g. handcam_rgb.
     #[arg(short, long = "camera")]
     pub cameras: Vec<String>,
-    /// Image width and height in pixels (224 is the small preset).
-    #[arg(long, default_value_t = 640)]
+    /// Image width and height in pixels, even (H.264), at most 8192 (224 is the small
+    /// preset).
+    #[arg(long, default_value_t = 640, value_parser = super::image_side())]
     pub size: u32,
     /// Quality preset (paper = the reference's 8x multisampling).
     #[arg(long, value_enum, default_value_t = QualityArg::Paper)]
@@ -565,8 +566,10 @@ pub struct VideoEncodingArgs {
     pub x264_preset: dexjoco_video::X264Preset,
     /// At most N frames from one keyframe to the next in the camera videos. convert
     /// stream-copies them into LeRobot datasets, where a random item decodes from the
-    /// keyframe before it: short intervals read fast at training time. 0: x264's own (250).
-    #[arg(long, default_value_t = VideoEncoding::default().keyframe_interval, value_name = "N")]
+    /// keyframe before it: short intervals read fast at training time. 0: x264's own (250);
+    /// at most 2^31 - 1 (ffmpeg's).
+    #[arg(long, default_value_t = VideoEncoding::default().keyframe_interval, value_name = "N",
+          value_parser = clap::value_parser!(u32).range(0..=i64::from(i32::MAX)))]
     pub keyframe_interval: u32,
 }
 

@@ -34,13 +34,13 @@ pub struct RenderArgs {
     #[arg(short, long = "camera")]
     pub cameras: Vec<String>,
     /// Image width and height in pixels (square); see --width/--height for others.
-    #[arg(long, default_value_t = 640, value_parser = positive_u32())]
+    #[arg(long, default_value_t = 640, value_parser = image_side())]
     pub size: u32,
     /// Image width (overrides --size).
-    #[arg(long, value_parser = positive_u32())]
+    #[arg(long, value_parser = image_side())]
     pub width: Option<u32>,
     /// Image height (overrides --size).
-    #[arg(long, value_parser = positive_u32())]
+    #[arg(long, value_parser = image_side())]
     pub height: Option<u32>,
     /// Quality preset.
     #[arg(long, value_enum, default_value_t = QualityArg::Paper)]
@@ -60,7 +60,7 @@ pub struct RenderArgs {
     #[arg(long, conflicts_with = "task")]
     pub video: bool,
     /// Frames per second of --video (one frame per 1/fps of simulated time; default 30).
-    #[arg(long, value_parser = positive_u32(), requires = "video", conflicts_with = "task")]
+    #[arg(long, value_parser = frame_rate(), requires = "video", conflicts_with = "task")]
     pub fps: Option<u32>,
     /// Output folder (default: <work-dir>/render).
     #[arg(short, long)]
@@ -141,7 +141,7 @@ pub struct BenchAugmentArgs {
     pub max_frames: usize,
     /// Image sizes (square), comma-separated.
     #[arg(long = "size", alias = "sizes", value_delimiter = ',', default_values_t = [224],
-          value_parser = positive_u32())]
+          value_parser = image_side())]
     pub sizes: Vec<u32>,
     /// Quality presets, comma-separated.
     #[arg(long = "quality", alias = "preset", value_enum, value_delimiter = ',',
@@ -179,7 +179,7 @@ pub struct BenchRenderLimitArgs {
     #[arg(long)]
     pub scene_dir: Option<PathBuf>,
     /// Image size (square).
-    #[arg(long)]
+    #[arg(long, value_parser = image_side())]
     pub size: u32,
     /// Quality preset.
     #[arg(long, value_enum)]
@@ -222,7 +222,7 @@ pub struct BenchConvertArgs {
     #[arg(long, default_value_t = 60)]
     pub frames: usize,
     /// Camera frame size (square; at least 64 for lerobot's AV1 encoder).
-    #[arg(long, default_value_t = 96)]
+    #[arg(long, default_value_t = 96, value_parser = image_side())]
     pub size: u32,
     /// Episode counts for our peak-memory runs (short episodes).
     #[arg(long, value_delimiter = ',', default_values_t = [100, 1000])]
@@ -261,7 +261,7 @@ pub struct BenchRenderArgs {
     pub frames: usize,
     /// Square resolutions to measure, comma-separated.
     #[arg(long = "size", alias = "sizes", value_delimiter = ',', default_value = "224,640",
-          value_parser = positive_u32())]
+          value_parser = image_side())]
     pub sizes: Vec<u32>,
     /// Presets to measure, comma-separated (default: all).
     #[arg(long = "quality", alias = "presets", value_enum, value_delimiter = ',')]
@@ -291,7 +291,13 @@ pub struct BenchIngestArgs {
     pub frames: usize,
 }
 
-/// A parser of whole numbers from 1.
-pub fn positive_u32() -> clap::builder::RangedU64ValueParser<u32> {
-    clap::builder::RangedU64ValueParser::<u32>::new().range(1..)
+/// An image side in pixels: 1 to the renderer's largest ([`dexjoco_sim::MAX_IMAGE_SIDE`]).
+pub fn image_side() -> clap::builder::RangedU64ValueParser<u32> {
+    clap::builder::RangedU64ValueParser::<u32>::new()
+        .range(1..=u64::from(dexjoco_sim::MAX_IMAGE_SIDE))
+}
+
+/// A frame rate ffmpeg takes: 1 to 2^31 - 1 frames per second.
+pub fn frame_rate() -> clap::builder::RangedU64ValueParser<u32> {
+    clap::builder::RangedU64ValueParser::<u32>::new().range(1..=i32::MAX as u64)
 }

@@ -56,7 +56,7 @@ impl EvalSettings {
             eval_task.prompt = p;
         }
         eval_task.check(spec, rand_full).map_err(eval_usage)?;
-        check_numbers(replan_ratio, server_wait)?;
+        check_numbers(replan_ratio)?;
         let out = output.unwrap_or_else(|| default_out(global, &eval_task.task, rand_full));
         let read = reads(
             &[],
@@ -149,17 +149,11 @@ fn workers(
 }
 
 /// Usage errors for numbers out of range.
-fn check_numbers(replan_ratio: f64, server_wait: f64) -> anyhow::Result<()> {
+fn check_numbers(replan_ratio: f64) -> anyhow::Result<()> {
     if !(replan_ratio > 0.0 && replan_ratio <= 1.0) {
         return Err(usage(
             format!("--replan-ratio {replan_ratio} is not in (0, 1]"),
             "the reference's default is 0.8",
-        ));
-    }
-    if !(server_wait.is_finite() && server_wait >= 0.0) {
-        return Err(usage(
-            format!("--server-wait {server_wait} is not a number of seconds >= 0"),
-            "for example --server-wait 30",
         ));
     }
     Ok(())

@@ -83,11 +83,17 @@ impl EvalSummary {
     }
 }
 
-/// What a worker process is told first: the run, and every episode's initial state.
+/// What a worker process is told first: the run.
 #[derive(Debug, Serialize, Deserialize)]
 pub(crate) struct WorkerHello {
     pub(crate) config: EvalConfig,
-    pub(crate) states: Vec<Vec<f64>>,
+}
+
+/// An episode a worker process is given: its index and initial state.
+#[derive(Debug, Serialize, Deserialize)]
+pub(crate) struct EpisodeJob {
+    pub(crate) episode: usize,
+    pub(crate) state: Vec<f64>,
 }
 
 /// What a worker says of an episode it finished (and committed).
@@ -303,13 +309,13 @@ pub(crate) fn run_one(
 /// a failed attempt's staging folder removed.
 struct Episodes<'a> {
     hello: WorkerHello,
-    todo: &'a [usize],
+    todo: Vec<EpisodeJob>,
     tally: &'a Tally<'a>,
 }
 
 impl JobSet for Episodes<'_> {
     type Hello = WorkerHello;
-    type Job = usize;
+    type Job = EpisodeJob;
     type Done = EpisodeDone;
 
     fn hello(&self) -> &WorkerHello {
@@ -320,16 +326,17 @@ impl JobSet for Episodes<'_> {
         self.todo.len()
     }
 
-    fn job(&self, k: usize) -> &usize {
+    fn job(&self, k: usize) -> &EpisodeJob {
         &self.todo[k]
     }
 
     fn key(&self, k: usize) -> String {
-        format!("episode {}", self.todo[k])
+        format!("episode {}", self.todo[k].episode)
     }
 
     fn clear(&self, k: usize) {
-        let _ = fs_err::remove_dir_all(staging_dir(&self.hello.config.out, self.todo[k]));
+        let dir = staging_dir(&self.hello.config.out, self.todo[k].episode);
+        let _ = fs_err::remove_dir_all(dir);
     }
 
     fn retrying(&self, k: usize, reason: &str, _redone: u64) {
@@ -359,9 +366,14 @@ fn run_on_processes(
     let episodes = Episodes {
         hello: WorkerHello {
             config: config.clone(),
-            states: states.to_vec(),
         },
-        todo,
+        todo: todo
+            .iter()
+            .map(|&episode| EpisodeJob {
+                episode,
+                state: states[episode].clone(),
+            })
+            .collect(),
         tally,
     };
     let pool = WorkerPool::start(w, &episodes.hello, todo.len())

@@ -12,7 +12,7 @@ use dexjoco_workers::{Failure, FromWorker};
 
 use crate::error::{EvalError, one_line};
 use crate::inference::Inference;
-use crate::run::{EpisodeDone, WorkerHello, connect, inference_over, run_one};
+use crate::run::{EpisodeDone, EpisodeJob, WorkerHello, connect, inference_over, run_one};
 use crate::stage::{Stage, run_spec};
 
 type Message = FromWorker<EpisodeDone>;
@@ -22,7 +22,6 @@ struct Ready {
     stage: Stage,
     inference: Inference,
     metadata: serde_json::Value,
-    states: Vec<Vec<f64>>,
 }
 
 /// The worker side: reads the `hello` and the episodes to run from `input`, answers on
@@ -33,10 +32,10 @@ pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), E
         return Ok(());
     };
     let mut ready = prepare(hello, &mut output).map_err(|e| one_line(&e));
-    while let Some((_attempt, k)) = parent.job::<usize>().map_err(EvalError::Worker)? {
+    while let Some((_attempt, job)) = parent.job::<EpisodeJob>().map_err(EvalError::Worker)? {
         let msg = match &mut ready {
             Err(why) => Message::Failed(Failure::run_wide(why.clone())),
-            Ok(r) => episode(r, k, &mut output),
+            Ok(r) => episode(r, &job, &mut output),
         };
         tell(&mut output, &msg);
     }
@@ -48,7 +47,7 @@ pub fn serve_worker(input: impl BufRead, mut output: impl Write) -> Result<(), E
 
 /// Opens the renderer (drawing a first frame) and connects to the server.
 fn prepare(hello: WorkerHello, output: &mut dyn Write) -> Result<Ready, EvalError> {
-    let WorkerHello { config, states } = hello;
+    let WorkerHello { config } = hello;
     tell(output, &Message::Opening);
     let mut stage = match Stage::new(&config) {
         Ok(s) => s,
@@ -75,7 +74,6 @@ fn prepare(hello: WorkerHello, output: &mut dyn Write) -> Result<Ready, EvalErro
         inference: inference_over(&config, client),
         stage,
         metadata,
-        states,
     })
 }
 
@@ -90,13 +88,9 @@ fn cannot_render(e: &EvalError) -> bool {
     )
 }
 
-/// Runs and commits episode `k`, telling the parent after every step.
-fn episode(r: &mut Ready, k: usize, output: &mut dyn Write) -> Message {
-    let Some(state0) = r.states.get(k) else {
-        return Message::Failed(Failure::run_wide(format!(
-            "no initial state for episode {k}"
-        )));
-    };
+/// Runs and commits an episode, telling the parent after every step.
+fn episode(r: &mut Ready, job: &EpisodeJob, output: &mut dyn Write) -> Message {
+    let (k, state0) = (job.episode, &job.state);
     let mut tick = || tell(output, &Message::Progress(1));
     match run_one(
         &mut r.stage,

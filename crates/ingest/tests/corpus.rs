@@ -458,6 +458,9 @@ fn discovery_finds_raw_folders_and_mcap_files_and_survives_link_loops() {
     assert_eq!(one[0].path, root.join("a/click_mouse/episode_000000"));
 }
 
+/// A folder's files and their bytes.
+type FileTree = std::collections::BTreeMap<String, Vec<u8>>;
+
 #[test]
 fn inputs_of_the_same_content_land_once_the_same_way_every_time() {
     // Issue #44: same-content inputs staged in one folder raced (about 1 run in 20 failed
@@ -483,10 +486,7 @@ fn inputs_of_the_same_content_land_once_the_same_way_every_time() {
         .num_threads(4)
         .build()
         .unwrap();
-    let mut first: Option<(
-        Vec<(PathBuf, Outcome)>,
-        std::collections::BTreeMap<String, Vec<u8>>,
-    )> = None;
+    let mut first: Option<(Vec<(PathBuf, Outcome)>, FileTree)> = None;
     for n in 0..40 {
         let store = tmp.path().join(format!("store-{n}"));
         let summary = pool.install(|| run(&input, &store, false));

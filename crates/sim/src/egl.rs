@@ -67,6 +67,8 @@ pub(crate) struct EglContext {
     pub(crate) device: EglDevice,
     /// `glFinish` of this context's driver, when it has one.
     finish: Option<GlFinish>,
+    /// `GL_MAX_RENDERBUFFER_SIZE`: the largest offscreen buffer side, when the driver says.
+    max_renderbuffer: Option<u32>,
 }
 
 /// `void glFinish(void)`.
@@ -141,6 +143,24 @@ fn gl_string(display: &Display, name: u32) -> Option<String> {
         let s = get(name);
         (!s.is_null()).then(|| CStr::from_ptr(s).to_string_lossy().into_owned())
     }
+}
+
+/// Reads a GL integer of the current context.
+fn gl_integer(display: &Display, name: u32) -> Option<i32> {
+    type GetIntegerv = unsafe extern "C" fn(u32, *mut i32);
+    let f = display.get_proc_address(c"glGetIntegerv");
+    if f.is_null() {
+        return None;
+    }
+    let mut value = 0i32;
+    // SAFETY: `glGetIntegerv` has this signature in every GL version; a context is current
+    // on this thread (callers only use it after `make_current`), and the names asked for
+    // here have one value, written to the local.
+    unsafe {
+        let get: GetIntegerv = std::mem::transmute::<*const std::ffi::c_void, GetIntegerv>(f);
+        get(name, &raw mut value);
+    }
+    (value > 0).then_some(value)
 }
 
 impl EglContext {
@@ -240,6 +260,7 @@ impl EglContext {
             gl_version: gl_string(&display, 0x1F02),
             error: None,
         };
+        let max_renderbuffer = gl_integer(&display, 0x84E8).map(|v| v as u32);
         let finish = display.get_proc_address(c"glFinish");
         // SAFETY: `glFinish` has this signature in every GL version; null means absent.
         let finish = (!finish.is_null())
@@ -249,7 +270,14 @@ impl EglContext {
             surface,
             device,
             finish,
+            max_renderbuffer,
         })
+    }
+
+    /// The largest offscreen buffer side this context's driver draws
+    /// (`GL_MAX_RENDERBUFFER_SIZE`), when it says.
+    pub(crate) fn max_renderbuffer_size(&self) -> Option<u32> {
+        self.max_renderbuffer
     }
 
     /// Waits until the GL commands issued so far have completed (`glFinish`), so that a

@@ -40,7 +40,9 @@ pub use env::{EnvOptions, Rollout, SceneSource, TaskEnv, load_task_scene};
 pub use error::SimError;
 pub use feedback::Feedback;
 pub use geometry::Geometry;
-pub use render::{CameraView, Frame, RenderQuality, RenderSettings, RenderTimes, Renderer};
+pub use render::{
+    CameraView, Frame, MAX_IMAGE_SIDE, RenderQuality, RenderSettings, RenderTimes, Renderer,
+};
 pub use scene::{Scene, mujoco_library_path, mujoco_version, route_mujoco_warnings};
 pub use sheet::{SheetLayout, contact_sheet};
 

@@ -267,6 +267,12 @@ impl Drop for Renderer {
     }
 }
 
+/// The largest image side the renderer draws, in pixels: H.264's largest level (6.2,
+/// 8192 x 4320) and ffmpeg's largest picture are above it only for shapes no camera
+/// here has, and an 8192 x 8192 frame with 8x multisampling already takes 4 GB of
+/// buffers. A device whose `GL_MAX_RENDERBUFFER_SIZE` is smaller limits it further.
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+
 impl Renderer {
     /// Creates a renderer for `model` on this thread.
     pub fn new(model: &MjModel, settings: RenderSettings) -> Result<Self, SimError> {
@@ -282,7 +288,21 @@ impl Renderer {
                 "image size {width}x{height} is empty"
             )));
         }
+        if width.max(height) > MAX_IMAGE_SIDE {
+            return Err(SimError::Render(format!(
+                "image size {width}x{height}: the renderer draws at most {MAX_IMAGE_SIDE} pixels a side"
+            )));
+        }
         let egl = EglContext::new(width, height)?;
+        if let Some(max) = egl.max_renderbuffer_size()
+            && width.max(height) > max
+        {
+            return Err(SimError::Render(format!(
+                "image size {width}x{height}: EGL device {} draws at most {max} pixels a side \
+                 (GL_MAX_RENDERBUFFER_SIZE)",
+                egl.device.label()
+            )));
+        }
         // The meshes the context uploads: the model's, or simplified ones (the copy is only
         // read here; scenes are built from the simulation's own model).
         let lightened = (geometry == Geometry::Light)
