@@ -557,6 +557,15 @@ fn an_unreadable_record_is_named_and_its_episode_not_evaluated_again() {
     assert_eq!(o.status.code(), Some(0), "{s}");
     assert!(s.contains("1 evaluated now"), "{s}");
     assert_eq!(names(&out), before);
+    // One run's folder, whatever its name, is read as a run (from its eval_run.json).
+    let o = run(dexjoco()
+        .args(["stats", "--success-table"])
+        .arg(&out)
+        .arg("--out")
+        .arg(tmp.path().join("stats")));
+    let s = said(&o);
+    assert_eq!(o.status.code(), Some(0), "{s}");
+    assert!(s.contains("| Hammer Nail | 0.0 ± n/a |"), "{s}");
 }
 
 /// Processes whose environment holds `DEXJOCO_TEST_MARK=<mark>` and whose command line

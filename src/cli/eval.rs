@@ -90,6 +90,8 @@ pub struct EvalArgs {
     pub real_time: bool,
     /// End each episode after at most N steps instead of the task's cap (1000 to 1500):
     /// for smoke tests and benchmarks; success rates then differ from the reference's.
+    /// Steps are counted as the task's own cap counts them, click_mouse's 30 warm-up steps
+    /// included.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub step_cap: Option<u64>,
     /// Output folder (default: <work-dir>/eval/<task>[_rand_full]_seed<seed>, the

@@ -519,8 +519,10 @@ pub struct StatsArgs {
     #[arg(long, value_name = "INPUT", num_args = 0..=1)]
     pub language_eval: Option<Option<PathBuf>>,
     /// Success-rate table (mean ± std over seeds per task x regime x policy) of the
-    /// evaluation runs under DIR. Without a value: the example runs shipped in
-    /// datasets/examples/success-table (made up, not results).
+    /// evaluation runs under DIR (run folders `<task>[_rand_full]_seed<s>`, or DIR itself:
+    /// one `eval --output` folder of any name). A run whose success_rate_*.txt marker
+    /// disagrees with its episode folders is left out, named (exit 3). Without a value:
+    /// the example runs shipped in datasets/examples/success-table (made up, not results).
     #[arg(long, value_name = "DIR", num_args = 0..=1)]
     pub success_table: Option<Option<PathBuf>>,
     /// Dataset statistics (episodes, frames, per-task counts, lengths, per-dimension

@@ -105,6 +105,26 @@ impl RunName {
     }
 }
 
+impl RunName {
+    /// The run of an `eval` output folder of any name, from its record (`eval_run.json`:
+    /// the task, the seed, `--rand-full`); `None` without one.
+    pub fn of_record(dir: &Path) -> Option<Self> {
+        let bytes = fs_err::read(dir.join(RUN_RECORD)).ok()?;
+        let record: serde_json::Value = serde_json::from_slice(&bytes).ok()?;
+        let config = record.get("config")?;
+        let options = config.get("options")?;
+        let full = options.get("rand_full")?.as_bool()?;
+        Some(Self {
+            task: config.get("task")?.get("task")?.as_str()?.to_owned(),
+            regime: if full { "rand_full" } else { DEFAULT_REGIME }.to_owned(),
+            seed: u32::try_from(options.get("seed")?.as_u64()?).ok()?,
+        })
+    }
+}
+
+/// The record `dexjoco-data eval` writes in each run folder.
+pub const RUN_RECORD: &str = "eval_run.json";
+
 /// The marker file `success_rate_<n>_<episodes>.txt`.
 ///
 /// `<n>` is read as the number of successful episodes when it is a whole number (it must
@@ -189,8 +209,9 @@ impl Run {
         })
     }
 
-    /// A warning when the marker file and the episode folders disagree.
-    pub fn consistency_warning(&self) -> Option<String> {
+    /// Why the marker file and the episode folders disagree, when they do: which of them
+    /// is right cannot be told, so the run is left out, named.
+    pub fn marker_mismatch(&self) -> Option<String> {
         let m = self.marker?;
         if self.episodes.is_empty() {
             return None;
@@ -200,8 +221,8 @@ impl Run {
         let folders = k / f64::from(n);
         ((m.episodes != n) || (m.rate - folders).abs() > 1e-9).then(|| {
             format!(
-                "{}: the marker file says {:.1}% of {} episodes, the episode folders {:.1}% of {n}; using the marker",
-                self.dir.display(),
+                "the marker file says {:.1}% of {} episodes, the episode folders {:.1}% of {n}: \
+                 remove the marker or the episode folders that are not this run's, and read again",
                 100.0 * m.rate,
                 m.episodes,
                 100.0 * folders
@@ -297,10 +318,11 @@ pub(crate) fn left_out_note(left_out: &[LeftOutRun]) -> String {
     format!("; left out: {}", list.join(", "))
 }
 
-/// Finds every run folder under `root` (the root itself included): a folder named
-/// `<task>[_rand_<x>]_seed<s>` that holds episode folders or a marker file. Sorted by
-/// path. A run folder that cannot be read is left out and returned with its reason (one
-/// bad folder is one bad folder); a root that cannot be listed is an error.
+/// Finds every run folder under `root` (the root itself included, under any name when it
+/// holds `eval`'s record): a folder named `<task>[_rand_<x>]_seed<s>` that holds episode
+/// folders or a marker file. Sorted by path. A run folder that cannot be read, or whose
+/// marker disagrees with its episode folders, is left out and returned with its reason
+/// (one bad folder is one bad folder); a root that cannot be listed is an error.
 pub fn find_runs(root: &Path) -> Result<(Vec<Run>, Vec<LeftOutRun>), StatsError> {
     if !root.is_dir() {
         return Err(StatsError::invalid(root, "not a folder"));
@@ -310,8 +332,19 @@ pub fn find_runs(root: &Path) -> Result<(Vec<Run>, Vec<LeftOutRun>), StatsError>
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
         let name = dir.file_name().map(|n| n.to_string_lossy().into_owned());
-        if let Some(run_name) = name.as_deref().and_then(RunName::parse) {
+        let run_name = match name.as_deref().and_then(RunName::parse) {
+            Some(n) => Some(n),
+            // The root may be one run's folder of any name (`eval --output DIR`).
+            None if dir == root => RunName::of_record(&dir),
+            None => None,
+        };
+        if let Some(run_name) = run_name {
             match read_run(&dir, root, run_name) {
+                Ok(run) if run.marker_mismatch().is_some() => {
+                    let reason = run.marker_mismatch().unwrap_or_default();
+                    left_out.push(LeftOutRun { path: dir, reason });
+                    continue;
+                }
                 Ok(run) if !run.episodes.is_empty() || run.marker.is_some() => {
                     runs.push(run);
                     continue;

@@ -101,7 +101,7 @@ pub struct SuccessTable {
     pub cells: Vec<SuccessCell>,
     /// The average row.
     pub averages: Vec<AverageCell>,
-    /// Things worth knowing (markers disagreeing with episode folders, gaps).
+    /// Things worth knowing (gaps in the seeds).
     pub warnings: Vec<String>,
     /// Run folders that could not be read (a bad marker file...), each with its reason:
     /// left out of the table.
@@ -127,7 +127,7 @@ impl SuccessTable {
             });
         }
         let mut warnings = Vec::new();
-        let rates = Self::rates(root, &runs, &mut warnings)?;
+        let rates = Self::rates(root, &runs)?;
         let policies: Vec<String> = rates
             .keys()
             .map(|k| k.0.clone())
@@ -164,11 +164,10 @@ impl SuccessTable {
     }
 
     /// The success rate (%) and episode count of every run by (policy, regime, task) and
-    /// seed, each run's consistency warning added to `warnings`.
+    /// seed.
     fn rates(
         root: &Path,
         runs: &[Run],
-        warnings: &mut Vec<String>,
     ) -> Result<BTreeMap<(String, String, String), PerSeed>, StatsError> {
         let root_name = root
             .canonicalize()
@@ -187,9 +186,6 @@ impl SuccessTable {
                     .collect::<Vec<_>>()
                     .join("/")
             };
-            if let Some(w) = run.consistency_warning() {
-                warnings.push(w);
-            }
             let Some((rate, episodes)) = run.success_rate() else {
                 continue;
             };

@@ -251,12 +251,17 @@ fn success_tables_from_markers_and_episode_folders() {
             "B/click_mouse_rand_full_seed1/episode_01_success",
             "B/click_mouse_rand_full_seed2/episode_00_failure",
             "B/click_mouse_rand_full_seed2/episode_01_failure_no_password_input",
-            "B/bimanual_hanoi_rand_full_seed0/episode_00_success",
+            "B/bimanual_hanoi_rand_full_seed0/episode_00_failure",
         ],
     );
-    // A marker that disagrees with the folders: the marker wins, with a warning.
+    // A marker that disagrees with the folders of its run: which is right cannot be told,
+    // so that run is left out, named (issue #44: it was used, with a warning only).
+    mkdirs(
+        root,
+        &["B/bimanual_hanoi_rand_full_seed1/episode_00_success"],
+    );
     fs_err::write(
-        root.join("B/bimanual_hanoi_rand_full_seed0/success_rate_0_1.txt"),
+        root.join("B/bimanual_hanoi_rand_full_seed1/success_rate_0_1.txt"),
         "",
     )
     .unwrap();
@@ -280,10 +285,16 @@ fn success_tables_from_markers_and_episode_folders() {
             .mean,
         0.0
     );
+    assert_eq!(t.left_out.len(), 1, "{:?}", t.left_out);
     assert!(
-        t.warnings.iter().any(|w| w.contains("marker")),
+        t.left_out[0]
+            .path
+            .ends_with("B/bimanual_hanoi_rand_full_seed1")
+            && t.left_out[0].reason.contains(
+                "the marker file says 0.0% of 1 episodes, the episode folders 100.0% of 1"
+            ),
         "{:?}",
-        t.warnings
+        t.left_out
     );
     // B/rand_full averages two tasks over the one seed both have: (50 + 0) / 2.
     let avg = t.average("B", "rand_full").unwrap();

@@ -200,9 +200,6 @@ impl LanguageInput {
                         run.dir.display()
                     ));
                 }
-                if let Some(w) = run.consistency_warning() {
-                    warnings.push(w);
-                }
                 run_trials(run, &instruction, &mut warnings, &mut trials)?;
             }
             instructions.push(instruction);
