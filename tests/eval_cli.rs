@@ -10,7 +10,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use common::{PolicyServer as Server, dexjoco, free_port, said};
+use common::{PolicyServer as Server, dexjoco, free_port, processes_marked, said};
 use dexjoco_core::TaskSet;
 
 fn run(cmd: &mut Command) -> Output {
@@ -568,24 +568,6 @@ fn an_unreadable_record_is_named_and_its_episode_not_evaluated_again() {
     assert!(s.contains("| Hammer Nail | 0.0 ± n/a |"), "{s}");
 }
 
-/// Processes whose environment holds `DEXJOCO_TEST_MARK=<mark>` and whose command line
-/// holds `word`.
-fn marked(mark: &str, word: &str) -> Vec<u32> {
-    let needle = format!("DEXJOCO_TEST_MARK={mark}");
-    fs_err::read_dir("/proc")
-        .unwrap()
-        .flatten()
-        .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
-        .filter(|pid| {
-            let has = |file: &str, what: &[u8]| {
-                std::fs::read(format!("/proc/{pid}/{file}"))
-                    .is_ok_and(|b| b.split(|&c| c == 0).any(|v| v == what))
-            };
-            has("environ", needle.as_bytes()) && has("cmdline", word.as_bytes())
-        })
-        .collect()
-}
-
 /// Starts `eval -j 2` of 3 episodes in the background, marked; returns it once a worker
 /// is mid-episode (its staging folder exists), with the workers' pids.
 fn eval_with_workers_mid_episode(
@@ -612,7 +594,7 @@ fn eval_with_workers_mid_episode(
         assert!(started.elapsed().as_secs() < 120, "no episode started");
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
-    let workers = marked(mark, "eval-worker");
+    let workers = processes_marked(mark, "eval-worker");
     assert!(!workers.is_empty(), "no worker process found");
     (child, workers)
 }
@@ -649,7 +631,7 @@ fn a_worker_killed_mid_episode_is_replaced_and_its_episode_redone() {
     child.kill().unwrap();
     child.wait().unwrap();
     let started = std::time::Instant::now();
-    while !marked(&mark, "eval-worker").is_empty() {
+    while !processes_marked(&mark, "eval-worker").is_empty() {
         assert!(
             started.elapsed().as_secs() < 10,
             "workers outlived their run"

@@ -14,7 +14,8 @@ use std::process::Output;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use common::{PolicyServer, dexjoco, said, without_behaviour_env};
+use common::{PolicyServer, dexjoco, processes_marked, said, without_behaviour_env};
+use dexjoco_eval::wire::{self, NdArray, encode};
 use rmpv::Value;
 use tungstenite::Message;
 
@@ -160,26 +161,14 @@ fn ping_until_closed(mut ws: tungstenite::WebSocket<TcpStream>, started: Instant
     }
 }
 
-fn encode(v: &Value) -> Vec<u8> {
-    let mut out = Vec::new();
-    rmpv::encode::write_value(&mut out, v).unwrap();
-    out
-}
-
-/// An answer `{"actions": <ndarray>}` with the array's parts given raw, as openpi's
-/// `msgpack_numpy` packs them.
-fn answer(dtype: &str, shape: &[u64], data: Vec<u8>) -> Vec<u8> {
-    let bin = |s: &str| Value::Binary(s.as_bytes().to_vec());
-    let array = Value::Map(vec![
-        (bin("__ndarray__"), Value::Boolean(true)),
-        (bin("data"), Value::Binary(data)),
-        (bin("dtype"), Value::from(dtype)),
-        (
-            bin("shape"),
-            Value::Array(shape.iter().map(|&d| Value::from(d)).collect()),
-        ),
-    ]);
-    encode(&Value::Map(vec![(Value::from("actions"), array)]))
+/// An answer `{"actions": <ndarray>}` with the array's parts given raw.
+fn answer(dtype: &str, shape: &[usize], data: Vec<u8>) -> Vec<u8> {
+    let shape = shape.to_vec();
+    encode(&wire::answer(&NdArray {
+        dtype: dtype.into(),
+        shape,
+        data,
+    }))
 }
 
 /// `{key: [nil x n]}`: a message of about `n` bytes that builds nothing when walked.
@@ -192,6 +181,23 @@ fn nils_under(key: &str, n: u32) -> Vec<u8> {
     m
 }
 
+/// `eval` of hammer_nail on 127.0.0.1, small renders, no videos, short episodes.
+const EVAL: &[&str] = &[
+    "-q",
+    "eval",
+    "--task",
+    "hammer_nail",
+    "--host",
+    "127.0.0.1",
+    "--server-wait",
+    "0",
+    "--render-size",
+    "224x224",
+    "--no-videos",
+    "--step-cap",
+    "60",
+];
+
 /// `eval` of hammer_nail, one episode, small renders, no videos, against `port`, with its
 /// process tree's peak memory (KiB).
 fn eval(port: u16, out: &Path, extra: &[&str]) -> (Output, u64) {
@@ -201,16 +207,8 @@ fn eval(port: u16, out: &Path, extra: &[&str]) -> (Output, u64) {
         .arg(dexjoco_testkit::workspace_root().join("tests/python/peak_rss.py"))
         .arg(&rss)
         .arg(env!("CARGO_BIN_EXE_dexjoco-data"))
-        .args(["-q", "eval", "--task", "hammer_nail", "--episodes", "1"])
-        .args([
-            "--render-size",
-            "224x224",
-            "--no-videos",
-            "--step-cap",
-            "60",
-        ])
-        .args(["--host", "127.0.0.1", "--port", &port.to_string()])
-        .args(["--server-wait", "0"])
+        .args(EVAL)
+        .args(["--episodes", "1", "--port", &port.to_string()])
         .args(extra)
         .arg("--output")
         .arg(out)
@@ -347,25 +345,16 @@ fn a_run_with_worker_processes_that_fails_leaves_no_process_behind() {
     let out = tmp.path().join("run");
     let o = dexjoco()
         .env("DEXJOCO_TEST_MARK", &mark)
+        .args(EVAL)
         .args([
-            "-q",
-            "eval",
-            "--task",
-            "hammer_nail",
             "--episodes",
             "4",
             "-j",
             "2",
+            "--port",
+            &server.port.to_string(),
         ])
-        .args([
-            "--render-size",
-            "224x224",
-            "--no-videos",
-            "--step-cap",
-            "60",
-        ])
-        .args(["--host", "127.0.0.1", "--port", &server.port.to_string()])
-        .args(["--server-wait", "0", "--output"])
+        .arg("--output")
         .arg(&out)
         .output()
         .unwrap();
@@ -374,24 +363,10 @@ fn a_run_with_worker_processes_that_fails_leaves_no_process_behind() {
     assert!(s.contains("dtype ''"), "{s}");
     assert!(nothing_half_written(&out), "{:?}", names(&out));
     assert_eq!(
-        processes_marked(&mark),
+        processes_marked(&mark, ""),
         Vec::<u32>::new(),
         "workers left behind"
     );
-}
-
-/// Processes whose environment holds `DEXJOCO_TEST_MARK=<mark>`.
-fn processes_marked(mark: &str) -> Vec<u32> {
-    let needle = format!("DEXJOCO_TEST_MARK={mark}");
-    fs_err::read_dir("/proc")
-        .unwrap()
-        .flatten()
-        .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
-        .filter(|pid| {
-            std::fs::read(format!("/proc/{pid}/environ"))
-                .is_ok_and(|env| env.split(|&b| b == 0).any(|v| v == needle.as_bytes()))
-        })
-        .collect()
 }
 
 fn names(dir: &Path) -> Vec<PathBuf> {

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use super::{FirstFrameArgs, QualityArg, TasksDirArgs, positive_seconds, seconds_or_zero};
+use super::{QualityArg, TasksDirArgs, WorkerArgs, positive_seconds, seconds_or_zero};
 
 /// `eval`.
 #[derive(Debug, Args)]
@@ -132,18 +132,9 @@ pub struct EvalArgs {
     /// The folder of task specs.
     #[command(flatten)]
     pub tasks: TasksDirArgs,
-    /// EGL devices (indices as `doctor` lists them) assigned to the -j worker processes
-    /// round-robin (default on a node with several GPUs: all of them).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        env = "DEXJOCO_EGL_DEVICES",
-        value_name = "LIST"
-    )]
-    pub egl_devices: Vec<usize>,
-    /// The -j worker processes' first-frame deadline.
+    /// Where the -j worker processes render.
     #[command(flatten)]
-    pub first_frame: FirstFrameArgs,
+    pub workers: WorkerArgs,
 }
 
 /// `WxH`, both even, positive and at most the renderer's largest side (H.264 video).

@@ -74,7 +74,8 @@ pub struct GlobalArgs {
     #[arg(short, long, global = true)]
     pub quiet: bool,
     /// Workers (default: all cores): threads, and for `augment` worker processes (default
-    /// on a GPU node: at most 8 per GPU, spread over the GPUs). Results do not depend on it.
+    /// on a GPU node: at most 8 per GPU, spread over the GPUs); for `eval`, environments
+    /// (default 1). Results do not depend on it.
     #[arg(short, long, global = true, env = "DEXJOCO_JOBS",
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub jobs: Option<usize>,
@@ -143,7 +144,25 @@ pub enum QualityArg {
     Fast,
 }
 
-/// The worker processes' first-frame deadline (`augment`, `bench augment`).
+/// Where worker processes render (`augment`, `eval -j N`): an EGL device each, and the
+/// first-frame deadline.
+#[derive(Debug, Clone, Args)]
+pub struct WorkerArgs {
+    /// EGL devices (indices as `doctor` lists them) assigned to worker processes
+    /// round-robin, e.g. 0,1,2,3 on a node with four GPUs (default there: all of them).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        env = "DEXJOCO_EGL_DEVICES",
+        value_name = "LIST"
+    )]
+    pub egl_devices: Vec<usize>,
+    /// The workers' first-frame deadline.
+    #[command(flatten)]
+    pub deadline: FirstFrameArgs,
+}
+
+/// The worker processes' first-frame deadline (`augment`, `eval`, `bench augment`).
 #[derive(Debug, Clone, Args)]
 pub struct FirstFrameArgs {
     /// Seconds a worker process may take to draw the first frame of each renderer it

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 use dexjoco_augment::VideoEncoding;
 
-use super::{FirstFrameArgs, GeometryArg, QualityArg, TasksDirArgs};
+use super::{GeometryArg, QualityArg, TasksDirArgs, WorkerArgs};
 
 /// `ingest` options.
 #[derive(Debug, Args)]
@@ -382,18 +382,9 @@ pub struct AugmentArgs {
     /// estimate from a short calibration render; render nothing.
     #[arg(long)]
     pub dry_run: bool,
-    /// EGL devices (indices as `doctor` lists them) assigned to worker processes
-    /// round-robin, e.g. 0,1,2,3 on a node with four GPUs.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        env = "DEXJOCO_EGL_DEVICES",
-        value_name = "LIST"
-    )]
-    pub egl_devices: Vec<usize>,
-    /// The workers' first-frame deadline.
+    /// Where the worker processes render.
     #[command(flatten)]
-    pub deadline: FirstFrameArgs,
+    pub workers: WorkerArgs,
     /// When --out was made with other settings, start clean: remove what augment wrote
     /// there (replays, records, report), nothing else.
     #[arg(long)]

@@ -41,8 +41,11 @@ impl EvalSettings {
             server_wait,
             step_cap,
             tasks,
-            egl_devices,
-            first_frame,
+            workers:
+                WorkerArgs {
+                    egl_devices,
+                    deadline: first_frame,
+                },
         } = args;
         let tasks_dir = tasks.tasks_dir.clone();
         let known = task_set(&tasks)?;

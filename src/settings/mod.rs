@@ -24,6 +24,7 @@ use crate::cli::{
     AugmentArgs, BenchAugmentArgs, BenchIngestArgs, BenchRenderArgs, CamerasArgs, ConvertArgs,
     ConvertFormatArg, DoctorArgs, ExportArgs, ExportFormat, GlobalArgs, IngestArgs, JsBaseArg,
     NormStatsArgs, QualityArg, RenderArgs, ScriptedArgs, StatsArgs, TasksDirArgs, VideoCodecArg,
+    WorkerArgs,
 };
 use crate::exit::{CliError, ExitStatus};
 

@@ -129,6 +129,29 @@ pub struct AugmentSettings {
     pub dry_run: bool,
 }
 
+/// `--shard I/N` or `auto` (from the cluster's environment); refused with `--overwrite`.
+fn shard_of(shard: Option<&str>, overwrite: bool) -> anyhow::Result<Option<Shard>> {
+    let shard = match shard {
+        None => return Ok(None),
+        Some("auto") => Shard::from_env(|k| std::env::var(k).ok()).map_err(|e| {
+            usage(
+                e,
+                "run inside a Slurm job array or a Kubernetes Indexed Job, or give --shard I/N",
+            )
+        })?,
+        Some(s) => {
+            Shard::parse(s).map_err(|e| usage(format!("--shard {e}"), "for example --shard 0/4"))?
+        }
+    };
+    if overwrite {
+        return Err(usage(
+            "--overwrite cannot be combined with --shard: the shards share the folder, and one would remove the others' replays".into(),
+            "remove the output folder (or run `dexjoco-data augment --overwrite` once, unsharded) before starting the shards",
+        ));
+    }
+    Ok(Some(shard))
+}
+
 impl AugmentSettings {
     /// Resolves `augment`'s arguments; `sample_data` gives the default input.
     pub fn resolve(
@@ -154,8 +177,11 @@ impl AugmentSettings {
             extend_steps,
             shard,
             dry_run,
-            egl_devices,
-            deadline,
+            workers:
+                WorkerArgs {
+                    egl_devices,
+                    deadline,
+                },
             overwrite,
             video,
         } = args;
@@ -179,25 +205,7 @@ impl AugmentSettings {
         } else {
             inputs
         };
-        let shard = match shard.as_deref() {
-            None => None,
-            Some("auto") => Some(Shard::from_env(|k| std::env::var(k).ok()).map_err(|e| {
-                usage(
-                    e,
-                    "run inside a Slurm job array or a Kubernetes Indexed Job, or give --shard I/N",
-                )
-            })?),
-            Some(s) => Some(
-                Shard::parse(s)
-                    .map_err(|e| usage(format!("--shard {e}"), "for example --shard 0/4"))?,
-            ),
-        };
-        if shard.is_some() && overwrite {
-            return Err(usage(
-                "--overwrite cannot be combined with --shard: the shards share the folder, and one would remove the others' replays".into(),
-                "remove the output folder (or run `dexjoco-data augment --overwrite` once, unsharded) before starting the shards",
-            ));
-        }
+        let shard = shard_of(shard.as_deref(), overwrite)?;
         check_egl_choice(&egl_devices)?;
         let out = out.unwrap_or_else(|| global.work_dir.join("augment"));
         let others = [

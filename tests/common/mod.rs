@@ -354,3 +354,23 @@ impl Drop for PolicyServer {
         let _ = self.child.wait();
     }
 }
+
+/// Processes whose environment holds `DEXJOCO_TEST_MARK=<mark>` (set by the test on the
+/// command it starts, inherited by its children) and whose command line holds the word
+/// `word` (e.g. `eval-worker`; empty: any).
+pub fn processes_marked(mark: &str, word: &str) -> Vec<u32> {
+    let needle = format!("DEXJOCO_TEST_MARK={mark}");
+    fs_err::read_dir("/proc")
+        .unwrap()
+        .flatten()
+        .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|pid| {
+            let has = |file: &str, what: &[u8]| {
+                std::fs::read(format!("/proc/{pid}/{file}"))
+                    .is_ok_and(|b| b.split(|&c| c == 0).any(|v| v == what))
+            };
+            has("environ", needle.as_bytes())
+                && (word.is_empty() || has("cmdline", word.as_bytes()))
+        })
+        .collect()
+}

@@ -52,6 +52,12 @@ impl NdArray {
     }
 }
 
+/// A policy server's answer `{"actions": <array>}` as openpi's server packs one (for a
+/// server written in Rust, such as the tests' hostile ones).
+pub fn answer(actions: &NdArray) -> Value {
+    Value::Map(vec![(Value::from("actions"), actions.to_value())])
+}
+
 /// A byte-string key, as Python's `b"..."` packs.
 fn bin(s: &str) -> Value {
     Value::Binary(s.as_bytes().to_vec())
@@ -71,10 +77,8 @@ mod tests {
     #[test]
     fn an_array_we_encode_reads_back_through_the_servers_decoder() {
         let a = NdArray::f64(vec![1, 22], &[1.5; 22]);
-        let answer = Value::Map(vec![(Value::from("actions"), a.to_value())]);
-        let rows =
-            crate::decode::decode_answer(&encode(&answer), &crate::decode::Limits::for_width(22))
-                .unwrap();
+        let limits = crate::decode::Limits::for_width(22);
+        let rows = crate::decode::decode_answer(&encode(&answer(&a)), &limits).unwrap();
         assert_eq!(rows, [vec![1.5; 22]]);
     }
 

@@ -11,6 +11,7 @@ use std::alloc::System;
 use std::sync::Mutex;
 
 use dexjoco_eval::decode::{Limits, MAX_ROWS, decode_answer, decode_metadata};
+use dexjoco_eval::wire::{self, NdArray, encode};
 use dexjoco_testkit::hostile::{apply_bytes, byte_edits, run_cases};
 use peakmem_alloc::{INSTRUMENTED_SYSTEM, PeakMemAlloc, PeakMemAllocTrait};
 use proptest::prelude::*;
@@ -73,39 +74,27 @@ fn decode_within_bounds(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
-fn encode(v: &Value) -> Vec<u8> {
-    let mut out = Vec::new();
-    rmpv::encode::write_value(&mut out, v).unwrap();
-    out
-}
-
 /// An answer as openpi's `msgpack_numpy` packs it, the array's parts given raw, with an
 /// extra key as openpi's server adds.
-fn answer(dtype: &str, shape: &[u64], data: Vec<u8>) -> Vec<u8> {
-    let bin = |s: &str| Value::Binary(s.as_bytes().to_vec());
-    let array = Value::Map(vec![
-        (bin("__ndarray__"), Value::Boolean(true)),
-        (bin("data"), Value::Binary(data)),
-        (bin("dtype"), Value::from(dtype)),
-        (
-            bin("shape"),
-            Value::Array(shape.iter().map(|&d| Value::from(d)).collect()),
-        ),
-    ]);
-    encode(&Value::Map(vec![
-        (Value::from("actions"), array),
-        (
-            Value::from("server_timing"),
-            Value::Map(vec![(Value::from("infer_ms"), Value::F64(12.5))]),
-        ),
-    ]))
+fn answer(dtype: &str, shape: &[usize], data: Vec<u8>) -> Vec<u8> {
+    let shape = shape.to_vec();
+    let mut answer = wire::answer(&NdArray {
+        dtype: dtype.into(),
+        shape,
+        data,
+    });
+    let timing = Value::Map(vec![(Value::from("infer_ms"), Value::F64(12.5))]);
+    if let Value::Map(m) = &mut answer {
+        m.push((Value::from("server_timing"), timing));
+    }
+    encode(&answer)
 }
 
 /// Valid answers (both widths, several dtypes) and a valid metadata map.
 fn valid_messages() -> Vec<Vec<u8>> {
     let mut out = Vec::new();
-    for (width, rows) in [(22u64, 30u64), (44, 5), (22, 1)] {
-        let n = (width * rows) as usize;
+    for (width, rows) in [(22usize, 30usize), (44, 5), (22, 1)] {
+        let n = width * rows;
         let f8: Vec<u8> = (0..n)
             .flat_map(|i| (i as f64 * 0.01).to_le_bytes())
             .collect();
@@ -187,12 +176,12 @@ fn arbitrary_and_mutated_server_bytes_never_panic_or_exhaust_memory() {
         "[<>|=]?[a-zA-Z]?[0-9]{0,3}",
     ];
     let dims = prop_oneof![
-        0u64..64,
-        Just(22u64),
-        Just(44u64),
-        Just(u64::from(u32::MAX) + 1),
-        Just(u64::MAX),
-        any::<u64>(),
+        0usize..64,
+        Just(22usize),
+        Just(44usize),
+        Just(u32::MAX as usize + 1),
+        Just(usize::MAX),
+        any::<usize>(),
     ];
     run_cases(
         "arbitrary numpy arrays",

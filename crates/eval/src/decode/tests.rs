@@ -2,31 +2,18 @@
 //! servers: named errors, nothing allocated for what the bytes do not hold.
 
 use super::*;
+use crate::wire::{self, NdArray, encode};
 use rmpv::Value;
 
 /// An answer `{"actions": <ndarray>}` as openpi's `msgpack_numpy` packs it, with the
 /// array's parts given raw.
-fn answer(dtype: &str, shape: &[u64], data: Vec<u8>) -> Vec<u8> {
-    let array = Value::Map(vec![
-        (bin("__ndarray__"), Value::Boolean(true)),
-        (bin("data"), Value::Binary(data)),
-        (bin("dtype"), Value::from(dtype)),
-        (
-            bin("shape"),
-            Value::Array(shape.iter().map(|&d| Value::from(d)).collect()),
-        ),
-    ]);
-    encode(&Value::Map(vec![(Value::from("actions"), array)]))
-}
-
-fn bin(s: &str) -> Value {
-    Value::Binary(s.as_bytes().to_vec())
-}
-
-fn encode(v: &Value) -> Vec<u8> {
-    let mut out = Vec::new();
-    rmpv::encode::write_value(&mut out, v).unwrap();
-    out
+fn answer(dtype: &str, shape: &[usize], data: Vec<u8>) -> Vec<u8> {
+    let shape = shape.to_vec();
+    encode(&wire::answer(&NdArray {
+        dtype: dtype.into(),
+        shape,
+        data,
+    }))
 }
 
 const ONE_ARM: Limits = Limits {
