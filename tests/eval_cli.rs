@@ -578,7 +578,7 @@ fn eval_with_workers_mid_episode(
     let child = dexjoco()
         .env("DEXJOCO_TEST_MARK", mark)
         .args(["eval", "--task", "hammer_nail", "-j", "2"])
-        .args(["--episodes", "3", "--step-cap", "150", "--seed", "2"])
+        .args(["--episodes", "3", "--step-cap", "300", "--seed", "2"])
         .args(["--render-size", "32x32", "--no-videos", "--quality", "fast"])
         .args(["--host", "127.0.0.1", "--port", &server.port.to_string()])
         .args(["--server-wait", "0", "--output"])
@@ -642,7 +642,7 @@ fn a_worker_killed_mid_episode_is_replaced_and_its_episode_redone() {
         &server,
         "hammer_nail",
         &again,
-        &["--episodes", "3", "--step-cap", "150", "--seed", "2"],
+        &["--episodes", "3", "--step-cap", "300", "--seed", "2"],
     );
     assert_eq!(o.status.code(), Some(0), "{}", said(&o));
     assert!(!again.join(".staging").exists());
@@ -652,7 +652,7 @@ fn a_worker_killed_mid_episode_is_replaced_and_its_episode_redone() {
         &server,
         "hammer_nail",
         &whole,
-        &["--episodes", "3", "--step-cap", "150", "--seed", "2"],
+        &["--episodes", "3", "--step-cap", "300", "--seed", "2"],
     );
     assert_eq!(o.status.code(), Some(0), "{}", said(&o));
     for run in [&out, &again] {

@@ -21,37 +21,13 @@
 pub mod protocol;
 pub mod serve;
 
+mod error;
 mod process;
 mod schedule;
 mod spec;
 
+pub use error::PoolError;
 pub use process::WorkerPool;
 pub use protocol::{Failure, FromWorker, SLOT_ENV, ToWorker};
 pub use schedule::{JobResult, JobSet, run_jobs};
 pub use spec::{DEFAULT_FIRST_FRAME_TIMEOUT, WorkerProcesses, probe_renderer};
-
-/// Why a run on worker processes could not go on.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum PoolError {
-    /// A worker process could not be started.
-    #[error("{0}")]
-    Start(String),
-    /// Offscreen rendering does not work on a device the workers would render on.
-    #[error("offscreen rendering is unavailable on {device}: {reason}")]
-    RenderingUnavailable {
-        /// The EGL device, in words.
-        device: String,
-        /// Why no context opened there.
-        reason: String,
-    },
-    /// Every worker was retired: none could render.
-    #[error("{0}")]
-    NoRenderer(String),
-    /// A job failed in a way that concerns the whole run (its message).
-    #[error("{0}")]
-    RunWide(String),
-    /// A slot of the schedule panicked.
-    #[error("a worker slot of this process failed (a bug: please report it)")]
-    Bug,
-}

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-use crate::PoolError;
+use crate::error::PoolError;
 use crate::protocol::{FromWorker, SLOT_ENV, ToWorker, send};
 use crate::spec::WorkerProcesses;
 

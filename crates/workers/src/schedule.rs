@@ -13,7 +13,7 @@ use std::sync::{Condvar, Mutex, MutexGuard};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-use crate::PoolError;
+use crate::error::PoolError;
 use crate::process::{Silence, Worker, WorkerPool};
 use crate::protocol::{FromWorker, ToWorker};
 use crate::spec::WorkerProcesses;

@@ -5,7 +5,7 @@ use std::ffi::OsString;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use crate::PoolError;
+use crate::error::PoolError;
 
 /// How long a worker process may take from its start to its first rendered frame.
 pub const DEFAULT_FIRST_FRAME_TIMEOUT: Duration = Duration::from_secs(120);
