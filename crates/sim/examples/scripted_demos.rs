@@ -41,6 +41,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             p.failed,
             t.elapsed().as_secs_f64()
         );
+        let ends: Vec<String> = p
+            .subtasks
+            .iter()
+            .map(|e| format!("{} {}", e.id, e.step.map_or("-".into(), |s| s.to_string())))
+            .collect();
+        println!("  subtasks: {}", ends.join(", "));
     }
     println!("{task}: {ok}/{seeds} plans succeeded");
     Ok(())

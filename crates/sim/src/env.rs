@@ -11,6 +11,7 @@ use dexjoco_core::{
 use mujoco_rs::prelude::{MjData, MjModel, MjtDisableBit};
 
 use crate::checker::{Resolver, SuccessChecker, Verdict, name_id};
+use crate::subtasks::{SubtaskEnd, SubtaskTracker};
 use crate::control::{ARM_HOME, Robot, THUMB_HOME};
 use crate::error::SimError;
 use crate::scene::Scene;
@@ -38,6 +39,7 @@ pub struct TaskEnv {
     data: MjData<Arc<MjModel>>,
     robot: Robot,
     checker: SuccessChecker,
+    subtasks: SubtaskTracker,
     privileged: Vec<f64>,
     steps: usize,
 }
@@ -386,6 +388,7 @@ impl TaskEnv {
             data,
             robot,
             checker,
+            subtasks: SubtaskTracker::new(spec),
             privileged,
             steps: 0,
         })
@@ -430,7 +433,14 @@ impl TaskEnv {
         self.robot
             .step(&mut self.data, action, |d| checker.after_substep(d));
         self.steps += 1;
-        Ok(self.checker.after_step(&mut self.data))
+        let verdict = self.checker.after_step(&mut self.data);
+        self.subtasks.observe(&self.checker);
+        Ok(verdict)
+    }
+
+    /// Where each of the task's subtasks ended so far (`None`: not yet).
+    pub fn subtask_ends(&self) -> Vec<SubtaskEnd> {
+        self.subtasks.ends()
     }
 
     /// Applies every action (the reference replay does not stop at success or failure)

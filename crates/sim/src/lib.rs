@@ -27,6 +27,7 @@ mod render;
 mod scene;
 pub mod scripted;
 mod sheet;
+mod subtasks;
 
 pub use checker::{SuccessChecker, Verdict, name_id, unresolved_names};
 pub use control::{
@@ -45,6 +46,7 @@ pub use render::{
 };
 pub use scene::{Scene, mujoco_library_path, mujoco_version, route_mujoco_warnings};
 pub use sheet::{SheetLayout, contact_sheet};
+pub use subtasks::{SubtaskEnd, SubtaskTracker};
 
 /// Re-exported so callers can step and inspect the simulation without naming the crate.
 pub use mujoco_rs;

@@ -367,6 +367,9 @@ pub struct Hanoi {
     pub reason: Option<IllegalReason>,
     /// Illegal (latched: the episode ends).
     pub illegal: bool,
+    /// Disks seated on the goal post in the goal order from the bottom (the largest
+    /// first), its stack within tolerance: 2 once the medium disk is on the large one.
+    pub on_goal: usize,
 }
 
 /// The per-post analysis of one Hanoi state.
@@ -466,6 +469,12 @@ impl Hanoi {
             self.illegal = true;
         }
         let goal: Vec<usize> = (0..disks.len()).collect();
+        self.on_goal = match s.posts.get(p.goal_post) {
+            Some(st) if stack_ok(p.goal_post) => {
+                st.iter().zip(&goal).take_while(|(a, b)| a == b).count()
+            }
+            _ => 0,
+        };
         let others_empty = s
             .posts
             .iter()

@@ -77,6 +77,7 @@ impl TaskSpec {
         }
         self.validate_nodes()?;
         self.validate_state()?;
+        self.validate_subtasks()?;
         if let Some(h) = &self.reset.hand_qpos
             && h.len() != crate::layout::HAND_DOF
         {
@@ -249,6 +250,18 @@ impl TaskSpec {
             } if posts.is_empty() || disks.is_empty() || *goal_post >= posts.len() => {
                 bad("needs posts, disks and a goal post among them")
             }
+            Node::Grasp {
+                min_fingers,
+                opposed,
+                ..
+            } if !(1..=4 - u32::from(*opposed)).contains(min_fingers) => {
+                bad("min_fingers must be 1 to 3 (opposed by the thumb or palm), 1 to 4 if not opposed")
+            }
+            Node::Grasp { hand, .. }
+                if (*hand == Hand::Single) != (self.setup == ArmSetup::SingleArm) =>
+            {
+                bad("hand must be `single` in a one-arm task, `left` or `right` in a two-arm one")
+            }
             _ => Ok(()),
         }
     }
@@ -356,6 +369,11 @@ fn node_scene_names(node: &Node, push: &mut dyn FnMut(NameKind, &str)) {
         Node::Contact { a, b, .. } => {
             geoms(a, push);
             geoms(b, push);
+        }
+        Node::Grasp { hand, object, .. } => {
+            hand.fingers().iter().for_each(|b| push(NameKind::Body, b));
+            push(NameKind::Body, &hand.palm());
+            geoms(object, push);
         }
         Node::NailSinking {
             hammer,

@@ -26,6 +26,7 @@ mod check;
 mod nodes;
 mod privileged;
 mod state;
+mod subtasks;
 #[cfg(test)]
 mod tests;
 
@@ -42,6 +43,7 @@ pub use check::NameKind;
 pub use nodes::*;
 pub use privileged::{PrivilegedField, PrivilegedKind};
 pub use state::*;
+pub use subtasks::{Subtask, SubtaskArm};
 
 /// One DexJoCo task.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -86,6 +88,9 @@ pub struct TaskSpec {
     /// The node whose value ends the episode as a failure, if the task has one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub failure: Option<String>,
+    /// The steps a person would name, in order (per arm), each ending on a node.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub subtasks: Vec<Subtask>,
 }
 
 /// A camera stream of the task.

@@ -110,6 +110,50 @@ pub enum BoxAxes {
     Origin,
 }
 
+/// A hand of the robot, for [`Node::Grasp`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Hand {
+    /// The one hand of a single-arm robot.
+    Single,
+    /// The left hand of a bimanual robot.
+    Left,
+    /// The right hand of a bimanual robot.
+    Right,
+}
+
+impl Hand {
+    fn suffix(self) -> &'static str {
+        match self {
+            Self::Single => "",
+            Self::Left => "_left",
+            Self::Right => "_right",
+        }
+    }
+
+    /// The root bodies of this hand's fingers, thumb last: the Allegro hand's `ff_base`,
+    /// `mf_base`, `rf_base`, `th_base` (with `_left` / `_right` on a bimanual robot), as
+    /// both the reference robot and the built-in one name them; a finger is its root's
+    /// subtree.
+    pub fn fingers(self) -> [String; 4] {
+        ["ff", "mf", "rf", "th"].map(|f| format!("{f}_base{}", self.suffix()))
+    }
+
+    /// The palm body (`allegro_palm`, suffixed likewise); the palm is its own geoms.
+    pub fn palm(self) -> String {
+        format!("allegro_palm{}", self.suffix())
+    }
+
+    /// The arm a subtask reading this hand belongs to.
+    pub fn arm(self) -> super::SubtaskArm {
+        match self {
+            Self::Single => super::SubtaskArm::Single,
+            Self::Left => super::SubtaskArm::Left,
+            Self::Right => super::SubtaskArm::Right,
+        }
+    }
+}
+
 /// A Hanoi disk of the [`Node::HanoiTowers`] mechanic.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -245,6 +289,25 @@ pub enum Node {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         max_dist: Option<f64>,
     },
+    /// An object grasped by a hand: at least `min_fingers` of the index, middle and ring
+    /// fingers touch a geom of `object`, and the thumb or the palm does too, opposing them
+    /// (a pinch, a wrap): the opposition tells a grasp from a push. A finger is every link
+    /// of it (its root body's subtree), the palm its body's own geoms, read from the model
+    /// ([`Hand::fingers`], [`Hand::palm`]). With `opposed = false`, any `min_fingers` of
+    /// the four fingers, the thumb included (a push or a press). Output `fingers`: the
+    /// fingers touching, the thumb included.
+    Grasp {
+        /// Whose hand.
+        hand: Hand,
+        /// The object's geoms.
+        object: GeomSet,
+        /// Fingers that must touch (1 to 3 opposed, 1 to 4 not).
+        #[serde(default = "one_finger")]
+        min_fingers: u32,
+        /// Whether the thumb or the palm must oppose them (a grasp).
+        #[serde(default = "yes")]
+        opposed: bool,
+    },
     // ---- g_seq and logic ----
     /// All inputs true.
     All {
@@ -354,7 +417,7 @@ pub enum Node {
     },
     /// Tower of Hanoi bookkeeping: disks assigned to posts, stack order and tolerances,
     /// the goal stack and the illegal-state counter. Value: the goal configuration
-    /// holds. Output `illegal`.
+    /// holds. Outputs `illegal`, `on_goal` (disks seated on the goal post in goal order).
     HanoiTowers {
         /// The base body.
         base: String,
@@ -391,7 +454,8 @@ impl Node {
             Self::Sequence { .. } => &["index", "wrong"],
             Self::NailSinking { .. } => &["depth"],
             Self::Keypad { .. } => &["failed", "index"],
-            Self::HanoiTowers { .. } => &["illegal"],
+            Self::HanoiTowers { .. } => &["illegal", "on_goal"],
+            Self::Grasp { .. } => &["fingers"],
             _ => &[],
         }
     }
@@ -428,7 +492,7 @@ impl Node {
             Self::JointThreshold { .. }
             | Self::JointAboveReset { .. }
             | Self::JointHysteresis { .. } => ConstraintKind::Joint,
-            Self::Contact { .. } => ConstraintKind::Contact,
+            Self::Contact { .. } | Self::Grasp { .. } => ConstraintKind::Contact,
             Self::NailSinking { .. } | Self::Keypad { .. } | Self::HanoiTowers { .. } => {
                 ConstraintKind::Mechanic
             }
@@ -450,4 +514,13 @@ pub enum ConstraintKind {
     Contact,
     /// A named scene mechanic (nail, keypad, Hanoi).
     Mechanic,
+}
+
+/// The default fingers of a grasp: one, opposed by the thumb or the palm.
+fn one_finger() -> u32 {
+    1
+}
+
+fn yes() -> bool {
+    true
 }

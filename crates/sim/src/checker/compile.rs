@@ -154,6 +154,14 @@ pub(super) enum Compiled {
         b: Geoms,
         max_dist: Option<f64>,
     },
+    /// The geoms of each finger (thumb last), of the palm and of the object.
+    Grasp {
+        fingers: Vec<BTreeSet<usize>>,
+        palm: BTreeSet<usize>,
+        object: Geoms,
+        min_fingers: u32,
+        opposed: bool,
+    },
     All(Vec<Port>),
     Any(Vec<Port>),
     Not(Port),
@@ -352,7 +360,8 @@ impl Compiler<'_> {
             Node::JointThreshold { .. }
             | Node::JointAboveReset { .. }
             | Node::JointHysteresis { .. }
-            | Node::Contact { .. } => Ok(self.joint_or_contact_node(node)),
+            | Node::Contact { .. }
+            | Node::Grasp { .. } => Ok(self.joint_or_contact_node(node)),
             Node::All { .. }
             | Node::Any { .. }
             | Node::Not { .. }
@@ -467,6 +476,30 @@ impl Compiler<'_> {
                 a: self.geoms(a),
                 b: self.geoms(b),
                 max_dist: *max_dist,
+            },
+            Node::Grasp {
+                hand,
+                object,
+                min_fingers,
+                opposed,
+            } => Compiled::Grasp {
+                fingers: hand
+                    .fingers()
+                    .iter()
+                    .map(|b| {
+                        let body = self.res.id(NameKind::Body, b);
+                        subtree_geoms(self.model, body)
+                    })
+                    .collect(),
+                palm: {
+                    let body = self.res.id(NameKind::Body, &hand.palm());
+                    (0..self.model.ffi().ngeom as usize)
+                        .filter(|&g| self.model.geom_bodyid()[g] as usize == body)
+                        .collect()
+                },
+                object: self.geoms(object),
+                min_fingers: *min_fingers,
+                opposed: *opposed,
             },
             _ => unreachable!("node() sends only g_joint and g_contact nodes here"),
         }
@@ -635,7 +668,8 @@ pub(super) fn output_names(c: &Compiled) -> &'static [&'static str] {
         Compiled::Seq { .. } => &["index", "wrong"],
         Compiled::Nail { .. } => &["depth"],
         Compiled::Keypad { .. } => &["failed", "index"],
-        Compiled::Hanoi { .. } => &["illegal"],
+        Compiled::Hanoi { .. } => &["illegal", "on_goal"],
+        Compiled::Grasp { .. } => &["fingers"],
         _ => &[],
     }
 }

@@ -8,7 +8,7 @@ use mujoco_rs::prelude::MjData;
 use mujoco_rs::wrappers::mj_model::traits::ModelType;
 
 use super::SuccessChecker;
-use super::compile::{Compiled, Frame, Joint, Point};
+use super::compile::{Compiled, Frame, Geoms, Joint, Point};
 use crate::primitives::{self as p, DiskState};
 
 impl SuccessChecker {
@@ -39,6 +39,13 @@ impl SuccessChecker {
             Compiled::Nail { .. } | Compiled::Keypad { .. } | Compiled::Hanoi { .. } => {
                 eval_mechanic(&mut self.nodes[i], data)
             }
+            Compiled::Grasp {
+                fingers,
+                palm,
+                object,
+                min_fingers,
+                opposed,
+            } => eval_grasp(fingers, palm, object, (*min_fingers, *opposed), data),
             Compiled::All(_)
             | Compiled::Any(_)
             | Compiled::Not(_)
@@ -52,6 +59,43 @@ impl SuccessChecker {
             node => (eval_sensing(node, data), vec![]),
         }
     }
+}
+
+/// A grasp: which fingers (thumb last) and whether the palm touch the object; true when
+/// at least `min_fingers` of the other fingers do and the thumb or the palm opposes them
+/// (`opposed`), else when any `min_fingers` fingers do. Output: the fingers touching.
+fn eval_grasp<M: ModelType>(
+    fingers: &[BTreeSet<usize>],
+    palm: &BTreeSet<usize>,
+    object: &Geoms,
+    (min_fingers, opposed): (u32, bool),
+    data: &MjData<M>,
+) -> (bool, Vec<f64>) {
+    let mut touching = vec![false; fingers.len()];
+    let mut palm_touches = false;
+    for c in data.contact() {
+        let (g1, g2) = (c.geom[0] as usize, c.geom[1] as usize);
+        let hand_geom = if object.contains(g2) {
+            g1
+        } else if object.contains(g1) {
+            g2
+        } else {
+            continue;
+        };
+        for (f, set) in fingers.iter().enumerate() {
+            touching[f] |= set.contains(&hand_geom);
+        }
+        palm_touches |= palm.contains(&hand_geom);
+    }
+    let count = |t: &[bool]| t.iter().filter(|x| **x).count() as u32;
+    let all = count(&touching);
+    let value = if opposed {
+        let (others, thumb) = touching.split_at(touching.len().saturating_sub(1));
+        (thumb.iter().any(|t| *t) || palm_touches) && count(others) >= min_fingers
+    } else {
+        all >= min_fingers
+    };
+    (value, vec![f64::from(all)])
 }
 
 /// g_pose, g_joint and g_contact nodes: a value read off the simulation.
@@ -247,7 +291,7 @@ fn eval_mechanic<M: ModelType>(node: &mut Compiled, data: &mut MjData<M>) -> (bo
                 .collect();
             let ps: Vec<[f64; 3]> = posts.iter().map(|s| data.site_xpos()[*s]).collect();
             let v = state.update(&ds, &ps, data.xpos()[*base][2], params);
-            (v, vec![b(state.illegal)])
+            (v, vec![b(state.illegal), state.on_goal as f64])
         }
         _ => unreachable!("not a mechanic node"),
     }

@@ -316,10 +316,12 @@ impl Recorder {
     pub fn finish(self, id: &str) -> Result<Planned, SimError> {
         let success_at = self.success_at;
         let failed = self.failed;
+        let subtasks = self.env.subtask_ends();
         Ok(Planned {
             episode: self.into_episode(id)?,
             success_at,
             failed,
+            subtasks,
         })
     }
 
@@ -392,6 +394,8 @@ pub struct Planned {
     pub success_at: Option<usize>,
     /// The task's failure condition was reached.
     pub failed: bool,
+    /// Where each of the task's subtasks ended in the recording.
+    pub subtasks: Vec<crate::SubtaskEnd>,
 }
 
 /// Which plan to make: the task's demonstration, or a deliberately wrong one that

@@ -1,0 +1,75 @@
+//! Segmenting a rollout into its task's subtasks, step by step: a subtask ends on the
+//! first step on which its end node holds once every subtask it waits for has ended (its
+//! lane's previous one and those its `after` names). Read from the checker after each
+//! control step, so every rollout that runs through a [`TaskEnv`](crate::TaskEnv) (augment's
+//! replays, scripted plans, eval episodes) is segmented the same way.
+
+use dexjoco_core::TaskSpec;
+use serde::{Deserialize, Serialize};
+
+use crate::checker::SuccessChecker;
+
+/// Where one subtask ended in a rollout.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SubtaskEnd {
+    /// The subtask's id.
+    pub id: String,
+    /// The step on which it ended (0-based: the state after action `step` satisfied its
+    /// end node), or `None` when it never did.
+    pub step: Option<usize>,
+}
+
+/// Follows a rollout's subtasks.
+#[derive(Debug, Clone)]
+pub struct SubtaskTracker {
+    ids: Vec<String>,
+    /// Each subtask's end node, by its name.
+    ends: Vec<String>,
+    before: Vec<Vec<usize>>,
+    at: Vec<Option<usize>>,
+    step: usize,
+}
+
+impl SubtaskTracker {
+    /// A tracker of `spec`'s subtasks (none when the spec has none).
+    pub fn new(spec: &TaskSpec) -> Self {
+        Self {
+            ids: spec.subtasks.iter().map(|s| s.id.clone()).collect(),
+            ends: spec.subtasks.iter().map(|s| s.end.clone()).collect(),
+            before: spec.subtask_predecessors(),
+            at: vec![None; spec.subtasks.len()],
+            step: 0,
+        }
+    }
+
+    /// Forgets what was seen (after a reset or restore).
+    pub fn reset(&mut self) {
+        self.at.iter_mut().for_each(|a| *a = None);
+        self.step = 0;
+    }
+
+    /// Reads the checker after a control step.
+    pub fn observe(&mut self, checker: &SuccessChecker) {
+        for i in 0..self.at.len() {
+            if self.at[i].is_some() || self.before[i].iter().any(|&b| self.at[b].is_none()) {
+                continue;
+            }
+            if checker.value(&self.ends[i]) == Some(true) {
+                self.at[i] = Some(self.step);
+            }
+        }
+        self.step += 1;
+    }
+
+    /// Each subtask's end so far, in the spec's order.
+    pub fn ends(&self) -> Vec<SubtaskEnd> {
+        self.ids
+            .iter()
+            .zip(&self.at)
+            .map(|(id, step)| SubtaskEnd {
+                id: id.clone(),
+                step: *step,
+            })
+            .collect()
+    }
+}
