@@ -43,17 +43,18 @@ pub fn run(settings: ScriptedSettings) -> anyhow::Result<ExitStatus> {
         let line = match plan.success_at {
             Some(step) => {
                 let name = format!("episode_{written:06}");
+                let dir = staged.path().join(&name);
                 RawFolder
-                    .write(
-                        &staged.path().join(&name),
-                        &plan.episode,
-                        spec,
-                        &EpisodeMeta::default(),
-                    )
+                    .write(&dir, &plan.episode, spec, &EpisodeMeta::default())
+                    .and_then(|()| write_plan_record(&dir, &plan, seed, k))
                     .with_context(|| format!("writing '{}'", task_dir.join(&name).display()))?;
                 written += 1;
                 let dir = task_dir.join(&name);
-                format!("reset {k}: success at step {step} -> {}", dir.display())
+                format!(
+                    "reset {k}: success at step {step} ({}) -> {}",
+                    subtask_words(&plan.subtasks),
+                    dir.display()
+                )
             }
             None => format!(
                 "reset {k}: no success in {} steps{} (not written)",
@@ -115,4 +116,34 @@ fn check_replaceable(task_dir: &Path, overwrite: bool) -> anyhow::Result<()> {
         }
         .into()),
     }
+}
+
+/// The plan's record beside its `replay.zarr` (`plan.json`): the reset it was planned
+/// from, the success step and where each subtask ended.
+fn write_plan_record(
+    dir: &Path,
+    plan: &scripted::Planned,
+    seed: u64,
+    reset: usize,
+) -> Result<(), FormatError> {
+    let record = serde_json::json!({
+        "written_by": "dexjoco-data scripted",
+        "seed": seed,
+        "reset": reset,
+        "success_step": plan.success_at,
+        "subtasks": plan.subtasks,
+    });
+    let bytes = serde_json::to_vec_pretty(&record).expect("serializable");
+    dexjoco_formats::write_atomic(&dir.join(PLAN_RECORD), &bytes)
+}
+
+/// The record of a scripted plan in its episode folder.
+const PLAN_RECORD: &str = "plan.json";
+
+/// `grasp_hammer 374, hit_nail 587, drive_nail -`: where each subtask ended.
+fn subtask_words(ends: &[dexjoco_core::SubtaskEnd]) -> String {
+    ends.iter()
+        .map(|e| format!("{} {}", e.id, e.step.map_or("-".into(), |s| s.to_string())))
+        .collect::<Vec<_>>()
+        .join(", ")
 }

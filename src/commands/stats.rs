@@ -186,6 +186,11 @@ fn write_success_table(
         );
     }
     md.push_str(&table.to_markdown());
+    let progress = table.progress_markdown();
+    if !progress.is_empty() {
+        md.push('\n');
+        md.push_str(&progress);
+    }
     summaries.push(md);
     Ok(report_left_out(&table.left_out))
 }
@@ -211,7 +216,7 @@ fn write_dataset_stats(
             .collect();
         json.insert("dataset_left_out".into(), list.into());
     }
-    let replays = dexjoco_stats::ReplayStats::read(path)?;
+    let replays = dexjoco_stats::ReplayStats::read(path, tasks)?;
     let dir = out.join("dataset");
     let files = write_whole(&dir, |d| {
         let mut files = stats.write(d)?;
@@ -238,6 +243,12 @@ fn write_dataset_stats(
         path.display(),
         stats.to_markdown()
     ));
+    if let Some(r) = replays.as_ref().filter(|r| !r.subtasks.is_empty()) {
+        summaries.push(format!(
+            "## Subtasks of the kept replays\n\n{}",
+            dexjoco_stats::subtasks::to_markdown(&r.subtasks)
+        ));
+    }
     // Where its replays were made, with a warning when in more than one place.
     if let Some(made_on) = dexjoco_stats::ReplayProvenance::read(path)? {
         if let Some(w) = made_on.warning() {

@@ -40,6 +40,8 @@ pub(crate) struct PhysicsSummary {
     pub(crate) deviation_at: Option<(usize, usize)>,
     /// SHA-256 of the replayed states' bits.
     pub(crate) states_hash: String,
+    /// Where each of the task's subtasks ended in the replay.
+    pub(crate) subtasks: Vec<dexjoco_core::SubtaskEnd>,
 }
 
 impl PhysicsSummary {
@@ -118,6 +120,7 @@ pub(crate) fn replay(
         deviation,
         deviation_at,
         states_hash: states_hash(&states),
+        subtasks: env.subtask_ends(),
     };
     Ok(Physics { states, summary })
 }

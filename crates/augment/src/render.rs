@@ -504,6 +504,7 @@ fn record_of(
         extended: physics.extended(),
         max_state_deviation: physics.deviation,
         deviation_at: physics.deviation_at,
+        subtasks: physics.subtasks.clone(),
         flags: Vec::new(),
         videos: Vec::new(),
         depth: Vec::new(),

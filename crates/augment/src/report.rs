@@ -46,6 +46,10 @@ pub struct ReplayRecord {
     pub max_state_deviation: f64,
     /// Where that largest deviation is: (frame, column).
     pub deviation_at: Option<(usize, usize)>,
+    /// Where each of the task's subtasks ended (the step, `None` when it never did),
+    /// the task spec's subtasks in order. Absent in replays made before subtasks existed.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub subtasks: Vec<dexjoco_core::SubtaskEnd>,
     /// The render checks this replay failed (empty: it passed them all). Absent in
     /// replays made before the checks existed.
     #[serde(default)]
@@ -94,6 +98,9 @@ pub struct EpisodeOutcome {
     pub max_state_deviation: f64,
     /// Replays kept for this episode (done now or earlier).
     pub replays_kept: usize,
+    /// Where each of the task's subtasks ended in the replay.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub subtasks: Vec<dexjoco_core::SubtaskEnd>,
 }
 
 impl EpisodeOutcome {

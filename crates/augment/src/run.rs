@@ -496,6 +496,7 @@ fn build_report(
                 extended: p.extended(),
                 max_state_deviation: p.deviation,
                 replays_kept: kept[i],
+                subtasks: p.subtasks.clone(),
             })
         })
         .collect();

@@ -37,7 +37,8 @@ pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_
 pub use task_set::TaskSet;
 pub use task_spec::{
     ArmTargetInit, Axis, BUILTIN_SPEC_FILES, BoxAxes, CameraSpec, Cmp, ConstraintKind, DerivedPose,
-    DynamicsRandomization, FrameRef, GeomSet, HandSource, HanoiDisk, JointRef, KeypadButton,
+    DynamicsRandomization, FrameRef, GeomSet, Hand, HandSource, HanoiDisk, JointRef, KeypadButton,
     LegStyle, NameKind, Node, Placement, PointRef, PoseSource, PrivilegedField, PrivilegedKind,
-    ResetSpec, StateObject, StateSpec, TableSpec, TaskSpec, TaskSpecError, Threshold, ZRule,
+    ResetSpec, StateObject, StateSpec, Subtask, SubtaskArm, SubtaskEnd, TableSpec, TaskSpec,
+    TaskSpecError, Threshold, ZRule,
 };

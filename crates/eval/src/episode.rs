@@ -62,6 +62,7 @@ struct Rollout {
     chunks: usize,
     held: usize,
     pressed: Vec<Vec<u8>>,
+    subtasks: Vec<dexjoco_core::SubtaskEnd>,
 }
 
 /// Runs episode `k` from `state0` into the staging folder `dir` (videos, rollout);
@@ -126,6 +127,7 @@ pub(crate) fn run_episode(
         task: stage.spec.id.clone(),
         success: rollout.success_step.is_some(),
         success_step: rollout.success_step,
+        subtasks: rollout.subtasks,
         steps: rollout.steps,
         warmup_steps: stage.warmup_steps(),
         ended_by: rollout.ended_by.into(),
@@ -182,6 +184,7 @@ impl Loop<'_> {
             chunks: 0,
             held: 0,
             pressed: Vec::new(),
+            subtasks: Vec::new(),
         };
         for _ in 0..self.stage.warmup_steps() {
             self.step(&CLICK_MOUSE_WARMUP, &mut out)?;
@@ -243,6 +246,16 @@ impl Loop<'_> {
             }
         }
         inference.drain()?;
+        let warmup = self.stage.warmup_steps();
+        out.subtasks = self
+            .env
+            .subtask_ends()
+            .into_iter()
+            .map(|mut e| {
+                e.step = e.step.map(|s| s.saturating_sub(warmup));
+                e
+            })
+            .collect();
         Ok(out)
     }
 

@@ -39,6 +39,10 @@ pub struct EpisodeRecord {
     pub success: bool,
     /// The step it succeeded on (after the warm-up, counted from the first observation).
     pub success_step: Option<usize>,
+    /// Where each of the task's subtasks ended, counted as `success_step` is (`None`:
+    /// never); absent in records made before subtasks existed.
+    #[serde(default)]
+    pub subtasks: Vec<dexjoco_core::SubtaskEnd>,
     /// Steps run (the last one ends the episode).
     pub steps: usize,
     /// Steps the click_mouse warm-up ran before the first observation.
@@ -210,6 +214,7 @@ mod tests {
             task: "bimanual_unlock_ipad".into(),
             success: true,
             success_step: Some(400),
+            subtasks: Vec::new(),
             steps: 401,
             warmup_steps: 0,
             ended_by: "success".into(),

@@ -10,8 +10,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let spec = TaskSpec::builtin(&task).ok_or("unknown task")?;
     let scene = load_task_scene(&source, spec)?;
     let mut x = 1u64.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut uniform = move || { x ^= x >> 12; x ^= x << 25; x ^= x >> 27; (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64 };
-    for _ in 0..8 { uniform(); }
+    let mut uniform = move || {
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for _ in 0..8 {
+        uniform();
+    }
     let s0 = TaskEnv::sample_initial_state(&scene, spec, &mut uniform)?;
     let p = scripted::plan(&scene, spec, &s0, "x", Variant::Demo)?;
     let actions = p.episode.array(Episode::ACTION).unwrap();
@@ -19,10 +26,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (t, a) in actions.rows().enumerate() {
         env.step(a)?;
         if t % 20 == 0 {
-            let vals: Vec<String> = nodes.iter().map(|n| {
-                let (b, o) = n.split_once('.').map_or((n.as_str(), None), |(b, o)| (b, Some(o)));
-                match o { Some(o) => format!("{n}={:?}", env.checker().output(b, o)), None => format!("{n}={:?}", env.checker().value(b)) }
-            }).collect();
+            let vals: Vec<String> = nodes
+                .iter()
+                .map(|n| {
+                    let (b, o) = n
+                        .split_once('.')
+                        .map_or((n.as_str(), None), |(b, o)| (b, Some(o)));
+                    match o {
+                        Some(o) => format!("{n}={:?}", env.checker().output(b, o)),
+                        None => format!("{n}={:?}", env.checker().value(b)),
+                    }
+                })
+                .collect();
             println!("{t}: {}", vals.join(" "));
         }
     }

@@ -11,10 +11,11 @@ use dexjoco_core::{
 use mujoco_rs::prelude::{MjData, MjModel, MjtDisableBit};
 
 use crate::checker::{Resolver, SuccessChecker, Verdict, name_id};
-use crate::subtasks::{SubtaskEnd, SubtaskTracker};
 use crate::control::{ARM_HOME, Robot, THUMB_HOME};
 use crate::error::SimError;
 use crate::scene::Scene;
+use crate::subtasks::SubtaskTracker;
+use dexjoco_core::SubtaskEnd;
 
 /// Options of a task environment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -33,6 +33,7 @@ pub use checker::{SuccessChecker, Verdict, name_id, unresolved_names};
 pub use control::{
     ARM_DOF, ARM_HOME, Arm, HOLD_EPS, OscGains, Robot, SUBSTEPS, mat_to_quat, orientation_error,
 };
+pub use dexjoco_core::SubtaskEnd;
 pub use egl::{
     EGL_DEVICE_ENV, EglDevice, EglProbe, gpu_devices, list_egl_devices, probe_egl, probe_renderer,
     requested_egl_device, share_llvmpipe_threads,
@@ -46,7 +47,7 @@ pub use render::{
 };
 pub use scene::{Scene, mujoco_library_path, mujoco_version, route_mujoco_warnings};
 pub use sheet::{SheetLayout, contact_sheet};
-pub use subtasks::{SubtaskEnd, SubtaskTracker};
+pub use subtasks::SubtaskTracker;
 
 /// Re-exported so callers can step and inspect the simulation without naming the crate.
 pub use mujoco_rs;

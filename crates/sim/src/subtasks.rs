@@ -4,20 +4,9 @@
 //! control step, so every rollout that runs through a [`TaskEnv`](crate::TaskEnv) (augment's
 //! replays, scripted plans, eval episodes) is segmented the same way.
 
-use dexjoco_core::TaskSpec;
-use serde::{Deserialize, Serialize};
+use dexjoco_core::{SubtaskEnd, TaskSpec};
 
 use crate::checker::SuccessChecker;
-
-/// Where one subtask ended in a rollout.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct SubtaskEnd {
-    /// The subtask's id.
-    pub id: String,
-    /// The step on which it ended (0-based: the state after action `step` satisfied its
-    /// end node), or `None` when it never did.
-    pub step: Option<usize>,
-}
 
 /// Follows a rollout's subtasks.
 #[derive(Debug, Clone)]

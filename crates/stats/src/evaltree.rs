@@ -33,6 +33,10 @@ pub struct EpisodeFolder {
     pub success: bool,
     /// What the name says was entered.
     pub entered: Entered,
+    /// Where each subtask ended, from the folder's `episode.json` (`dexjoco-data eval`'s
+    /// record); `None` without one (the reference client writes none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subtasks: Option<Vec<dexjoco_core::SubtaskEnd>>,
 }
 
 impl EpisodeFolder {
@@ -70,9 +74,24 @@ impl EpisodeFolder {
             index,
             success,
             entered,
+            subtasks: None,
         })
     }
+
+    /// The subtask ends an episode folder's record (`episode.json`) holds, when it has a
+    /// readable one that records them.
+    fn read_subtasks(dir: &Path) -> Option<Vec<dexjoco_core::SubtaskEnd>> {
+        #[derive(Deserialize)]
+        struct Record {
+            subtasks: Option<Vec<dexjoco_core::SubtaskEnd>>,
+        }
+        let bytes = fs_err::read(dir.join(EPISODE_RECORD)).ok()?;
+        serde_json::from_slice::<Record>(&bytes).ok()?.subtasks
+    }
 }
+
+/// The record `dexjoco-data eval` writes in each episode folder.
+pub const EPISODE_RECORD: &str = "episode.json";
 
 /// The parts of a run folder name `<task>[_rand_<x>]_seed<s>`.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -251,7 +270,8 @@ fn read_run(dir: &Path, root: &Path, name: RunName) -> Result<Run, StatsError> {
     for (entry, path, is_dir) in sorted_entries(dir)? {
         if is_dir {
             match EpisodeFolder::parse(&entry) {
-                Some(e) => {
+                Some(mut e) => {
+                    e.subtasks = EpisodeFolder::read_subtasks(&path);
                     if let Some(other) = episodes.iter().find(|o| o.index == e.index) {
                         return Err(StatsError::invalid(
                             &path,

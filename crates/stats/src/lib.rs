@@ -13,7 +13,8 @@
 //! - [`Health`] (part of [`DatasetStats`]) finds what would go wrong at training time:
 //!   flat dimensions, static leading frames, length outliers, duplicates, failed and
 //!   flagged replays.
-//! - [`ReplayStats`] reads an augment report: replay success rates per task.
+//! - [`ReplayStats`] reads an augment report: replay success rates per task, and the
+//!   subtasks of the kept replays ([`subtasks`]: completed, when, how long).
 //! - [`ReplayProvenance`] reads where a dataset's replays were made (CPU and program
 //!   versions, from each `replay.json`) and warns when it mixes places.
 //!
@@ -33,6 +34,7 @@ mod output;
 pub mod plot;
 mod provenance;
 mod replays;
+pub mod subtasks;
 mod success;
 
 pub use dataset::{

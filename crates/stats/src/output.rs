@@ -279,6 +279,11 @@ impl SuccessTable {
         }
         md.push_str(&self.to_markdown());
         md.push_str("\nSuccess rate (%), mean ± sample std (n - 1) over seeds; the average row averages the tasks per seed first.\n");
+        let progress = self.progress_markdown();
+        if !progress.is_empty() {
+            md.push('\n');
+            md.push_str(&progress);
+        }
         let files = [
             ("success_table.md", md),
             ("success_table.tex", self.to_latex()),

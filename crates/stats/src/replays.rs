@@ -44,6 +44,8 @@ struct ReplayRow {
     max_state_deviation: f64,
     #[serde(default)]
     extended: bool,
+    #[serde(default)]
+    subtasks: Vec<dexjoco_core::SubtaskEnd>,
 }
 
 /// One task's replay outcome.
@@ -109,12 +111,16 @@ pub struct ReplayStats {
     pub replays_per_episode: usize,
     /// Per task, sorted by task id.
     pub tasks: Vec<TaskReplays>,
+    /// Each task's subtasks over the kept replays: completed, when, how long.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub subtasks: Vec<crate::subtasks::SubtaskSummary>,
 }
 
 impl ReplayStats {
     /// Reads `augment_report.json` (the file itself, or the augment output folder holding
-    /// it). `Ok(None)` when a folder holds no report.
-    pub fn read(path: &Path) -> Result<Option<Self>, StatsError> {
+    /// it), the subtasks ordered as `tasks` says. `Ok(None)` when a folder holds no
+    /// report.
+    pub fn read(path: &Path, tasks: &dexjoco_core::TaskSet) -> Result<Option<Self>, StatsError> {
         let file = if path.is_dir() {
             let f = path.join(AUGMENT_REPORT);
             if !f.is_file() {
@@ -130,10 +136,10 @@ impl ReplayStats {
                 path: file.clone(),
                 source,
             })?;
-        Ok(Some(Self::from_report(report)))
+        Ok(Some(Self::from_report(report, tasks)))
     }
 
-    fn from_report(report: ReportFile) -> Self {
+    fn from_report(report: ReportFile, specs: &dexjoco_core::TaskSet) -> Self {
         let mut tasks: BTreeMap<String, TaskReplays> = BTreeMap::new();
         fn entry<'a>(
             tasks: &'a mut BTreeMap<String, TaskReplays>,
@@ -159,9 +165,17 @@ impl ReplayStats {
         for r in &report.dropped {
             entry(&mut tasks, &r.task).replays_dropped += 1;
         }
+        let subtasks = crate::subtasks::summarize(
+            report
+                .replays
+                .iter()
+                .map(|r| (r.task.as_str(), r.subtasks.as_slice())),
+            specs,
+        );
         Self {
             replays_per_episode: report.replays_per_episode,
             tasks: tasks.into_values().collect(),
+            subtasks,
         }
     }
 
@@ -201,6 +215,12 @@ impl ReplayStats {
                 t.replays_extended
             );
         }
+        if !self.subtasks.is_empty() {
+            s.push_str(
+                "\nSubtasks of the kept replays (steps: from the end of what each waits for):\n\n",
+            );
+            s.push_str(&crate::subtasks::to_markdown(&self.subtasks));
+        }
         s
     }
 }
@@ -225,7 +245,10 @@ mod tests {
               {"task": "b", "success": true, "max_state_deviation": 0.0},
               {"task": "b", "success": true, "max_state_deviation": 0.0}],
             "dropped": [{"task": "b", "success": false}]}"#;
-        let r = ReplayStats::from_report(serde_json::from_str(json).unwrap());
+        let r = ReplayStats::from_report(
+            serde_json::from_str(json).unwrap(),
+            dexjoco_core::TaskSet::builtin(),
+        );
         assert_eq!(r.tasks.len(), 2);
         let a = &r.tasks[0];
         assert_eq!((a.source_episodes, a.source_successes), (2, 1));

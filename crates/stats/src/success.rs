@@ -107,6 +107,184 @@ pub struct SuccessTable {
     /// left out of the table.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub left_out: Vec<LeftOutRun>,
+    /// How far the episodes of each cell got through the task's subtasks (from the
+    /// episodes' records, all seeds together), in table order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub progress: Vec<SubtaskProgress>,
+}
+
+/// How far one cell's episodes got through their task's subtasks.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SubtaskProgress {
+    /// Policy.
+    pub policy: String,
+    /// Regime.
+    pub regime: String,
+    /// Task id.
+    pub task: String,
+    /// Episodes whose record gives their subtasks (counted).
+    pub episodes: usize,
+    /// Episodes without such a record (a reference-made folder has none): not counted.
+    pub without_record: usize,
+    /// Per subtask, in the task spec's order: id, text and the episodes that completed it.
+    pub subtasks: Vec<SubtaskShare>,
+    /// Subtasks completed per counted episode, on average.
+    pub mean_completed: f64,
+}
+
+/// One subtask's completion over a cell's episodes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SubtaskShare {
+    /// Subtask id.
+    pub id: String,
+    /// Its text (the task spec's; the id for a task this build does not know).
+    pub text: String,
+    /// Episodes that completed it.
+    pub completed: usize,
+}
+
+impl SubtaskProgress {
+    /// Progress per (policy, regime, task) over `runs`, in the order of `cells`; cells
+    /// without any episode folder are left out.
+    fn of_runs(root: &Path, runs: &[Run], cells: &[SuccessCell]) -> Vec<Self> {
+        let specs = dexjoco_core::TaskSet::builtin();
+        cells
+            .iter()
+            .filter_map(|c| {
+                let episodes: Vec<&crate::evaltree::EpisodeFolder> = runs
+                    .iter()
+                    .filter(|r| {
+                        policy_of(root, r) == c.policy
+                            && r.name.regime == c.regime
+                            && r.name.task == c.task
+                    })
+                    .flat_map(|r| &r.episodes)
+                    .collect();
+                if episodes.is_empty() {
+                    return None;
+                }
+                let recorded: Vec<&Vec<dexjoco_core::SubtaskEnd>> = episodes
+                    .iter()
+                    .filter_map(|e| e.subtasks.as_ref())
+                    .collect();
+                let ids: Vec<String> = recorded
+                    .iter()
+                    .max_by_key(|s| s.len())
+                    .map(|s| s.iter().map(|e| e.id.clone()).collect())
+                    .unwrap_or_default();
+                let text = |i: usize, id: &str| {
+                    specs
+                        .get(&c.task)
+                        .and_then(|s| s.subtasks.get(i).filter(|st| st.id == id))
+                        .map_or_else(|| id.to_owned(), |st| st.text.clone())
+                };
+                let subtasks: Vec<SubtaskShare> = ids
+                    .iter()
+                    .enumerate()
+                    .map(|(i, id)| SubtaskShare {
+                        id: id.clone(),
+                        text: text(i, id),
+                        completed: recorded
+                            .iter()
+                            .filter(|s| s.iter().any(|e| &e.id == id && e.step.is_some()))
+                            .count(),
+                    })
+                    .collect();
+                let total: usize = subtasks.iter().map(|s| s.completed).sum();
+                Some(Self {
+                    policy: c.policy.clone(),
+                    regime: c.regime.clone(),
+                    task: c.task.clone(),
+                    episodes: recorded.len(),
+                    without_record: episodes.len() - recorded.len(),
+                    mean_completed: if recorded.is_empty() {
+                        0.0
+                    } else {
+                        total as f64 / recorded.len() as f64
+                    },
+                    subtasks,
+                })
+            })
+            .collect()
+    }
+}
+
+impl SuccessTable {
+    /// A Markdown table of the subtask progress of each cell (empty when no cell has
+    /// episode folders): per subtask the episodes that completed it, and the mean number
+    /// completed; cells whose folders carry no subtask records say so.
+    pub fn progress_markdown(&self) -> String {
+        use std::fmt::Write as _;
+        if self.progress.is_empty() {
+            return String::new();
+        }
+        let mut s = String::from(
+            "Subtask progress (episodes that completed each subtask, all seeds together):\n\n\
+             | Policy | Regime | Task | Episodes | Completed per subtask | Mean completed |\n\
+             |---|---|---|---:|---|---:|\n",
+        );
+        for p in &self.progress {
+            let (per, mean) = if p.episodes == 0 {
+                (
+                    "no subtask records (the folders have no `episode.json` of `dexjoco-data eval`: \
+                     reference-made)"
+                        .to_owned(),
+                    "-".to_owned(),
+                )
+            } else {
+                let per: Vec<String> = p
+                    .subtasks
+                    .iter()
+                    .map(|st| {
+                        format!(
+                            "{} {} ({:.0} %)",
+                            st.text,
+                            st.completed,
+                            100.0 * st.completed as f64 / p.episodes as f64
+                        )
+                    })
+                    .collect();
+                (
+                    per.join("; "),
+                    format!("{:.2} of {}", p.mean_completed, p.subtasks.len()),
+                )
+            };
+            let missing = if p.without_record > 0 && p.episodes > 0 {
+                format!(" (+{} without records)", p.without_record)
+            } else if p.episodes == 0 {
+                format!(" ({} without records)", p.without_record)
+            } else {
+                String::new()
+            };
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {}{missing} | {per} | {mean} |",
+                p.policy,
+                regime_name(&p.regime),
+                task_name(&p.task),
+                p.episodes,
+            );
+        }
+        s
+    }
+}
+
+/// The policy of a run: the path of its parent below the root, or the root's own name
+/// when the run sits directly in it (or is the root).
+fn policy_of(root: &Path, run: &Run) -> String {
+    let parent = run.relative.parent().unwrap_or(Path::new(""));
+    if parent.as_os_str().is_empty() {
+        root.canonicalize()
+            .ok()
+            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| "policy".into())
+    } else {
+        parent
+            .components()
+            .map(|c| c.as_os_str().to_string_lossy())
+            .collect::<Vec<_>>()
+            .join("/")
+    }
 }
 
 impl SuccessTable {
@@ -150,6 +328,7 @@ impl SuccessTable {
         tasks.sort_by_key(|t| (table_position(t), t.clone()));
         let cells = Self::cells(rates, &policies, &regimes, &tasks);
         let averages = Self::averages(&cells, &policies, &regimes, &tasks, &mut warnings);
+        let progress = SubtaskProgress::of_runs(root, &runs, &cells);
         Ok(Self {
             source: root.to_path_buf(),
             example: root.join(crate::language::EXAMPLE_MARKER).is_file(),
@@ -160,6 +339,7 @@ impl SuccessTable {
             averages,
             warnings,
             left_out,
+            progress,
         })
     }
 
@@ -169,23 +349,9 @@ impl SuccessTable {
         root: &Path,
         runs: &[Run],
     ) -> Result<BTreeMap<(String, String, String), PerSeed>, StatsError> {
-        let root_name = root
-            .canonicalize()
-            .ok()
-            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-            .unwrap_or_else(|| "policy".into());
         let mut rates: BTreeMap<(String, String, String), PerSeed> = BTreeMap::new();
         for run in runs {
-            let parent = run.relative.parent().unwrap_or(Path::new(""));
-            let policy = if parent.as_os_str().is_empty() {
-                root_name.clone()
-            } else {
-                parent
-                    .components()
-                    .map(|c| c.as_os_str().to_string_lossy())
-                    .collect::<Vec<_>>()
-                    .join("/")
-            };
+            let policy = policy_of(root, run);
             let Some((rate, episodes)) = run.success_rate() else {
                 continue;
             };

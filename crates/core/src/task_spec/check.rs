@@ -254,9 +254,9 @@ impl TaskSpec {
                 min_fingers,
                 opposed,
                 ..
-            } if !(1..=4 - u32::from(*opposed)).contains(min_fingers) => {
-                bad("min_fingers must be 1 to 3 (opposed by the thumb or palm), 1 to 4 if not opposed")
-            }
+            } if !(1..=4 - u32::from(*opposed)).contains(min_fingers) => bad(
+                "min_fingers must be 1 to 3 (opposed by the thumb or palm), 1 to 4 if not opposed",
+            ),
             Node::Grasp { hand, .. }
                 if (*hand == Hand::Single) != (self.setup == ArmSetup::SingleArm) =>
             {

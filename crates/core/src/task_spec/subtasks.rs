@@ -50,6 +50,17 @@ impl SubtaskArm {
     }
 }
 
+/// Where one subtask ended in a rollout (a replay, a scripted plan, an eval episode).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+pub struct SubtaskEnd {
+    /// The subtask's id.
+    pub id: String,
+    /// The step on which it ended (0-based: the state after action `step` satisfied its
+    /// end node, so frames `step + 1` on belong to the next subtask), or `None` when it
+    /// never did.
+    pub step: Option<usize>,
+}
+
 /// One subtask of a task.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -157,10 +168,8 @@ impl TaskSpec {
                     }
                     Some(_) => {}
                     None => {
-                        return Err(self.invalid(
-                            &field("after"),
-                            format!("'{a}' is not an earlier subtask"),
-                        ));
+                        return Err(self
+                            .invalid(&field("after"), format!("'{a}' is not an earlier subtask")));
                     }
                 }
             }
@@ -171,10 +180,7 @@ impl TaskSpec {
     /// A subtask's end is a node (not an output) whose inputs read no hand of another arm.
     fn check_subtask_end(&self, field: &str, s: &Subtask) -> Result<(), TaskSpecError> {
         if s.end.contains('.') || !self.nodes.contains_key(&s.end) {
-            return Err(self.invalid(
-                field,
-                format!("'{}' is not a node of this task", s.end),
-            ));
+            return Err(self.invalid(field, format!("'{}' is not a node of this task", s.end)));
         }
         let mut stack = vec![s.end.as_str()];
         let mut seen = BTreeSet::new();

@@ -117,6 +117,10 @@ pub struct ReplayLabel {
     /// The dynamics draw (`--dynamics`): `[{kind, target, original, value}]`.
     #[serde(default)]
     pub dynamics: Option<Value>,
+    /// Where each of the task's subtasks ended (replays made before subtasks existed
+    /// have none).
+    #[serde(default)]
+    pub subtasks: Vec<dexjoco_core::SubtaskEnd>,
 }
 
 impl ReplayLabel {
