@@ -141,9 +141,9 @@ fn write_plan_record(
 const PLAN_RECORD: &str = "plan.json";
 
 /// `grasp_hammer 374, hit_nail 587, drive_nail -`: where each subtask ended.
-fn subtask_words(ends: &[dexjoco_core::SubtaskEnd]) -> String {
+fn subtask_words(ends: &[dexjoco_core::SubtaskSpan]) -> String {
     ends.iter()
-        .map(|e| format!("{} {}", e.id, e.step.map_or("-".into(), |s| s.to_string())))
+        .map(|e| format!("{} {}", e.id, e.end.map_or("-".into(), |s| s.to_string())))
         .collect::<Vec<_>>()
         .join(", ")
 }

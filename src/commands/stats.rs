@@ -216,7 +216,7 @@ fn write_dataset_stats(
             .collect();
         json.insert("dataset_left_out".into(), list.into());
     }
-    let replays = dexjoco_stats::ReplayStats::read(path, tasks)?;
+    let replays = dexjoco_stats::ReplayStats::read(path)?;
     let dir = out.join("dataset");
     let files = write_whole(&dir, |d| {
         let mut files = stats.write(d)?;

@@ -41,7 +41,7 @@ pub(crate) struct PhysicsSummary {
     /// SHA-256 of the replayed states' bits.
     pub(crate) states_hash: String,
     /// Where each of the task's subtasks ended in the replay.
-    pub(crate) subtasks: Vec<dexjoco_core::SubtaskEnd>,
+    pub(crate) subtasks: Vec<dexjoco_core::SubtaskSpan>,
 }
 
 impl PhysicsSummary {
@@ -120,7 +120,7 @@ pub(crate) fn replay(
         deviation,
         deviation_at,
         states_hash: states_hash(&states),
-        subtasks: env.subtask_ends(),
+        subtasks: env.subtask_spans(),
     };
     Ok(Physics { states, summary })
 }

@@ -49,7 +49,7 @@ pub struct ReplayRecord {
     /// Where each of the task's subtasks ended (the step, `None` when it never did),
     /// the task spec's subtasks in order. Absent in replays made before subtasks existed.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub subtasks: Vec<dexjoco_core::SubtaskEnd>,
+    pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
     /// The render checks this replay failed (empty: it passed them all). Absent in
     /// replays made before the checks existed.
     #[serde(default)]
@@ -100,7 +100,7 @@ pub struct EpisodeOutcome {
     pub replays_kept: usize,
     /// Where each of the task's subtasks ended in the replay.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub subtasks: Vec<dexjoco_core::SubtaskEnd>,
+    pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
 }
 
 impl EpisodeOutcome {

@@ -39,6 +39,6 @@ pub use task_spec::{
     ArmTargetInit, Axis, BUILTIN_SPEC_FILES, BoxAxes, CameraSpec, Cmp, ConstraintKind, DerivedPose,
     DynamicsRandomization, FrameRef, GeomSet, Hand, HandSource, HanoiDisk, JointRef, KeypadButton,
     LegStyle, NameKind, Node, Placement, PointRef, PoseSource, PrivilegedField, PrivilegedKind,
-    ResetSpec, StateObject, StateSpec, Subtask, SubtaskArm, SubtaskEnd, TableSpec, TaskSpec,
+    ResetSpec, StateObject, StateSpec, Subtask, SubtaskArm, SubtaskSpan, TableSpec, TaskSpec,
     TaskSpecError, Threshold, ZRule,
 };

@@ -62,7 +62,7 @@ struct Rollout {
     chunks: usize,
     held: usize,
     pressed: Vec<Vec<u8>>,
-    subtasks: Vec<dexjoco_core::SubtaskEnd>,
+    subtasks: Vec<dexjoco_core::SubtaskSpan>,
 }
 
 /// Runs episode `k` from `state0` into the staging folder `dir` (videos, rollout);
@@ -249,10 +249,11 @@ impl Loop<'_> {
         let warmup = self.stage.warmup_steps();
         out.subtasks = self
             .env
-            .subtask_ends()
+            .subtask_spans()
             .into_iter()
             .map(|mut e| {
-                e.step = e.step.map(|s| s.saturating_sub(warmup));
+                e.start = e.start.map(|s| s.saturating_sub(warmup));
+                e.end = e.end.map(|s| s.saturating_sub(warmup));
                 e
             })
             .collect();

@@ -42,7 +42,7 @@ pub struct EpisodeRecord {
     /// Where each of the task's subtasks ended, counted as `success_step` is (`None`:
     /// never); absent in records made before subtasks existed.
     #[serde(default)]
-    pub subtasks: Vec<dexjoco_core::SubtaskEnd>,
+    pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
     /// Steps run (the last one ends the episode).
     pub steps: usize,
     /// Steps the click_mouse warm-up ran before the first observation.

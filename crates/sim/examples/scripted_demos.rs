@@ -44,7 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let ends: Vec<String> = p
             .subtasks
             .iter()
-            .map(|e| format!("{} {}", e.id, e.step.map_or("-".into(), |s| s.to_string())))
+            .map(|e| format!("{} {}", e.id, e.end.map_or("-".into(), |s| s.to_string())))
             .collect();
         println!("  subtasks: {}", ends.join(", "));
     }

@@ -15,7 +15,7 @@ use crate::control::{ARM_HOME, Robot, THUMB_HOME};
 use crate::error::SimError;
 use crate::scene::Scene;
 use crate::subtasks::SubtaskTracker;
-use dexjoco_core::SubtaskEnd;
+use dexjoco_core::SubtaskSpan;
 
 /// Options of a task environment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -440,8 +440,8 @@ impl TaskEnv {
     }
 
     /// Where each of the task's subtasks ended so far (`None`: not yet).
-    pub fn subtask_ends(&self) -> Vec<SubtaskEnd> {
-        self.subtasks.ends()
+    pub fn subtask_spans(&self) -> Vec<SubtaskSpan> {
+        self.subtasks.spans()
     }
 
     /// Applies every action (the reference replay does not stop at success or failure)

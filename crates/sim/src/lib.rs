@@ -33,7 +33,7 @@ pub use checker::{SuccessChecker, Verdict, name_id, unresolved_names};
 pub use control::{
     ARM_DOF, ARM_HOME, Arm, HOLD_EPS, OscGains, Robot, SUBSTEPS, mat_to_quat, orientation_error,
 };
-pub use dexjoco_core::SubtaskEnd;
+pub use dexjoco_core::SubtaskSpan;
 pub use egl::{
     EGL_DEVICE_ENV, EglDevice, EglProbe, gpu_devices, list_egl_devices, probe_egl, probe_renderer,
     requested_egl_device, share_llvmpipe_threads,

@@ -4,7 +4,7 @@
 //! control step, so every rollout that runs through a [`TaskEnv`](crate::TaskEnv) (augment's
 //! replays, scripted plans, eval episodes) is segmented the same way.
 
-use dexjoco_core::{SubtaskEnd, TaskSpec};
+use dexjoco_core::{SubtaskSpan, TaskSpec};
 
 use crate::checker::SuccessChecker;
 
@@ -12,6 +12,7 @@ use crate::checker::SuccessChecker;
 #[derive(Debug, Clone)]
 pub struct SubtaskTracker {
     ids: Vec<String>,
+    texts: Vec<String>,
     /// Each subtask's end node, by its name.
     ends: Vec<String>,
     before: Vec<Vec<usize>>,
@@ -24,6 +25,7 @@ impl SubtaskTracker {
     pub fn new(spec: &TaskSpec) -> Self {
         Self {
             ids: spec.subtasks.iter().map(|s| s.id.clone()).collect(),
+            texts: spec.subtasks.iter().map(|s| s.text.clone()).collect(),
             ends: spec.subtasks.iter().map(|s| s.end.clone()).collect(),
             before: spec.subtask_predecessors(),
             at: vec![None; spec.subtasks.len()],
@@ -50,14 +52,24 @@ impl SubtaskTracker {
         self.step += 1;
     }
 
-    /// Each subtask's end so far, in the spec's order.
-    pub fn ends(&self) -> Vec<SubtaskEnd> {
-        self.ids
-            .iter()
-            .zip(&self.at)
-            .map(|(id, step)| SubtaskEnd {
-                id: id.clone(),
-                step: *step,
+    /// Each subtask's span so far, in the spec's order: it starts on the frame after the
+    /// last of those it waits for ended (never after its own end: one that ends on the
+    /// same step as its predecessor spans that one frame).
+    pub fn spans(&self) -> Vec<SubtaskSpan> {
+        (0..self.ids.len())
+            .map(|i| {
+                let start = self.before[i]
+                    .iter()
+                    .map(|&b| self.at[b])
+                    .collect::<Option<Vec<usize>>>()
+                    .map(|ends| ends.into_iter().max().map_or(0, |e| e + 1))
+                    .map(|s| self.at[i].map_or(s, |end| s.min(end)));
+                SubtaskSpan {
+                    id: self.ids[i].clone(),
+                    text: self.texts[i].clone(),
+                    start,
+                    end: self.at[i],
+                }
             })
             .collect()
     }

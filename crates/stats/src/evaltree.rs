@@ -36,7 +36,7 @@ pub struct EpisodeFolder {
     /// Where each subtask ended, from the folder's `episode.json` (`dexjoco-data eval`'s
     /// record); `None` without one (the reference client writes none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub subtasks: Option<Vec<dexjoco_core::SubtaskEnd>>,
+    pub subtasks: Option<Vec<dexjoco_core::SubtaskSpan>>,
 }
 
 impl EpisodeFolder {
@@ -80,10 +80,10 @@ impl EpisodeFolder {
 
     /// The subtask ends an episode folder's record (`episode.json`) holds, when it has a
     /// readable one that records them.
-    fn read_subtasks(dir: &Path) -> Option<Vec<dexjoco_core::SubtaskEnd>> {
+    fn read_subtasks(dir: &Path) -> Option<Vec<dexjoco_core::SubtaskSpan>> {
         #[derive(Deserialize)]
         struct Record {
-            subtasks: Option<Vec<dexjoco_core::SubtaskEnd>>,
+            subtasks: Option<Vec<dexjoco_core::SubtaskSpan>>,
         }
         let bytes = fs_err::read(dir.join(EPISODE_RECORD)).ok()?;
         serde_json::from_slice::<Record>(&bytes).ok()?.subtasks

@@ -45,7 +45,7 @@ struct ReplayRow {
     #[serde(default)]
     extended: bool,
     #[serde(default)]
-    subtasks: Vec<dexjoco_core::SubtaskEnd>,
+    subtasks: Vec<dexjoco_core::SubtaskSpan>,
 }
 
 /// One task's replay outcome.
@@ -118,9 +118,8 @@ pub struct ReplayStats {
 
 impl ReplayStats {
     /// Reads `augment_report.json` (the file itself, or the augment output folder holding
-    /// it), the subtasks ordered as `tasks` says. `Ok(None)` when a folder holds no
-    /// report.
-    pub fn read(path: &Path, tasks: &dexjoco_core::TaskSet) -> Result<Option<Self>, StatsError> {
+    /// it). `Ok(None)` when a folder holds no report.
+    pub fn read(path: &Path) -> Result<Option<Self>, StatsError> {
         let file = if path.is_dir() {
             let f = path.join(AUGMENT_REPORT);
             if !f.is_file() {
@@ -136,10 +135,10 @@ impl ReplayStats {
                 path: file.clone(),
                 source,
             })?;
-        Ok(Some(Self::from_report(report, tasks)))
+        Ok(Some(Self::from_report(report)))
     }
 
-    fn from_report(report: ReportFile, specs: &dexjoco_core::TaskSet) -> Self {
+    fn from_report(report: ReportFile) -> Self {
         let mut tasks: BTreeMap<String, TaskReplays> = BTreeMap::new();
         fn entry<'a>(
             tasks: &'a mut BTreeMap<String, TaskReplays>,
@@ -170,7 +169,6 @@ impl ReplayStats {
                 .replays
                 .iter()
                 .map(|r| (r.task.as_str(), r.subtasks.as_slice())),
-            specs,
         );
         Self {
             replays_per_episode: report.replays_per_episode,
@@ -245,10 +243,7 @@ mod tests {
               {"task": "b", "success": true, "max_state_deviation": 0.0},
               {"task": "b", "success": true, "max_state_deviation": 0.0}],
             "dropped": [{"task": "b", "success": false}]}"#;
-        let r = ReplayStats::from_report(
-            serde_json::from_str(json).unwrap(),
-            dexjoco_core::TaskSet::builtin(),
-        );
+        let r = ReplayStats::from_report(serde_json::from_str(json).unwrap());
         assert_eq!(r.tasks.len(), 2);
         let a = &r.tasks[0];
         assert_eq!((a.source_episodes, a.source_successes), (2, 1));

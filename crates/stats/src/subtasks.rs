@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 
-use dexjoco_core::{SubtaskEnd, TaskSet};
+use dexjoco_core::SubtaskSpan;
 use serde::{Deserialize, Serialize};
 
 /// One subtask over a set of rollouts.
@@ -42,41 +42,33 @@ impl SubtaskSummary {
     }
 }
 
-/// Summaries of every subtask of every task, from each rollout's task and subtask ends
-/// (rollouts without ends, made before subtasks existed, are not counted).
+/// Summaries of every subtask of every task, from each rollout's task and subtask spans
+/// (rollouts without spans, made before subtasks existed, are not counted).
 pub fn summarize<'a>(
-    rollouts: impl IntoIterator<Item = (&'a str, &'a [SubtaskEnd])>,
-    tasks: &TaskSet,
+    rollouts: impl IntoIterator<Item = (&'a str, &'a [SubtaskSpan])>,
 ) -> Vec<SubtaskSummary> {
-    // (task, index) -> (ends, durations); rollouts per task.
-    let mut ends: BTreeMap<(String, usize), (String, Vec<usize>, Vec<usize>)> = BTreeMap::new();
+    // (task, index) -> (id, text, ends, durations); rollouts per task.
+    type Seen = (String, String, Vec<usize>, Vec<usize>);
+    let mut seen: BTreeMap<(String, usize), Seen> = BTreeMap::new();
     let mut counted: BTreeMap<String, usize> = BTreeMap::new();
-    for (task, subtasks) in rollouts {
-        if subtasks.is_empty() {
+    for (task, spans) in rollouts {
+        if spans.is_empty() {
             continue;
         }
         *counted.entry(task.to_owned()).or_default() += 1;
-        let before = predecessors(tasks, task, subtasks.len());
-        for (i, e) in subtasks.iter().enumerate() {
-            let entry = ends
-                .entry((task.to_owned(), i))
-                .or_insert_with(|| (e.id.clone(), Vec::new(), Vec::new()));
-            let Some(end) = e.step else { continue };
-            let start = before[i]
-                .iter()
-                .filter_map(|&b| subtasks.get(b).and_then(|s| s.step))
-                .max()
-                .map_or(0, |s| s + 1);
-            entry.1.push(end);
-            entry.2.push(end.saturating_sub(start) + 1);
+        for (i, s) in spans.iter().enumerate() {
+            let entry = seen.entry((task.to_owned(), i)).or_insert_with(|| {
+                let text = if s.text.is_empty() { &s.id } else { &s.text };
+                (s.id.clone(), text.clone(), Vec::new(), Vec::new())
+            });
+            if let Some(end) = s.end {
+                entry.2.push(end);
+                entry.3.push(end + 1 - s.start.unwrap_or(0).min(end));
+            }
         }
     }
-    ends.into_iter()
-        .map(|((task, i), (id, at, steps))| {
-            let text = tasks
-                .get(&task)
-                .and_then(|s| s.subtasks.get(i))
-                .map_or_else(|| id.clone(), |s| s.text.clone());
+    seen.into_iter()
+        .map(|((task, _), (id, text, at, steps))| {
             let mean = |v: &[usize]| {
                 (!v.is_empty()).then(|| v.iter().sum::<usize>() as f64 / v.len() as f64)
             };
@@ -93,17 +85,6 @@ pub fn summarize<'a>(
             }
         })
         .collect()
-}
-
-/// Each subtask's predecessors in the task's spec (the previous one when the spec is
-/// unknown or has other subtasks).
-fn predecessors(tasks: &TaskSet, task: &str, n: usize) -> Vec<Vec<usize>> {
-    match tasks.get(task) {
-        Some(spec) if spec.subtasks.len() == n => spec.subtask_predecessors(),
-        _ => (0..n)
-            .map(|i| i.checked_sub(1).into_iter().collect())
-            .collect(),
-    }
 }
 
 /// A Markdown table of the summaries.
@@ -136,42 +117,39 @@ pub fn to_markdown(summaries: &[SubtaskSummary]) -> String {
 mod tests {
     use super::*;
 
-    fn end(id: &str, step: Option<usize>) -> SubtaskEnd {
-        SubtaskEnd {
+    fn span(id: &str, start: Option<usize>, end: Option<usize>) -> SubtaskSpan {
+        SubtaskSpan {
             id: id.into(),
-            step,
+            text: format!("the text of {id}"),
+            start,
+            end,
         }
     }
 
     #[test]
-    fn durations_run_from_what_a_subtask_waits_for() {
-        let tasks = TaskSet::builtin();
+    fn durations_run_from_each_start_to_its_end() {
         // bimanual_assembly: grasp_peg (right), reach_tray (left), insert_peg (both).
         let a = [
-            end("grasp_peg", Some(250)),
-            end("reach_tray", Some(100)),
-            end("insert_peg", Some(1000)),
+            span("grasp_peg", Some(0), Some(250)),
+            span("reach_tray", Some(0), Some(100)),
+            span("insert_peg", Some(251), Some(1000)),
         ];
         let b = [
-            end("grasp_peg", Some(260)),
-            end("reach_tray", Some(110)),
-            end("insert_peg", None),
+            span("grasp_peg", Some(0), Some(260)),
+            span("reach_tray", Some(0), Some(110)),
+            span("insert_peg", Some(261), None),
         ];
-        let s = summarize(
-            [("bimanual_assembly", &a[..]), ("bimanual_assembly", &b[..])],
-            tasks,
-        );
+        let s = summarize([("bimanual_assembly", &a[..]), ("bimanual_assembly", &b[..])]);
         assert_eq!(s.len(), 3);
         assert_eq!((s[0].completed, s[0].rollouts), (2, 2));
-        assert_eq!(
-            s[0].mean_steps,
-            Some(256.0),
-            "from the start: 251 and 261 steps"
-        );
-        // insert_peg waits for both: from step 251 to 1000.
+        assert_eq!(s[0].mean_steps, Some(256.0), "251 and 261 steps");
         assert_eq!((s[2].completed, s[2].min_steps), (1, Some(750)));
-        assert_eq!(s[2].text, "insert the peg into the hole");
         let md = to_markdown(&s);
-        assert!(md.contains("| bimanual_assembly | insert the peg into the hole | 1/2 (50 %) | 1000 | 750 (750-750) |"), "{md}");
+        assert!(
+            md.contains(
+                "| bimanual_assembly | the text of insert_peg | 1/2 (50 %) | 1000 | 750 (750-750) |"
+            ),
+            "{md}"
+        );
     }
 }

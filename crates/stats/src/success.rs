@@ -137,7 +137,7 @@ pub struct SubtaskProgress {
 pub struct SubtaskShare {
     /// Subtask id.
     pub id: String,
-    /// Its text (the task spec's; the id for a task this build does not know).
+    /// Its text (as the records give it; the id when they give none).
     pub text: String,
     /// Episodes that completed it.
     pub completed: usize,
@@ -147,7 +147,6 @@ impl SubtaskProgress {
     /// Progress per (policy, regime, task) over `runs`, in the order of `cells`; cells
     /// without any episode folder are left out.
     fn of_runs(root: &Path, runs: &[Run], cells: &[SuccessCell]) -> Vec<Self> {
-        let specs = dexjoco_core::TaskSet::builtin();
         cells
             .iter()
             .filter_map(|c| {
@@ -163,7 +162,7 @@ impl SubtaskProgress {
                 if episodes.is_empty() {
                     return None;
                 }
-                let recorded: Vec<&Vec<dexjoco_core::SubtaskEnd>> = episodes
+                let recorded: Vec<&Vec<dexjoco_core::SubtaskSpan>> = episodes
                     .iter()
                     .filter_map(|e| e.subtasks.as_ref())
                     .collect();
@@ -172,21 +171,21 @@ impl SubtaskProgress {
                     .max_by_key(|s| s.len())
                     .map(|s| s.iter().map(|e| e.id.clone()).collect())
                     .unwrap_or_default();
-                let text = |i: usize, id: &str| {
-                    specs
-                        .get(&c.task)
-                        .and_then(|s| s.subtasks.get(i).filter(|st| st.id == id))
-                        .map_or_else(|| id.to_owned(), |st| st.text.clone())
+                let text = |id: &str| {
+                    recorded
+                        .iter()
+                        .flat_map(|s| s.iter())
+                        .find(|e| e.id == id && !e.text.is_empty())
+                        .map_or_else(|| id.to_owned(), |e| e.text.clone())
                 };
                 let subtasks: Vec<SubtaskShare> = ids
                     .iter()
-                    .enumerate()
-                    .map(|(i, id)| SubtaskShare {
+                    .map(|id| SubtaskShare {
                         id: id.clone(),
-                        text: text(i, id),
+                        text: text(id),
                         completed: recorded
                             .iter()
-                            .filter(|s| s.iter().any(|e| &e.id == id && e.step.is_some()))
+                            .filter(|s| s.iter().any(|e| &e.id == id && e.completed()))
                             .count(),
                     })
                     .collect();

@@ -43,7 +43,7 @@ pub use check::NameKind;
 pub use nodes::*;
 pub use privileged::{PrivilegedField, PrivilegedKind};
 pub use state::*;
-pub use subtasks::{Subtask, SubtaskArm, SubtaskEnd};
+pub use subtasks::{Subtask, SubtaskArm, SubtaskSpan};
 
 /// One DexJoCo task.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

@@ -50,15 +50,29 @@ impl SubtaskArm {
     }
 }
 
-/// Where one subtask ended in a rollout (a replay, a scripted plan, an eval episode).
+/// When one subtask ran in a rollout (a replay, a scripted plan, an eval episode):
+/// frames `start` to `end` (the frame before action `k` is frame `k`).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-pub struct SubtaskEnd {
+pub struct SubtaskSpan {
     /// The subtask's id.
     pub id: String,
-    /// The step on which it ended (0-based: the state after action `step` satisfied its
-    /// end node, so frames `step + 1` on belong to the next subtask), or `None` when it
-    /// never did.
-    pub step: Option<usize>,
+    /// Its text (from the task spec the rollout ran under).
+    #[serde(default)]
+    pub text: String,
+    /// The first frame of it: the frame after the last of the subtasks it waits for
+    /// ended (0 for one that waits for none); `None` when those never all ended.
+    #[serde(default)]
+    pub start: Option<usize>,
+    /// The step on which it ended (0-based: the state after action `end` satisfied its
+    /// end node; frame `end` is its last), or `None` when it never did.
+    pub end: Option<usize>,
+}
+
+impl SubtaskSpan {
+    /// Whether it ended.
+    pub fn completed(&self) -> bool {
+        self.end.is_some()
+    }
 }
 
 /// One subtask of a task.

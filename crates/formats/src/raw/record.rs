@@ -120,7 +120,7 @@ pub struct ReplayLabel {
     /// Where each of the task's subtasks ended (replays made before subtasks existed
     /// have none).
     #[serde(default)]
-    pub subtasks: Vec<dexjoco_core::SubtaskEnd>,
+    pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
 }
 
 impl ReplayLabel {

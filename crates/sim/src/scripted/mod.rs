@@ -316,7 +316,7 @@ impl Recorder {
     pub fn finish(self, id: &str) -> Result<Planned, SimError> {
         let success_at = self.success_at;
         let failed = self.failed;
-        let subtasks = self.env.subtask_ends();
+        let subtasks = self.env.subtask_spans();
         Ok(Planned {
             episode: self.into_episode(id)?,
             success_at,
@@ -395,7 +395,7 @@ pub struct Planned {
     /// The task's failure condition was reached.
     pub failed: bool,
     /// Where each of the task's subtasks ended in the recording.
-    pub subtasks: Vec<crate::SubtaskEnd>,
+    pub subtasks: Vec<crate::SubtaskSpan>,
 }
 
 /// Which plan to make: the task's demonstration, or a deliberately wrong one that
