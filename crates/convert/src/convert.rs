@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use dexjoco_core::{Progress, TaskSet};
+use dexjoco_formats::dataset::language::subtask_rows;
 use dexjoco_formats::dataset::{
     DatasetWriter, PreparedEpisode, V3Options, V3Writer, V21Writer, VideoLayout, ZarrWriter,
 };
@@ -346,6 +347,9 @@ where
                     *i,
                 )?;
                 p.label.clone_from(label);
+                if let Some(l) = label {
+                    p.subtasks = subtask_rows(&l.subtasks, p.skipped, p.len());
+                }
                 if options.depth {
                     crate::depth::add_depth(&mut p, input, &options.selection, layout, &work, *i)?;
                 }

@@ -169,6 +169,7 @@ pub fn prepare(
         privileged: None,
         privileged_names: Vec::new(),
         depth: Vec::new(),
+        subtasks: Vec::new(),
     })
 }
 

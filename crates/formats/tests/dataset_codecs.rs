@@ -95,6 +95,7 @@ fn episode(e: usize, n: usize, instruction: &str, video: Option<VideoPart>) -> P
         privileged: None,
         privileged_names: Vec::new(),
         depth: Vec::new(),
+        subtasks: Vec::new(),
     }
 }
 

@@ -92,6 +92,8 @@ pub enum DType {
     Int64,
     /// Frames of a video file.
     Video,
+    /// lerobot 0.6's language rows (lists of row structs).
+    Language,
 }
 
 /// One feature of `info.json`.
@@ -254,6 +256,47 @@ impl Features {
 }
 
 impl Features {
+    /// With lerobot 0.6's two language columns (when `language`), after the others.
+    #[must_use]
+    pub fn with_language(mut self, language: bool) -> Self {
+        if language {
+            for key in [
+                super::language::LANGUAGE_PERSISTENT,
+                super::language::LANGUAGE_EVENTS,
+            ] {
+                let feature = Feature {
+                    dtype: DType::Language,
+                    shape: vec![1],
+                    names: None,
+                    info: None,
+                };
+                self.0.push((key.to_owned(), feature));
+            }
+        }
+        self
+    }
+
+    /// With a per-frame `subtask_index` (LeRobot v2.1), after `task_index`.
+    #[must_use]
+    pub fn with_subtask_index(mut self, subtasks: bool) -> Self {
+        if subtasks {
+            let at = self
+                .0
+                .iter()
+                .position(|(k, _)| k == "task_index")
+                .map_or(self.0.len(), |i| i + 1);
+            let feature = Feature {
+                dtype: DType::Int64,
+                shape: vec![1],
+                names: None,
+                info: None,
+            };
+            self.0
+                .insert(at, (super::language::SUBTASK_INDEX.to_owned(), feature));
+        }
+        self
+    }
+
     /// These features with the privileged state (`--privileged-state`, float32 with one
     /// name per column) after `observation.state`; unchanged when `names` is empty.
     #[must_use]

@@ -8,6 +8,7 @@ use dexjoco_video::ConcatInput;
 use parquet::arrow::ArrowWriter;
 use serde_json::Value;
 
+use super::language::{LANGUAGE_EVENTS, LANGUAGE_PERSISTENT, events_column, persistent_column};
 use super::depth::DepthVideoMeta;
 use super::episode_labels::label_columns;
 use super::lerobot_info::{
@@ -169,6 +170,9 @@ pub struct V3Writer {
     episodes: Vec<EpisodeRow>,
     tasks: Tasks,
     frames: usize,
+    /// Whether the episodes carry lerobot 0.6's language columns (their subtasks): as
+    /// the first episode does.
+    language: bool,
 }
 
 impl std::fmt::Debug for V3Writer {
@@ -220,6 +224,7 @@ impl V3Writer {
             episodes: Vec::new(),
             tasks: Tasks::default(),
             frames: 0,
+            language: !first.subtasks.is_empty(),
         })
     }
 
@@ -487,7 +492,8 @@ impl V3Writer {
                     is_depth_map: false,
                 })
             })
-            .with_privileged(&self.privileged_names);
+            .with_privileged(&self.privileged_names)
+            .with_language(self.language);
         Info {
             version: InfoVersion::V3 {
                 data_files_size_in_mb: (self.options.data_file_mb.round() as u64).max(1),
@@ -577,7 +583,16 @@ impl DatasetWriter for V3Writer {
         let from = self.frames;
         let mut index_st = BTreeMap::new();
         let timestamps = index_stats(&mut index_st, n, self.fps, episode_index, from, task_index);
-        let columns = data_columns(&ep, &timestamps, episode_index, from, task_index);
+        let mut columns = data_columns(&ep, &timestamps, episode_index, from, task_index);
+        if self.language {
+            columns.extend([
+                (
+                    LANGUAGE_PERSISTENT.to_owned(),
+                    persistent_column(&ep.subtasks, self.fps, n),
+                ),
+                (LANGUAGE_EVENTS.to_owned(), events_column(n)),
+            ]);
+        }
         self.write_data(&pq::batch(columns, HashMap::new()))?;
         let videos = self.append_videos(&ep)?;
         let mut stats = ep.stats;

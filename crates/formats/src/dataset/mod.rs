@@ -17,6 +17,7 @@
 pub mod depth;
 pub mod diffusion_policy;
 pub mod episode_labels;
+pub mod language;
 pub mod lerobot_info;
 pub mod lerobot_v21;
 pub mod lerobot_v3;
@@ -139,6 +140,9 @@ pub struct PreparedEpisode {
     pub privileged_names: Vec<String>,
     /// With `--depth`: per output camera, in name order, its depth archive.
     pub depth: Vec<DepthPart>,
+    /// Where the running subtasks change (from the replay's subtask spans); empty for an
+    /// episode without them.
+    pub subtasks: Vec<language::SubtaskRow>,
 }
 
 /// A camera's depth for one episode: augment's `videos/<camera>_depth.npz` (key
