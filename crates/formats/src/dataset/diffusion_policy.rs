@@ -9,6 +9,9 @@
 //! - `meta/episode_ends`: int64, cumulative exclusive ends, uncompressed.
 //! - with `--privileged-state`: `data/privileged_state` float64 (T, P), its column
 //!   names in its `.zattrs` (`names`).
+//! - when the episodes carry subtasks: `data/subtask_index` int64 (T,), the index of the
+//!   running subtasks' text (-1 before an episode's first), the texts in its `.zattrs`
+//!   (`subtasks`).
 //! - when an episode is a replay with a record: the labels of
 //!   [`super::episode_labels`] as per-episode arrays `meta/success`, `meta/first_success`
 //!   ... and the whole records in `meta/.zattrs` (`episodes`).
@@ -28,6 +31,7 @@ use zarrs::array::{Array, ArrayMetadata, ArrayMetadataOptions, CodecOptions};
 use zarrs::filesystem::FilesystemStore;
 
 use super::episode_labels::write_zarr_labels;
+use super::language::{SUBTASK_INDEX, SubtaskTexts};
 use super::{DatasetWriter, PreparedEpisode, VideoPart, place_video, write_json};
 use crate::error::{DatasetError, ZarrWriteError};
 use crate::raw::ReplayLabel;
@@ -62,19 +66,23 @@ fn metadata(
         .map_err(|e| zarr_err(path, ZarrWriteError::Layout(e)))
 }
 
-/// A float64 array along time, written a chunk at a time.
-struct Series {
+/// An array along time (float64 values, or int64 indices), written a chunk at a time.
+struct Series<T = f64> {
     array: Array<FilesystemStore>,
     /// Columns (1 with a 1-D shape).
     width: usize,
     one_d: bool,
     chunk: usize,
-    buf: Vec<f64>,
+    buf: Vec<T>,
     rows: u64,
     chunks_written: u64,
 }
 
-impl Series {
+impl<T> Series<T>
+where
+    T: zarrs::array::Element + Copy + Default,
+    for<'a> &'a [T]: zarrs::array::IntoArrayBytes<'a>,
+{
     fn shape(&self, rows: u64) -> Vec<u64> {
         if self.one_d {
             vec![rows]
@@ -83,7 +91,7 @@ impl Series {
         }
     }
 
-    fn store_chunk(&mut self, data: &[f64], opts: &CodecOptions) -> Result<(), ZarrWriteError> {
+    fn store_chunk(&mut self, data: &[T], opts: &CodecOptions) -> Result<(), ZarrWriteError> {
         let mut idx = vec![self.chunks_written];
         if !self.one_d {
             idx.push(0);
@@ -93,7 +101,7 @@ impl Series {
         Ok(())
     }
 
-    fn push(&mut self, rows: &[f64], opts: &CodecOptions) -> Result<(), ZarrWriteError> {
+    fn push(&mut self, rows: &[T], opts: &CodecOptions) -> Result<(), ZarrWriteError> {
         self.buf.extend_from_slice(rows);
         self.rows += (rows.len() / self.width) as u64;
         let per = self.chunk * self.width;
@@ -115,7 +123,7 @@ impl Series {
         self.array.set_shape(self.shape(self.rows))?;
         if !self.buf.is_empty() {
             let mut data = std::mem::take(&mut self.buf);
-            data.resize(self.chunk * self.width, 0.0);
+            data.resize(self.chunk * self.width, T::default());
             self.store_chunk(&data, opts)?;
         }
         Ok(self.array.store_metadata_opt(meta)?)
@@ -140,6 +148,9 @@ pub struct ZarrWriter {
     timestamp: Series,
     /// `data/privileged_state` (`--privileged-state`), with its column names.
     privileged: Option<(Series, Vec<String>)>,
+    /// `data/subtask_index` (int64 per frame, -1 before an episode's first subtask) and
+    /// the texts it indexes, when the episodes carry subtasks (as the first one does).
+    subtasks: Option<(Series<i64>, SubtaskTexts)>,
     images: Vec<Images>,
     /// `data/<camera>_depth` (`--depth`), in camera-name order.
     depth: Vec<DepthArray>,
@@ -197,6 +208,27 @@ impl ZarrWriter {
                 chunks_written: 0,
             })
         };
+        let subtasks = if first.subtasks.is_empty() {
+            None
+        } else {
+            let chunk = CHUNK_BYTES / 8;
+            let array = Array::new_with_metadata(
+                store.clone(),
+                &format!("/data/{SUBTASK_INDEX}"),
+                metadata(&zarr, &[0], &[chunk as u64], "<i8", true)?,
+            )
+            .map_err(|e| zarr_err(&zarr, e))?;
+            let series = Series {
+                array,
+                width: 1,
+                one_d: true,
+                chunk,
+                buf: Vec::new(),
+                rows: 0,
+                chunks_written: 0,
+            };
+            Some((series, SubtaskTexts::default()))
+        };
         let images = image_arrays(&store, &zarr, first)?;
         let depth = DepthArray::all(&store, &zarr, first)?;
         let privileged = match &first.privileged {
@@ -211,6 +243,7 @@ impl ZarrWriter {
             state: series("state", first.state.width(), false)?,
             timestamp: series("timestamp", 1, true)?,
             privileged,
+            subtasks,
             root,
             zarr: zarr.clone(),
             store: store.clone(),
@@ -521,6 +554,10 @@ impl DatasetWriter for ZarrWriter {
         if let (Some((series, _)), Some(p)) = (self.privileged.as_mut(), &ep.privileged) {
             series.push(p.as_slice(), &self.codec).map_err(&err)?;
         }
+        if let Some((series, texts)) = self.subtasks.as_mut() {
+            let idx = texts.frame_indices(&ep.subtasks, n);
+            series.push(&idx, &self.codec).map_err(&err)?;
+        }
 
         let index = self.episode_ends.len();
         for (c, part) in ep.videos.iter().enumerate() {
@@ -561,6 +598,15 @@ impl DatasetWriter for ZarrWriter {
         let total = this.frames() as u64;
         let cameras: Vec<String> = this.images.iter().map(|i| i.name.clone()).collect();
         let (privileged, names) = this.privileged.unzip();
+        if let Some((series, texts)) = this.subtasks {
+            series
+                .finish(&this.codec, &this.meta)
+                .map_err(|e| zarr_err(zarr, e))?;
+            write_json(
+                &zarr.join(format!("data/{SUBTASK_INDEX}/.zattrs")),
+                &json!({ "subtasks": texts.list() }),
+            )?;
+        }
         let series = [this.action, this.state, this.timestamp]
             .into_iter()
             .chain(privileged);

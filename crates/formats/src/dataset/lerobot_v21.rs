@@ -18,6 +18,8 @@ use std::path::{Path, PathBuf};
 use serde_json::{Value, json};
 
 use super::episode_labels::label_columns;
+use super::language::{SUBTASK_INDEX, SubtaskTexts};
+use super::stats::column_stats;
 use super::lerobot_info::{
     CameraSpec, Features, Info, InfoVersion, Tasks, VideoMeta, VideoMetaV21, check_episode,
     stats_json, train_split,
@@ -47,6 +49,9 @@ pub struct V21Writer {
     lines: Vec<(Value, Option<ReplayLabel>)>,
     tasks: Tasks,
     frames: usize,
+    /// The subtask texts `subtask_index` indexes, when the episodes carry subtasks (as
+    /// the first one does).
+    subtasks: Option<SubtaskTexts>,
 }
 
 impl std::fmt::Debug for V21Writer {
@@ -66,7 +71,7 @@ fn jsonl_line(file: &mut fs_err::File, value: &Value) -> Result<(), DatasetError
 }
 
 /// The `huggingface` schema metadata the v2.1 loader builds its features from.
-fn hf_metadata(action: usize, state: usize, privileged: usize) -> String {
+fn hf_metadata(action: usize, state: usize, privileged: usize, subtasks: bool) -> String {
     let seq = |n: usize| json!({"feature": {"dtype": "float32", "_type": "Value"}, "length": n, "_type": "Sequence"});
     let value = |t: &str| json!({"dtype": t, "_type": "Value"});
     // serde_json keeps insertion order (its `preserve_order`, which zarrs turns on).
@@ -79,6 +84,9 @@ fn hf_metadata(action: usize, state: usize, privileged: usize) -> String {
     features.insert("timestamp".into(), value("float32"));
     for k in ["frame_index", "episode_index", "index", "task_index"] {
         features.insert(k.into(), value("int64"));
+    }
+    if subtasks {
+        features.insert(SUBTASK_INDEX.into(), value("int64"));
     }
     serde_json::to_string(&json!({"info": {"features": features}})).expect("serializes")
 }
@@ -110,6 +118,7 @@ impl V21Writer {
             lines: Vec::new(),
             tasks: Tasks::default(),
             frames: 0,
+            subtasks: (!first.subtasks.is_empty()).then(SubtaskTexts::default),
         })
     }
 
@@ -127,7 +136,8 @@ impl V21Writer {
                     has_audio: false,
                 })
             })
-            .with_privileged(&self.privileged_names);
+            .with_privileged(&self.privileged_names)
+            .with_subtask_index(self.subtasks.is_some());
         let episodes = self.stats.len();
         Info {
             version: InfoVersion::V21 {
@@ -211,7 +221,13 @@ impl DatasetWriter for V21Writer {
         let task_index = self.tasks.index_of(&ep.instruction);
         let mut stats = ep.stats.clone();
         let timestamps = index_stats(&mut stats, n, self.fps, index, self.frames, task_index);
-        let columns = data_columns(&ep, &timestamps, index, self.frames, task_index);
+        let mut columns = data_columns(&ep, &timestamps, index, self.frames, task_index);
+        if let Some(texts) = &mut self.subtasks {
+            let idx = texts.frame_indices(&ep.subtasks, n);
+            let values: Vec<f64> = idx.iter().map(|&i| i as f64).collect();
+            stats.insert(SUBTASK_INDEX.into(), column_stats(&values, 1));
+            columns.push((SUBTASK_INDEX.to_owned(), pq::i64_column(idx)));
+        }
         let batch = pq::batch(
             columns,
             HashMap::from([(
@@ -220,6 +236,7 @@ impl DatasetWriter for V21Writer {
                     self.action_names.len(),
                     self.state_names.len(),
                     self.privileged_names.len(),
+                    self.subtasks.is_some(),
                 ),
             )]),
         );
@@ -273,6 +290,12 @@ impl DatasetWriter for V21Writer {
         let mut tasks = fs_err::File::create(meta.join("tasks.jsonl"))?;
         for (i, t) in self.tasks.list().iter().enumerate() {
             jsonl_line(&mut tasks, &json!({"task_index": i, "task": t}))?;
+        }
+        if let Some(texts) = &self.subtasks {
+            let mut file = fs_err::File::create(meta.join("subtasks.jsonl"))?;
+            for (i, t) in texts.list().iter().enumerate() {
+                jsonl_line(&mut file, &json!({"subtask_index": i, "subtask": t}))?;
+            }
         }
         let mut agg = serde_json::Map::new();
         if let Some(first) = self.stats.first() {
