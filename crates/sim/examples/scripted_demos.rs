@@ -47,6 +47,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(|e| format!("{} {}", e.id, e.end.map_or("-".into(), |s| s.to_string())))
             .collect();
         println!("  subtasks: {}", ends.join(", "));
+        let phases: Vec<String> = p.phases.iter().map(|(id, s)| format!("{id} {s}")).collect();
+        println!("  phases:   {}", phases.join(", "));
     }
     println!("{task}: {ok}/{seeds} plans succeeded");
     Ok(())

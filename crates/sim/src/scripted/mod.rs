@@ -39,9 +39,18 @@ pub struct Recorder {
     success_at: Option<usize>,
     failed: bool,
     hands: Vec<[f64; HAND_DOF]>,
+    phases: Vec<(String, usize)>,
 }
 
 impl Recorder {
+    /// Marks the end of the planner's own phase for subtask `id`: the last step it
+    /// recorded (to compare the planner's idea of where a subtask ends with the task
+    /// spec's predicate). A phase marked before any step is at step 0.
+    pub fn phase(&mut self, id: &str) {
+        let step = self.actions.len().saturating_sub(1);
+        self.phases.push((id.to_owned(), step));
+    }
+
     /// Records on an environment.
     pub fn new(env: TaskEnv) -> Self {
         let hands = env
@@ -63,6 +72,7 @@ impl Recorder {
             actions: Vec::new(),
             success_at: None,
             failed: false,
+            phases: Vec::new(),
         }
     }
 
@@ -313,15 +323,17 @@ impl Recorder {
     }
 
     /// The recorded episode and how it ended.
-    pub fn finish(self, id: &str) -> Result<Planned, SimError> {
+    pub fn finish(mut self, id: &str) -> Result<Planned, SimError> {
         let success_at = self.success_at;
         let failed = self.failed;
         let subtasks = self.env.subtask_spans();
+        let phases = std::mem::take(&mut self.phases);
         Ok(Planned {
             episode: self.into_episode(id)?,
             success_at,
             failed,
             subtasks,
+            phases,
         })
     }
 
@@ -394,8 +406,11 @@ pub struct Planned {
     pub success_at: Option<usize>,
     /// The task's failure condition was reached.
     pub failed: bool,
-    /// Where each of the task's subtasks ended in the recording.
+    /// Where each of the task's subtasks ran in the recording (by the task spec's
+    /// predicates).
     pub subtasks: Vec<crate::SubtaskSpan>,
+    /// Where the planner's own phases ended, by subtask id ([`Recorder::phase`]).
+    pub phases: Vec<(String, usize)>,
 }
 
 /// Which plan to make: the task's demonstration, or a deliberately wrong one that
