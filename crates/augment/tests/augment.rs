@@ -70,6 +70,22 @@ fn every_sample_demo_replays_to_success_with_zero_deviation() {
             e.task, e.episode
         );
         assert!(e.steps > 100);
+        // Segmented into every subtask of its task, in order, the last one ending on
+        // the success step.
+        let spec = dexjoco_core::TaskSpec::builtin(&e.task).unwrap();
+        let ids: Vec<&str> = e.subtasks.iter().map(|s| s.id.as_str()).collect();
+        let want: Vec<&str> = spec.subtasks.iter().map(|s| s.id.as_str()).collect();
+        assert_eq!(ids, want, "{}/{}", e.task, e.episode);
+        assert!(
+            e.subtasks
+                .iter()
+                .all(|s| s.start.is_some_and(|a| s.end.is_some_and(|b| a <= b))),
+            "{}/{}: {:?}",
+            e.task,
+            e.episode,
+            e.subtasks
+        );
+        assert_eq!(e.subtasks.last().unwrap().end, e.first_success);
     }
 }
 

@@ -68,6 +68,16 @@ fn case(task: &str, variant: Variant) -> Case {
     let name = format!("{task}_{suffix}");
     let planned = scripted::plan(&scene, &spec, &s0, &name, variant)
         .unwrap_or_else(|e| panic!("{name}: no plan on the reference scene: {e}"));
+    // A successful plan on the reference scene goes through every subtask, the last
+    // ending on the success step.
+    if let Some(at) = planned.success_at {
+        let ends: Vec<Option<usize>> = planned.subtasks.iter().map(|s| s.end).collect();
+        assert!(
+            ends.iter().all(Option::is_some) && ends.last() == Some(&Some(at)),
+            "{name}: subtasks {:?}",
+            planned.subtasks
+        );
+    }
     Case {
         first_failure: planned.failed.then(|| planned.episode.len() - 1),
         first_success: planned.success_at,

@@ -20,6 +20,23 @@ fn reset(task: &str, seed: u64) -> (dexjoco_sim::Scene, TaskSpec, Vec<f64>) {
     (scene, spec.clone(), s0)
 }
 
+/// Every subtask of a successful plan ended, each within its span, the last on the
+/// success step.
+fn assert_segmented(task: &str, spans: &[dexjoco_core::SubtaskSpan], success: usize) {
+    assert!(!spans.is_empty(), "{task}: no subtasks");
+    for s in spans {
+        let (Some(start), Some(end)) = (s.start, s.end) else {
+            panic!("{task}: subtask '{}' did not end: {spans:?}", s.id);
+        };
+        assert!(start <= end && end <= success, "{task}: {s:?}");
+    }
+    assert_eq!(
+        spans.last().unwrap().end,
+        Some(success),
+        "{task}: {spans:?}"
+    );
+}
+
 /// Plans `task` from a random reset, writes it, replays it through augment.
 fn plan_record_replay(task: &str, seed: u64) {
     let (scene, spec, s0) = reset(task, seed);
@@ -32,6 +49,7 @@ fn plan_record_replay(task: &str, seed: u64) {
     assert_eq!(at, ep.len() - 1, "{task}: recorded up to the success step");
     assert!(!planned.failed);
     assert_eq!(ep.task, task);
+    assert_segmented(task, &planned.subtasks, at);
 
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("in").join(task).join("episode_000000");
@@ -61,6 +79,10 @@ fn plan_record_replay(task: &str, seed: u64) {
         "{task}: success on the same step"
     );
     assert_eq!(e.max_state_deviation, 0.0, "{task}: replay != recording");
+    assert_eq!(
+        e.subtasks, planned.subtasks,
+        "{task}: the replay's subtasks are the plan's"
+    );
     assert_eq!(
         e.replays_kept, 1,
         "{task}: the rendered replay was not kept"

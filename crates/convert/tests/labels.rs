@@ -457,3 +457,97 @@ print(json.dumps({
     "readme_records": len(records),
 }))
 "#;
+
+/// The fixture with subtask spans in its replay records: episode 0 (12 frames, 2 leading
+/// frames trimmed) pushed the mouse on frames 0-4 and clicked on 5-11; episode 2 (9
+/// frames) pushed on 0-6 and never clicked (the click starts on 7 and runs to the end).
+fn fixture_with_subtasks() -> (Fixture, Vec<Vec<dexjoco_core::SubtaskSpan>>) {
+    let fx = labelled_fixture();
+    let span = |id: &str, text: &str, start: usize, end: Option<usize>| dexjoco_core::SubtaskSpan {
+        id: id.into(),
+        text: text.into(),
+        start: Some(start),
+        end,
+    };
+    let spans = vec![
+        vec![
+            span("push_mouse", "move the mouse onto the pad", 0, Some(4)),
+            span("click", "click the left mouse button", 5, Some(11)),
+        ],
+        Vec::new(),
+        vec![
+            span("push_mouse", "move the mouse onto the pad", 0, Some(6)),
+            span("click", "click the left mouse button", 7, None),
+        ],
+    ];
+    for (e, s) in spans.iter().enumerate() {
+        let path = fx.inputs[e].dir.join("replay.json");
+        let Ok(text) = fs_err::read_to_string(&path) else {
+            continue;
+        };
+        let mut r: Value = serde_json::from_str(&text).unwrap();
+        r["subtasks"] = serde_json::to_value(s).unwrap();
+        fs_err::write(&path, serde_json::to_string_pretty(&r).unwrap()).unwrap();
+    }
+    (fx, spans)
+}
+
+#[test]
+fn each_frames_subtask_reads_back_from_every_format_as_the_labels_say() {
+    let (fx, spans) = fixture_with_subtasks();
+    let dir = tempfile::tempdir().unwrap();
+    let roots: Vec<_> = [
+        ("v3", OutputFormat::LeRobotV3),
+        ("v21", OutputFormat::LeRobotV21),
+        ("dp", OutputFormat::DiffusionPolicy),
+    ]
+    .into_iter()
+    .map(|(name, format)| {
+        let root = dir.path().join(name);
+        convert(
+            fx.inputs.iter().cloned().map(Ok),
+            &root,
+            &options(format),
+            &NoProgress,
+        )
+        .unwrap();
+        root
+    })
+    .collect();
+    dexjoco_testkit::lerobot_doctor_passes(&roots[0]);
+    let got = dexjoco_testkit::run_python_json(
+        "lerobot_subtasks.py",
+        &[
+            roots[0].to_str().unwrap(),
+            roots[1].to_str().unwrap(),
+            roots[2].to_str().unwrap(),
+        ],
+    );
+    // Expected: at each kept frame, the spans running there (frame numbers of the
+    // replay, after the trimmed start); a recording has none.
+    let mut want: Vec<Value> = Vec::new();
+    for (e, input) in fx.inputs.iter().enumerate() {
+        for src in fx.starts[e]..input.episode.len() {
+            let running: Vec<&str> = spans[e]
+                .iter()
+                .filter(|s| s.start.is_some_and(|a| a <= src) && s.end.is_none_or(|b| src <= b))
+                .map(|s| s.text.as_str())
+                .collect();
+            want.push(if running.is_empty() {
+                Value::Null
+            } else {
+                json!(running.join(" and "))
+            });
+        }
+    }
+    assert_eq!(want.len(), 32);
+    assert_eq!(want[0], json!("move the mouse onto the pad"));
+    assert_eq!(
+        want[3],
+        json!("click the left mouse button"),
+        "episode 0's click from its frame 5"
+    );
+    for format in ["v3", "v21", "dp"] {
+        assert_eq!(got[format], json!(want), "{format}");
+    }
+}

@@ -191,3 +191,89 @@ fn privileged_fields_cover_the_state_after_proprioception() {
     let hanoi = TaskSpec::builtin("bimanual_hanoi").unwrap();
     assert_eq!(hanoi.privileged()[0].kind, PrivilegedKind::Position);
 }
+
+#[test]
+fn every_task_has_subtasks_ending_on_its_success() {
+    for s in TaskSpec::load_dir(&schemas_dir().join("tasks")).unwrap() {
+        assert!(
+            s.subtasks.len() >= 2,
+            "{}: {} subtasks",
+            s.id,
+            s.subtasks.len()
+        );
+        // The last subtask of the list ends on the task's success.
+        assert_eq!(s.subtasks.last().unwrap().end, s.success, "{}", s.id);
+        let before = s.subtask_predecessors();
+        assert!(before[0].is_empty(), "{}", s.id);
+        for (i, b) in before.iter().enumerate() {
+            assert!(
+                b.iter().all(|&j| j < i),
+                "{}: subtask {i} waits for a later one",
+                s.id
+            );
+        }
+    }
+}
+
+#[test]
+fn a_subtask_that_a_spec_gets_wrong_is_a_named_spec_error() {
+    let base = TaskSpec::builtin("bimanual_assembly").unwrap().clone();
+    let check = |edit: &dyn Fn(&mut TaskSpec), expect: &[&str]| {
+        let mut s = base.clone();
+        edit(&mut s);
+        let e = s.validate().unwrap_err().to_string();
+        for x in expect {
+            assert!(e.contains(x), "expected '{x}' in: {e}");
+        }
+    };
+    check(
+        &|s| s.subtasks[0].end = "no_such_node".into(),
+        &[
+            "bimanual_assembly",
+            "subtasks[0].end",
+            "'no_such_node' is not a node",
+        ],
+    );
+    check(
+        &|s| s.subtasks[0].end = "hanoi.on_goal".into(),
+        &["subtasks[0].end", "is not a node"],
+    );
+    // The left arm's subtask ending on a node that reads the right hand.
+    check(
+        &|s| s.subtasks[1].end = "peg_held".into(),
+        &[
+            "subtasks[1].end",
+            "(left arm) reads the right hand through node 'peg_grasped'",
+        ],
+    );
+    check(
+        &|s| s.subtasks[0].arm = SubtaskArm::Single,
+        &["subtasks[0].arm", "'single' in a two-arm task"],
+    );
+    check(
+        &|s| s.subtasks[0].object = "hammer".into(),
+        &["subtasks[0].object", "unknown object 'hammer'"],
+    );
+    check(&|s| s.subtasks[1].id = "grasp_peg".into(), &["given twice"]);
+    check(
+        &|s| s.subtasks[1].after = vec!["insert_peg".into()],
+        &[
+            "subtasks[1].after",
+            "'insert_peg' is not an earlier subtask",
+        ],
+    );
+    check(
+        &|s| s.subtasks[2].after = vec!["grasp_peg".into()],
+        &["'grasp_peg' is of the same arm"],
+    );
+    // A grasp node of the wrong hand for the setup.
+    let mut single = TaskSpec::builtin("hammer_nail").unwrap().clone();
+    if let Some(Node::Grasp { hand, .. }) = single.nodes.get_mut("hammer_grasped") {
+        *hand = Hand::Left;
+    }
+    let e = single.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("nodes.hammer_grasped") && e.contains("hand must be `single`"),
+        "{e}"
+    );
+}

@@ -3,12 +3,13 @@
 //! what runs from then on (the running subtasks' texts joined by " and ": both arms of a
 //! bimanual task may run one each).
 //!
-//! - LeRobot v3.0 (lerobot 0.6's language columns, `lerobot.datasets.language`): one
+//! - LeRobot v3.0 (lerobot 0.6's language columns, `lerobot.datasets.language`): a
 //!   persistent `subtask` row (role `assistant`) per change point, at its frame's
-//!   timestamp, the episode's rows repeated on every frame of it (`language_persistent`);
-//!   `language_events` is present and empty. lerobot resolves the row active at a frame
-//!   (`active_at`): the latest row at or before the frame's timestamp. Declared in
-//!   `info.json` as `{"dtype": "language", "shape": [1], "names": null}`.
+//!   timestamp, each frame holding the row running there (`language_persistent`; see
+//!   [`persistent_column`]); `language_events` is present and empty. lerobot resolves the
+//!   row active at a frame (`active_at`): the latest row at or before the frame's
+//!   timestamp. Declared in `info.json` as `{"dtype": "language", "shape": [1], "names":
+//!   null}`.
 //! - LeRobot v2.1 and Diffusion Policy: a per-frame `subtask_index` into the dataset's
 //!   list of subtask texts (`meta/subtasks.jsonl`; `meta/.zattrs` `subtasks`).
 
@@ -59,7 +60,11 @@ pub fn subtask_rows(spans: &[SubtaskSpan], skipped: usize, frames: usize) -> Vec
             .iter()
             .map(|&i| {
                 let s = &spans[i];
-                if s.text.is_empty() { s.id.as_str() } else { s.text.as_str() }
+                if s.text.is_empty() {
+                    s.id.as_str()
+                } else {
+                    s.text.as_str()
+                }
             })
             .collect::<Vec<_>>()
             .join(" and ");
@@ -120,35 +125,56 @@ fn event_fields() -> Fields {
     )
 }
 
-/// The `language_persistent` column of an episode of `frames` frames: its rows, as
-/// `subtask` rows of role `assistant`, repeated on every frame.
-pub fn persistent_column(rows: &[SubtaskRow], fps: u32, frames: usize) -> ArrayRef {
-    let n = rows.len() * frames;
-    let repeat = |f: &dyn Fn(&SubtaskRow) -> String| -> ArrayRef {
-        Arc::new(StringArray::from_iter_values(
-            (0..frames).flat_map(|_| rows.iter().map(f)),
-        ))
+/// The `language_persistent` column of an episode of `frames` frames: on each frame,
+/// one row: the `subtask` row (role `assistant`) running there, with the timestamp of
+/// the frame it began on; where none runs yet (or the episode has no subtasks), a
+/// `task_aug` row (role `user`) with the episode's instruction at timestamp 0.
+///
+/// One row per frame rather than the episode's whole slice on every frame: lerobot's
+/// resolver (`active_at`) finds the same row either way, and every frame of every
+/// episode then has the same shape, which lerobot-doctor 0.2's consistency check
+/// requires (it fails a dataset whose episodes hold slices of different lengths).
+pub fn persistent_column(
+    rows: &[SubtaskRow],
+    instruction: &str,
+    fps: u32,
+    frames: usize,
+) -> ArrayRef {
+    let running: Vec<Option<&SubtaskRow>> = {
+        let mut k = 0;
+        let mut current = None;
+        (0..frames)
+            .map(|f| {
+                while k < rows.len() && rows[k].frame <= f {
+                    current = Some(&rows[k]);
+                    k += 1;
+                }
+                current
+            })
+            .collect()
     };
-    let nulls = |dt: DataType| arrow_array::new_null_array(&dt, n);
+    let column = |f: &dyn Fn(Option<&SubtaskRow>) -> String| -> ArrayRef {
+        Arc::new(StringArray::from_iter_values(running.iter().map(|r| f(*r))))
+    };
     let mut calls = ListBuilder::new(StringBuilder::new());
-    for _ in 0..n {
+    for _ in 0..frames {
         calls.append(false);
     }
     let structs = StructArray::new(
         persistent_fields(),
         vec![
-            repeat(&|_| "assistant".to_owned()),
-            repeat(&|r| r.text.clone()),
-            repeat(&|_| "subtask".to_owned()),
+            column(&|r| if r.is_some() { "assistant" } else { "user" }.to_owned()),
+            column(&|r| r.map_or_else(|| instruction.to_owned(), |r| r.text.clone())),
+            column(&|r| if r.is_some() { "subtask" } else { "task_aug" }.to_owned()),
             Arc::new(Float32Array::from_iter_values(
-                (0..frames).flat_map(|_| rows.iter().map(|r| timestamp(r.frame, fps))),
+                running.iter().map(|r| r.map_or(0.0, |r| timestamp(r.frame, fps))),
             )),
-            nulls(DataType::Utf8),
+            arrow_array::new_null_array(&DataType::Utf8, frames),
             Arc::new(calls.finish()),
         ],
         None,
     );
-    list_of(structs, rows.len(), frames)
+    list_of(structs, 1, frames)
 }
 
 /// The `language_events` column of an episode of `frames` frames: an empty list on each.
@@ -169,7 +195,12 @@ fn list_of(items: StructArray, per: usize, frames: usize) -> ArrayRef {
         true,
     ));
     let offsets = OffsetBuffer::from_lengths(std::iter::repeat_n(per, frames));
-    Arc::new(ListArray::new(field, offsets, Arc::new(items), None::<NullBuffer>))
+    Arc::new(ListArray::new(
+        field,
+        offsets,
+        Arc::new(items),
+        None::<NullBuffer>,
+    ))
 }
 
 /// The dataset-wide list of subtask texts, in the order they first appear: what
@@ -234,7 +265,13 @@ mod tests {
         assert_eq!(texts[19], Some("drive"), "the last row holds to the end");
         // 5 leading frames skipped: the rows move 5 frames earlier.
         let rows = subtask_rows(&one, 5, 15);
-        assert_eq!(rows[0], SubtaskRow { frame: 0, text: "grasp".into() });
+        assert_eq!(
+            rows[0],
+            SubtaskRow {
+                frame: 0,
+                text: "grasp".into()
+            }
+        );
         assert_eq!(rows[1].frame, 5);
         // Two arms in parallel, then together; one never ends.
         let two = [
@@ -244,7 +281,14 @@ mod tests {
         ];
         let rows = subtask_rows(&two, 0, 12);
         let texts: Vec<&str> = rows.iter().map(|r| r.text.as_str()).collect();
-        assert_eq!(texts, ["open the door and pick the food", "pick the food", "place it"]);
+        assert_eq!(
+            texts,
+            [
+                "open the door and pick the food",
+                "pick the food",
+                "place it"
+            ]
+        );
         assert_eq!(rows[2].frame, 8);
         let mut list = SubtaskTexts::default();
         let idx = list.frame_indices(&rows, 12);
@@ -256,13 +300,38 @@ mod tests {
     #[test]
     fn the_columns_repeat_the_rows_on_every_frame() {
         let rows = vec![
-            SubtaskRow { frame: 0, text: "a".into() },
-            SubtaskRow { frame: 3, text: "b".into() },
+            SubtaskRow {
+                frame: 0,
+                text: "a".into(),
+            },
+            SubtaskRow {
+                frame: 3,
+                text: "b".into(),
+            },
         ];
-        let col = persistent_column(&rows, 30, 5);
+        let col = persistent_column(&rows, "the task", 30, 5);
         let list = col.as_any().downcast_ref::<ListArray>().unwrap();
         assert_eq!(list.len(), 5);
-        assert_eq!(list.value_length(4), 2);
+        assert_eq!(list.value_length(4), 1);
+        let row = |f: usize| {
+            let v = list.value(f);
+            let s = v.as_any().downcast_ref::<StructArray>().unwrap();
+            let text = |c: usize| {
+                s.column(c)
+                    .as_any()
+                    .downcast_ref::<StringArray>()
+                    .unwrap()
+                    .value(0)
+                    .to_owned()
+            };
+            let ts = s.column(3).as_any().downcast_ref::<Float32Array>().unwrap().value(0);
+            (text(1), text(2), ts)
+        };
+        assert_eq!(row(2), ("a".to_owned(), "subtask".to_owned(), 0.0));
+        assert_eq!(row(4), ("b".to_owned(), "subtask".to_owned(), 0.1));
+        let none = persistent_column(&[], "the task", 30, 2);
+        let list = none.as_any().downcast_ref::<ListArray>().unwrap();
+        assert_eq!(list.value_length(1), 1, "the instruction's task_aug row");
         let events = events_column(5);
         let list = events.as_any().downcast_ref::<ListArray>().unwrap();
         assert_eq!((list.len(), list.value_length(0)), (5, 0));

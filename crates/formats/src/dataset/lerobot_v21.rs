@@ -19,13 +19,13 @@ use serde_json::{Value, json};
 
 use super::episode_labels::label_columns;
 use super::language::{SUBTASK_INDEX, SubtaskTexts};
-use super::stats::column_stats;
 use super::lerobot_info::{
     CameraSpec, Features, Info, InfoVersion, Tasks, VideoMeta, VideoMetaV21, check_episode,
     stats_json, train_split,
 };
 use super::lerobot_v3::{CHUNKS_SIZE, data_columns, index_stats};
 use super::parquet as pq;
+use super::stats::column_stats;
 use super::stats::{FeatureStats, aggregate};
 use super::{DatasetWriter, PRIVILEGED_KEY, PreparedEpisode, place_video, write_json};
 use crate::error::DatasetError;

@@ -8,9 +8,9 @@ use dexjoco_video::ConcatInput;
 use parquet::arrow::ArrowWriter;
 use serde_json::Value;
 
-use super::language::{LANGUAGE_EVENTS, LANGUAGE_PERSISTENT, events_column, persistent_column};
 use super::depth::DepthVideoMeta;
 use super::episode_labels::label_columns;
+use super::language::{LANGUAGE_EVENTS, LANGUAGE_PERSISTENT, events_column, persistent_column};
 use super::lerobot_info::{
     CameraSpec, Features, Info, InfoVersion, Tasks, VideoMeta, VideoMetaV3, check_episode,
     stats_json, train_split,
@@ -588,7 +588,7 @@ impl DatasetWriter for V3Writer {
             columns.extend([
                 (
                     LANGUAGE_PERSISTENT.to_owned(),
-                    persistent_column(&ep.subtasks, self.fps, n),
+                    persistent_column(&ep.subtasks, &ep.instruction, self.fps, n),
                 ),
                 (LANGUAGE_EVENTS.to_owned(), events_column(n)),
             ]);
