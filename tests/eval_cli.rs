@@ -671,3 +671,49 @@ fn a_worker_killed_mid_episode_is_replaced_and_its_episode_redone() {
         }
     }
 }
+
+#[test]
+fn a_policy_that_stops_after_the_first_subtask_shows_it_complete_and_the_rest_not() {
+    let tmp = tempfile::tempdir().unwrap();
+    let plans = tmp.path().join("plans");
+    let plan = plan("hammer_nail", "5", &plans, None).expect("a plan that succeeds");
+    let record: serde_json::Value =
+        serde_json::from_slice(&fs_err::read(plan.join("plan.json")).unwrap()).unwrap();
+    let first_end = record["subtasks"][0]["end"].as_u64().unwrap() as usize;
+    let server = Server::start(&[
+        "oracle",
+        "--plans",
+        plans.to_str().unwrap(),
+        "--cut-after-first-subtask",
+    ]);
+    let out = tmp.path().join("policies/cut/hammer_nail_seed5");
+    let cap = (first_end + 150).to_string();
+    let o = eval(
+        &server,
+        "hammer_nail",
+        &out,
+        &["--episodes", "1", "--seed", "5", "--step-cap", &cap],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", said(&o));
+    let (_, rec) = episode(&out, 0);
+    assert_eq!(rec["success"], false);
+    let spans = rec["subtasks"].as_array().unwrap();
+    let ends: Vec<Option<u64>> = spans.iter().map(|s| s["end"].as_u64()).collect();
+    assert_eq!(ends, [Some(first_end as u64), None, None], "{spans:?}");
+    // The success table's subtask progress: the first complete, the others not.
+    let o = run(dexjoco()
+        .args(["stats", "--success-table"])
+        .arg(tmp.path().join("policies"))
+        .arg("--out")
+        .arg(tmp.path().join("stats")));
+    let s = said(&o);
+    assert_eq!(o.status.code(), Some(0), "{s}");
+    assert!(
+        s.contains(
+            "| cut | rand-obj | Hammer Nail | 1 | grasp the hammer 1 (100 %); \
+             strike the nail with the hammer 0 (0 %); drive the nail into the board 0 (0 %) | \
+             1.00 of 3 |"
+        ),
+        "{s}"
+    );
+}

@@ -3,6 +3,7 @@
 imported in place from ../shared; reference venv, which has `openpi-client`):
 
     python policy_server.py --port P oracle --plans DIR [DIR ...] [--perturb A --log FILE]
+                                            [--cut-after-first-subtask]
     python policy_server.py --port P hold
     python policy_server.py --port P record --out FILE.npz [--count N] [--close]
     python policy_server.py --port P misbehave --how {shape,nan,close,silent,error} [--after N]
@@ -16,6 +17,9 @@ imported in place from ../shared; reference venv, which has `openpi-client`):
   shifted, rotations turned by up to A rad), so that where chunks overlap the blend
   decides the executed action; `--log FILE` appends every answer (plan index, step, chunk)
   as a JSON line, for `reference_chunk_merge.py` to merge as the reference client does.
+  With `--cut-after-first-subtask` each plan stops where its first subtask ended (the
+  `plan.json` `scripted` writes beside it): the last action of that subtask is repeated
+  from then on, so the episode completes its first subtask and no other.
 - `hold` answers every observation with the pose held (any client, no privileged keys:
   `scripts/bench-eval.sh`'s policy, which runs every episode to its step cap).
 - `record` keeps the first N observations it receives (every key) in FILE.npz and answers
@@ -97,7 +101,7 @@ def perturbed(chunk: np.ndarray, step: int, amplitude: float) -> np.ndarray:
 class Oracle:
     """Answers with the plan of the episode's reset."""
 
-    def __init__(self, dirs, perturb: float = 0.0, log: Path | None = None):
+    def __init__(self, dirs, perturb: float = 0.0, log: Path | None = None, cut: bool = False):
         import zarr
 
         self.perturb, self.log = perturb, log
@@ -106,7 +110,11 @@ class Oracle:
             for z in sorted(Path(d).rglob("replay.zarr")):
                 root = zarr.open(str(z), "r")
                 data = root["data"]
-                self.plans.append((np.asarray(data["state"][0]), np.asarray(data["action_rotvec"])))
+                rows = np.asarray(data["action_rotvec"])
+                if cut:
+                    first = json.loads((z.parent / "plan.json").read_text())["subtasks"][0]
+                    rows = rows[: first["end"] + 1]
+                self.plans.append((np.asarray(data["state"][0]), rows))
 
     def infer(self, obs):
         s0 = np.asarray(obs["dexjoco/initial_state"])
@@ -186,6 +194,7 @@ def main(argv=None):
     o.add_argument("--plans", nargs="+", required=True)
     o.add_argument("--perturb", type=float, default=0.0, help="move each chunk off the plan by this much")
     o.add_argument("--log", type=Path, help="append every answer to this JSON-lines file")
+    o.add_argument("--cut-after-first-subtask", action="store_true", help="stop each plan where its first subtask ended")
     sub.add_parser("hold")
     r = sub.add_parser("record")
     r.add_argument("--out", type=Path, required=True)
@@ -196,7 +205,7 @@ def main(argv=None):
     m.add_argument("--after", type=int, default=0)
     args = p.parse_args(argv)
     if args.policy == "oracle":
-        policy, meta = Oracle(args.plans, args.perturb, args.log), {"policy": "oracle"}
+        policy, meta = Oracle(args.plans, args.perturb, args.log, args.cut_after_first_subtask), {"policy": "oracle"}
     elif args.policy == "hold":
         policy, meta = Hold(), {"policy": "hold"}
     elif args.policy == "record":
