@@ -167,7 +167,9 @@ pub fn persistent_column(
             column(&|r| r.map_or_else(|| instruction.to_owned(), |r| r.text.clone())),
             column(&|r| if r.is_some() { "subtask" } else { "task_aug" }.to_owned()),
             Arc::new(Float32Array::from_iter_values(
-                running.iter().map(|r| r.map_or(0.0, |r| timestamp(r.frame, fps))),
+                running
+                    .iter()
+                    .map(|r| r.map_or(0.0, |r| timestamp(r.frame, fps))),
             )),
             arrow_array::new_null_array(&DataType::Utf8, frames),
             Arc::new(calls.finish()),
@@ -324,7 +326,12 @@ mod tests {
                     .value(0)
                     .to_owned()
             };
-            let ts = s.column(3).as_any().downcast_ref::<Float32Array>().unwrap().value(0);
+            let ts = s
+                .column(3)
+                .as_any()
+                .downcast_ref::<Float32Array>()
+                .unwrap()
+                .value(0);
             (text(1), text(2), ts)
         };
         assert_eq!(row(2), ("a".to_owned(), "subtask".to_owned(), 0.0));

@@ -87,6 +87,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     // The peg settles onto the hole's bottom (the recording ends once it has rested
     // there long enough).
     rec.wait(SETTLE)?;
+    rec.phase("insert_peg");
     show(&rec, "end");
     rec.finish(id)
 }
@@ -198,6 +199,8 @@ fn pinch_and_push(
         40,
         |_| false,
     )?;
+    // The left fingertips are down beside the socket block, ready to push.
+    rec.phase("reach_tray");
     rec.settle(0.004, 40)?;
     rec.go(RIGHT, at, q, CLOSE, 25)?;
     rec.wait(15)?;
@@ -212,6 +215,8 @@ fn pinch_and_push(
         110,
         |_| false,
     )?;
+    // The peg is pinched and lifted.
+    rec.phase("grasp_peg");
     let back = kin::add(kin::sub(end, kin::scale(dir, 0.02)), [0.0, 0.0, 0.03]);
     rec.go(LEFT, back, lq, OPEN, 15)?;
     show(rec, "tray pushed");

@@ -53,6 +53,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     rec.move_to(0, [x, y0, table + 0.05], quat, FLAT_HAND, 50, never)?;
     rec.hold(0, quat, FLAT_HAND, 20)?;
     rec.move_to(0, [x, y1, table + 0.05], quat, FLAT_HAND, 140, never)?;
+    rec.phase("push_mouse");
     rec.hold(0, quat, FLAT_HAND, 20)?;
     rec.move_to(0, [x, y1 + 0.04, table + 0.20], quat, FLAT_HAND, 45, never)?;
 
@@ -78,5 +79,6 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let up = [at[0], at[1], at[2] + 0.02];
     rec.move_to(0, up, quat, POINT_HAND, 10, never)?;
     rec.hold(0, quat, POINT_HAND, 40)?;
+    rec.phase("click");
     rec.finish(id)
 }

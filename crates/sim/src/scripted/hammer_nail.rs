@@ -124,6 +124,7 @@ fn plan_wrap(mut rec: Recorder, h: &Handle, id: &str) -> Result<Planned, SimErro
     tips(rec.env(), "closed");
     let level = frame(kin::horizontal(f), [0.0, 0.0, -1.0]);
     rec.go(0, kin::add(at, [0.0, 0.0, 0.20]), level, WRAP, 90)?;
+    rec.phase("grasp_hammer");
     rec.settle(0.004, 60)?;
     strikes(rec, level, WRAP, id)
 }
@@ -173,6 +174,10 @@ fn strikes(mut rec: Recorder, q: Q, hand: [f64; HAND_DOF], id: &str) -> Result<P
         let strike = kin::add(above, [0.0, 0.0, -0.20]);
         rec.go(0, strike, q, hand, 1)?;
         rec.wait(25)?;
+        if k == 0 {
+            // The first strike hits the nail.
+            rec.phase("hit_nail");
+        }
         if debug() {
             let e = rec.env();
             eprintln!(
@@ -186,6 +191,7 @@ fn strikes(mut rec: Recorder, q: Q, hand: [f64; HAND_DOF], id: &str) -> Result<P
             break;
         }
     }
+    rec.phase("drive_nail");
     rec.finish(id)
 }
 
@@ -237,6 +243,7 @@ fn plan_pinch(mut rec: Recorder, home: Q, id: &str) -> Result<Planned, SimError>
     rec.wait(20)?;
     // Lift well above the board before carrying the hammer over it.
     rec.go(0, kin::add(at, [0.0, 0.0, 0.20]), q, CLOSE, 90)?;
+    rec.phase("grasp_hammer");
     rec.settle(0.004, 60)?;
     strikes(rec, q, CLOSE, id)
 }

@@ -180,6 +180,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     let at = reach(&mut rec, &[(RIGHT, rq, "medium"), (LEFT, lq, "small")])?;
     pinch_lift(&mut rec, RIGHT, rq, at[0], 25, &[])?;
     place(&mut rec, RIGHT, rq, "medium", post_c, top + 3.0 * H)?;
+    rec.phase("move_medium_disk");
     // Then the left hand moves the small disk; the right one goes home meanwhile.
     let home = [Goal::new(RIGHT, rhome, rq, SPREAD)];
     pinch_lift(&mut rec, LEFT, lq, at[1], 60, &home)?;
@@ -187,5 +188,6 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     rec.go(LEFT, lhome, lq, SPREAD, 80)?;
     rec.wait(60)?;
     show(&rec, "end");
+    rec.phase("move_small_disk");
     rec.finish(id)
 }

@@ -492,8 +492,14 @@ fn pull_door_open(rec: &mut Recorder, setup: &Setup) -> Result<V3, SimError> {
     let mut pulling = true;
     while !rec.done() {
         let theta = door_angle(rec.env())?;
+        let was_pulling = pulling;
         pulling &= theta > OPEN_TO && rec.env().steps() < start + PULL_STEPS;
+        if was_pulling && !pulling {
+            // The door is open as far as the pull takes it.
+            rec.phase("open_door");
+        }
         let left = setup.hook(theta, if pulling { -PULL } else { 0.0 }, 0.0, HOOK);
+        let lifting = track.moves.len() == 2;
         let Some(right) = track
             .next(now(rec, RIGHT))
             .or(pulling.then(|| now(rec, RIGHT)))
@@ -501,6 +507,10 @@ fn pull_door_open(rec: &mut Recorder, setup: &Setup) -> Result<V3, SimError> {
             break;
         };
         step(rec, left, right)?;
+        if lifting && track.moves.len() < 2 {
+            // The hot dog is clamped and lifted.
+            rec.phase("grasp_hot_dog");
+        }
     }
     show(rec, "door open, hot dog lifted");
     snap(rec, "c_open", VIEW, 1.0);
@@ -539,6 +549,8 @@ fn place_hot_dog(rec: &mut Recorder, setup: &Setup, spot: V3) -> Result<V3, SimE
     snap(rec, "d_placed", spot, 0.5);
     rec.go(RIGHT, place, setup.pq, RELEASE, 10)?;
     rec.wait(12)?;
+    // The hot dog is let go on the oven's floor (the hand then backs out).
+    rec.phase("place_hot_dog");
     let back = kin::sub(place, kin::scale(setup.into, 0.14));
     rec.go(RIGHT, back, setup.pq, RELEASE, 30)?;
     show(rec, "let go");
@@ -595,6 +607,7 @@ fn shut_door(rec: &mut Recorder, setup: &Setup, back: V3) -> Result<V3, SimError
         let right = right.unwrap_or(now(rec, RIGHT));
         step(rec, setup.hook(theta, out, 0.0, SHUT_HAND), right)?;
     }
+    rec.phase("close_door");
     show(rec, "door shut");
     snap(rec, "e_shut", VIEW, 1.0);
     Ok(ready)
@@ -631,6 +644,7 @@ fn press_start(rec: &mut Recorder, setup: &Setup, ready: V3) -> Result<(), SimEr
     let pressed = |e: &TaskEnv| e.checker().value("start_pressed") == Some(true);
     let deep = kin::add(aim, kin::scale(setup.into, 0.045));
     rec.go_many(&[Goal::new(RIGHT, deep, setup.level, PRESS)], 25, pressed)?;
+    rec.phase("press_start");
     show(rec, "pressed");
     if debug() {
         let e = rec.env();

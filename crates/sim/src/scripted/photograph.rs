@@ -54,6 +54,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     rec.snap(LEFT, "camera_gripped");
     let up = kin::add(at, [0.0, 0.0, 0.2]);
     rec.go(LEFT, up, q, CLOSE, 60)?;
+    rec.phase("grasp_camera");
     rec.wait(20)?;
     show(&rec, "lifted");
     rec.snap(LEFT, "camera_lifted");
@@ -61,6 +62,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     // measured axis there, about the TCP), and move the point in front of the lens to the
     // middle of the target region; a few closed-loop rounds.
     aim_camera(&mut rec)?;
+    rec.phase("aim_camera");
     rec.snap(LEFT, "camera_aimed");
     // The right index finger over the shutter, then a guarded press.
     let start = kin::add(rec.target(RIGHT).0, [0.0, 0.0, 0.05]);
@@ -87,6 +89,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let pressed = |e: &TaskEnv| e.checker().value("shutter") == Some(true);
     let low = kin::add(above, [0.0, 0.0, -0.08]);
     rec.go_many(&[Goal::new(RIGHT, low, right_home, POINT)], 80, pressed)?;
+    rec.phase("press_shutter");
     show(&rec, "pressed");
     rec.wait(10)?;
     rec.finish(id)

@@ -89,6 +89,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     } else {
         grip_upright(&mut rec, home)?;
     }
+    rec.phase("lift_bucket");
     rec.finish(id)
 }
 
@@ -116,6 +117,7 @@ fn put_food(rec: &mut Recorder, home: Q, spot: f64) -> Result<(), SimError> {
     let up = [at[0], at[1], table + 0.42];
     rec.go(0, up, q, CLOSE, 70)?;
     show(rec, "food lifted");
+    rec.phase("grasp_food");
     // Over the basket, down, let go.
     let e = rec.env();
     let off = kin::sub(kin::body(e, "boxed_food_0")?.0, kin::tcp(e, 0).0);
@@ -128,6 +130,8 @@ fn put_food(rec: &mut Recorder, home: Q, spot: f64) -> Result<(), SimError> {
     rec.go(0, low, q, CLOSE, 50)?;
     rec.settle(0.005, 30)?;
     rec.go(0, low, q, OPEN, 20)?;
+    // Let go: the food is in.
+    rec.phase("place_food");
     rec.go(0, kin::add(low, [0.0, 0.0, 0.25]), q, OPEN, 50)?;
     show(rec, "food in");
     rec.snap(0, "bucket_food_in");

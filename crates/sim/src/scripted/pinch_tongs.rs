@@ -42,6 +42,10 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         rec.wait(15)?;
         show(&rec, table, &format!("closed {k}"));
         rec.snap(0, &format!("tongs_closed_{k}"));
+        if k == 0 {
+            // The first squeeze closes the hand on the tongs.
+            rec.phase("grasp_tongs");
+        }
         rec.go(0, kin::add(at, [0.0, 0.0, RISE]), q, OPEN, 25)?;
         rec.wait(20)?;
         show(&rec, table, &format!("opened {k}"));
@@ -54,10 +58,13 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     rec.go(0, at, q, CLOSE, 25)?;
     rec.wait(15)?;
     show(&rec, table, "closed 2");
+    // The third squeeze: three pinches.
+    rec.phase("pinch_tongs");
     rec.go(0, kin::add(at, [0.0, 0.0, LIFT]), q, CLOSE, 80)?;
     show(&rec, table, "lifted");
     rec.wait(60)?;
     show(&rec, table, "end");
+    rec.phase("lift_tongs");
     rec.finish(id)
 }
 

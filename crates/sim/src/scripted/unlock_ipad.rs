@@ -108,7 +108,13 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
             rec.move_to(0, here, quat, INDEX_HAND, 60, entered)?;
         }
         rec.move_to(0, tcp_at(0.04), quat, INDEX_HAND, 15, never)?;
+        if i == 0 {
+            rec.phase("press_first_digit");
+        }
     }
     rec.hold(0, quat, INDEX_HAND, 30)?;
+    if variant == Variant::Demo {
+        rec.phase("enter_password");
+    }
     rec.finish(id)
 }

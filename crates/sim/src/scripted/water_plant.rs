@@ -87,10 +87,11 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     rec.go(0, up, q, HOLD, 80)?;
     rec.settle(0.004, 60)?;
     show(&rec, "lifted");
+    rec.phase("grasp_spray");
     let latched = |e: &TaskEnv| e.checker().value("trigger") == Some(true);
     if variant == Variant::Wrong && front_kind {
         // Set down where it was lifted, far from the plant, and pull there.
-        return place_and_press(rec, home, rest_z, [up[0], up[1]], id);
+        return place_and_press(rec, home, rest_z, [up[0], up[1]], id, variant);
     }
     if variant == Variant::Wrong {
         rec.go_many(&[Goal::new(0, up, q, PULL)], 60, latched)?;
@@ -104,13 +105,14 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     let target = [plant[0] - 0.15, plant[1], plant[2] + 0.02];
     if front_kind {
         let to = kin::sub(target, nozzle);
-        return place_and_press(rec, home, rest_z, [to[0], to[1]], id);
+        return place_and_press(rec, home, rest_z, [to[0], to[1]], id, variant);
     }
     let mid = kin::scale(kin::add(kin::add(up, kin::sub(target, nozzle)), up), 0.5);
     rec.go(0, [mid[0], mid[1], up[2] + 0.05], q, HOLD, 90)?;
     rec.go(0, kin::sub(target, nozzle), q, HOLD, 90)?;
     rec.settle(0.004, 80)?;
     show(&rec, "over the plant");
+    rec.phase("aim_spray");
     frame_debug(&rec);
     // Guarded press: curl the index finger until the trigger latches, then keep it there.
     let goal = Goal::new(0, kin::sub(target, nozzle), q, PULL);
@@ -120,6 +122,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     rec.snap(0, "water_pulled");
     rec.wait(80)?;
     show(&rec, "end");
+    rec.phase("water");
     rec.finish(id)
 }
 
@@ -224,14 +227,17 @@ const PRESS_TCP: V3 = [-0.062, -0.035, -0.035];
 /// A sprayer whose trigger hangs in front of the body: carry the held bottle to TCP
 /// position `xy` and set it down (its centre `rest_z` high, as it lay), let go, then
 /// rest the hand on the body, yawed to its new spray direction, and pull the trigger
-/// with the index and middle fingers.
+/// with the index and middle fingers. The demonstration ([`Variant::Demo`], set down
+/// beside the plant) marks its phases.
 fn place_and_press(
     mut rec: Recorder,
     home: kin::Q,
     rest_z: f64,
     xy: [f64; 2],
     id: &str,
+    variant: Variant,
 ) -> Result<Planned, SimError> {
+    let demo = variant == Variant::Demo;
     let (tp, tq) = rec.target(0);
     let bz = kin::body(rec.env(), "link_2")?.0[2];
     let down = [xy[0], xy[1], tp[2] - (bz - rest_z) + 0.005];
@@ -243,6 +249,9 @@ fn place_and_press(
     rec.settle(0.004, 40)?;
     rec.go(0, down, tq, OPEN, 20)?;
     rec.go(0, kin::add(down, [0.0, 0.0, 0.08]), tq, OPEN, 40)?;
+    if demo {
+        rec.phase("aim_spray");
+    }
     let e = rec.env();
     let (bp, m) = kin::body(e, "link_2")?;
     let yaw = m[5].atan2(m[2]);
@@ -266,5 +275,8 @@ fn place_and_press(
     tips_debug(&rec, "press");
     rec.snap(0, "water_press");
     rec.wait(60)?;
+    if demo {
+        rec.phase("water");
+    }
     rec.finish(id)
 }

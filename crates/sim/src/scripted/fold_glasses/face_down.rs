@@ -44,8 +44,11 @@ pub(super) fn fold_face_down(rec: &mut Recorder, down: Q, pace: &Pace) -> Result
         approach = 40;
     }
     fold_standing(rec, down, "glass_joint_0", "glass_joint_1", approach, pace)?;
+    rec.phase("fold_first_temple");
     tip_over_forwards(rec, down)?;
-    fold_lying(rec, down, "glass_joint_1", "glass_joint_0")
+    fold_lying(rec, down, "glass_joint_1", "glass_joint_0")?;
+    rec.phase("fold_second_temple");
+    Ok(())
 }
 
 /// Folds the temple on hinge `joint` with the glasses lying face down (the hinge's axis

@@ -126,12 +126,15 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
         fold_face_down(&mut rec, down, pace)?;
     } else {
         fold_standing(&mut rec, down, "glass_joint_0", "glass_joint_1", 110, pace)?;
+        rec.phase("fold_first_temple");
         fold_standing(&mut rec, down, "glass_joint_1", "glass_joint_0", 45, pace)?;
+        rec.phase("fold_second_temple");
         // Folded, the glasses cannot stand: tip them over backwards (away from the
         // table's edge) with the fingertip on the top of the front.
         tip_over_backwards(&mut rec, down)?;
     }
     stow(&mut rec, table, home, pace)?;
+    rec.phase("place_glasses");
     rec.finish(id)
 }
 
