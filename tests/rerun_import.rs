@@ -2,7 +2,9 @@
 //! demonstration (augment: two randomized replays and the wrist camera) loads through
 //! Rerun's own LeRobot importer (`rerun <dataset>`, rerun-sdk 0.41 in the test venv)
 //! with every episode as a recording, and in each the action and state series, the task
-//! text and both cameras' videos cover every frame.
+//! text and both cameras' videos cover every frame, and its subtasks (lerobot 0.6's
+//! `language_persistent` rows) show as text: one per subtask of click_mouse, and the
+//! instruction's `task_aug` row.
 
 mod common;
 
@@ -42,6 +44,14 @@ fn rerun_loads_every_episode_with_its_series_and_videos() {
         assert!(length > 100, "{rec}");
         assert_eq!(rec["scalars"]["observation.state"], length, "{rec}");
         assert_eq!(rec["task_rows"], length, "{rec}");
+        assert_eq!(
+            rec["language"],
+            serde_json::json!({
+                "/language_persistent/subtask/assistant": 2,
+                "/language_persistent/task_aug/user": 1
+            }),
+            "{rec}"
+        );
         for camera in ["third_person", "handcam_rgb"] {
             assert_eq!(
                 rec["video_samples"][format!("observation.images.{camera}")],

@@ -34,7 +34,7 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
     let ConvertSettings {
         inputs,
         out,
-        options,
+        mut options,
         tasks,
     } = ConvertSettings::resolve(args, global)?;
     // Checked again under the output's lock when writing; this fails before any work.
@@ -60,6 +60,9 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
         sources.len(),
         out.display()
     );
+    // Every episode's language slice has the length the longest needs.
+    options.v3.language_slots =
+        dexjoco_convert::language_slots(sources.iter().map(|s| s.path.as_path()));
     let bar = Bar::new("convert", global.quiet);
     bar.0.set_length(sources.len() as u64);
     let inputs = sources.iter().map(|s| read_episode(s, &tasks));

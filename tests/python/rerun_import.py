@@ -6,8 +6,8 @@
 Runs `rerun --bind 127.0.0.1 --port P --save OUT.rrd DATASET` (the importer, no viewer),
 then `rerun rrd print OUT.rrd` and groups its chunks by recording (each recording's
 chunks start with its `/__properties` chunk). Prints JSON: the recordings' ids, and per
-recording the rows of each entity's scalars, the video samples per camera and the task
-text rows.
+recording the rows of each entity's scalars, the video samples per camera, the task
+text rows and the language rows per entity (`/language_persistent/<style>/<role>`).
 """
 
 from __future__ import annotations
@@ -49,13 +49,15 @@ def main(argv: list[str]) -> None:
             continue
         rows, entity, columns = int(m.group(1)), m.group(2), m.group(3)
         if entity == "/__properties":
-            recordings.append({"scalars": {}, "video_samples": {}, "task_rows": 0})
+            recordings.append({"scalars": {}, "video_samples": {}, "task_rows": 0, "language": {}})
             continue
         rec = recordings[-1]
         if "Scalars:scalars" in columns:
             rec["scalars"][entity[1:]] = rec["scalars"].get(entity[1:], 0) + rows
         elif "VideoStream:sample" in columns:
             rec["video_samples"][entity[1:]] = rec["video_samples"].get(entity[1:], 0) + rows
+        elif "TextDocument:text" in columns and entity.startswith("/language"):
+            rec["language"][entity] = rec["language"].get(entity, 0) + rows
         elif "TextDocument:text" in columns:
             rec["task_rows"] += rows
     print(json.dumps({"recordings": ids, "contents": recordings}))

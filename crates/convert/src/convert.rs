@@ -232,6 +232,19 @@ fn new_writer(
     })
 }
 
+/// The `language_persistent` slice length a LeRobot v3.0 dataset of these episode
+/// folders needs ([`dexjoco_formats::dataset::lerobot_v3::V3Options::language_slots`]):
+/// read from their replay records before any episode is written, since every episode's
+/// slice must have it. Folders without a readable record count as none.
+pub fn language_slots<'a>(dirs: impl IntoIterator<Item = &'a Path>) -> usize {
+    dexjoco_formats::dataset::language::slots_for(dirs.into_iter().map(|dir| {
+        match dexjoco_formats::raw::read_replay_label(dir) {
+            Ok(Some(l)) => subtask_rows(&l.subtasks, 0, l.steps.max(1)).len(),
+            _ => 0,
+        }
+    }))
+}
+
 /// The episode whose layout (fps, widths, cameras and their videos) the dataset takes:
 /// the most common one in the first batch; among equals the one with more cameras (a
 /// missing video is likelier than an extra one), then the first. A broken first episode

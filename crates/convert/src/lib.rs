@@ -33,6 +33,7 @@ mod privileged;
 pub use config::{ActionSource, ColumnSlice, Selection, TaskSelection, first_moving_frame};
 pub use convert::{
     CONVERT_MARKER, ConvertOptions, FailedEpisode, OutputFormat, Summary, check_output, convert,
+    language_slots,
 };
 // The dataset types of this crate's API (the writers' input and options).
 pub use dexjoco_formats::dataset::{PreparedEpisode, V3Options};

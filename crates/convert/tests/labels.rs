@@ -504,13 +504,14 @@ fn each_frames_subtask_reads_back_from_every_format_as_the_labels_say() {
     .into_iter()
     .map(|(name, format)| {
         let root = dir.path().join(name);
-        convert(
-            fx.inputs.iter().cloned().map(Ok),
-            &root,
-            &options(format),
-            &NoProgress,
-        )
-        .unwrap();
+        let mut opts = options(format);
+        opts.v3.language_slots =
+            dexjoco_convert::language_slots(fx.inputs.iter().map(|i| i.dir.as_path()));
+        assert_eq!(
+            opts.v3.language_slots, 3,
+            "2 subtask rows at most, and a task_aug row"
+        );
+        convert(fx.inputs.iter().cloned().map(Ok), &root, &opts, &NoProgress).unwrap();
         root
     })
     .collect();

@@ -5,11 +5,11 @@
 //!
 //! - LeRobot v3.0 (lerobot 0.6's language columns, `lerobot.datasets.language`): a
 //!   persistent `subtask` row (role `assistant`) per change point, at its frame's
-//!   timestamp, each frame holding the row running there (`language_persistent`; see
-//!   [`persistent_column`]); `language_events` is present and empty. lerobot resolves the
-//!   row active at a frame (`active_at`): the latest row at or before the frame's
-//!   timestamp. Declared in `info.json` as `{"dtype": "language", "shape": [1], "names":
-//!   null}`.
+//!   timestamp, and `task_aug` rows with the instruction; the episode's slice on every
+//!   frame of it (`language_persistent`, see [`persistent_column`]); `language_events`
+//!   is present and empty. lerobot resolves the row active at a frame (`active_at`): the
+//!   latest row at or before the frame's timestamp. Declared in `info.json` as
+//!   `{"dtype": "language", "shape": [1], "names": null}`.
 //! - LeRobot v2.1 and Diffusion Policy: a per-frame `subtask_index` into the dataset's
 //!   list of subtask texts (`meta/subtasks.jsonl`; `meta/.zattrs` `subtasks`).
 
@@ -125,58 +125,85 @@ fn event_fields() -> Fields {
     )
 }
 
-/// The `language_persistent` column of an episode of `frames` frames: on each frame,
-/// one row: the `subtask` row (role `assistant`) running there, with the timestamp of
-/// the frame it began on; where none runs yet (or the episode has no subtasks), a
-/// `task_aug` row (role `user`) with the episode's instruction at timestamp 0.
+/// The rows of an episode's persistent slice, sorted as lerobot's writer sorts them
+/// (timestamp, style, role): its `subtask` rows (role `assistant`), and `task_aug` rows
+/// (role `user`) with the episode's instruction on its first frames, enough to make
+/// `slots` rows in all (at least one).
+fn slice_rows<'a>(rows: &'a [SubtaskRow], instruction: &'a str, slots: usize) -> Vec<SliceRow<'a>> {
+    let fill = slots.saturating_sub(rows.len()).max(1);
+    let mut out: Vec<SliceRow<'a>> = rows
+        .iter()
+        .map(|r| SliceRow {
+            frame: r.frame,
+            style: "subtask",
+            role: "assistant",
+            content: &r.text,
+        })
+        .chain((0..fill).map(|f| SliceRow {
+            frame: f,
+            style: "task_aug",
+            role: "user",
+            content: instruction,
+        }))
+        .collect();
+    out.sort_by(|a, b| (a.frame, a.style, a.role).cmp(&(b.frame, b.style, b.role)));
+    out
+}
+
+/// One row of a persistent slice.
+struct SliceRow<'a> {
+    frame: usize,
+    style: &'static str,
+    role: &'static str,
+    content: &'a str,
+}
+
+/// The `language_persistent` column of an episode of `frames` frames: its whole slice
+/// ([`slice_rows`]) on every frame, as lerobot's writer lays it out (lerobot resolves the
+/// row active at a frame, `active_at`; Rerun's importer shows the first frame's slice).
 ///
-/// One row per frame rather than the episode's whole slice on every frame: lerobot's
-/// resolver (`active_at`) finds the same row either way, and every frame of every
-/// episode then has the same shape, which lerobot-doctor 0.2's consistency check
-/// requires (it fails a dataset whose episodes hold slices of different lengths).
+/// `slots` is the dataset's slice length: every episode's slice has the same number of
+/// rows (filled with `task_aug` rows of its instruction), because lerobot-doctor 0.2's
+/// consistency check fails a dataset whose episodes' slices differ in length.
 pub fn persistent_column(
     rows: &[SubtaskRow],
     instruction: &str,
+    slots: usize,
     fps: u32,
     frames: usize,
 ) -> ArrayRef {
-    let running: Vec<Option<&SubtaskRow>> = {
-        let mut k = 0;
-        let mut current = None;
-        (0..frames)
-            .map(|f| {
-                while k < rows.len() && rows[k].frame <= f {
-                    current = Some(&rows[k]);
-                    k += 1;
-                }
-                current
-            })
-            .collect()
+    let slice = slice_rows(rows, instruction, slots);
+    let repeat = |f: fn(&SliceRow<'_>) -> String| -> ArrayRef {
+        Arc::new(StringArray::from_iter_values(
+            (0..frames).flat_map(|_| slice.iter().map(f)),
+        ))
     };
-    let column = |f: &dyn Fn(Option<&SubtaskRow>) -> String| -> ArrayRef {
-        Arc::new(StringArray::from_iter_values(running.iter().map(|r| f(*r))))
-    };
+    let n = slice.len() * frames;
     let mut calls = ListBuilder::new(StringBuilder::new());
-    for _ in 0..frames {
+    for _ in 0..n {
         calls.append(false);
     }
     let structs = StructArray::new(
         persistent_fields(),
         vec![
-            column(&|r| if r.is_some() { "assistant" } else { "user" }.to_owned()),
-            column(&|r| r.map_or_else(|| instruction.to_owned(), |r| r.text.clone())),
-            column(&|r| if r.is_some() { "subtask" } else { "task_aug" }.to_owned()),
+            repeat(|r| r.role.to_owned()),
+            repeat(|r| r.content.to_owned()),
+            repeat(|r| r.style.to_owned()),
             Arc::new(Float32Array::from_iter_values(
-                running
-                    .iter()
-                    .map(|r| r.map_or(0.0, |r| timestamp(r.frame, fps))),
+                (0..frames).flat_map(|_| slice.iter().map(|r| timestamp(r.frame, fps))),
             )),
-            arrow_array::new_null_array(&DataType::Utf8, frames),
+            arrow_array::new_null_array(&DataType::Utf8, n),
             Arc::new(calls.finish()),
         ],
         None,
     );
-    list_of(structs, 1, frames)
+    list_of(structs, slice.len(), frames)
+}
+
+/// The slice length that fits every episode: the most subtask rows any of them has, plus
+/// one `task_aug` row.
+pub fn slots_for(rows_per_episode: impl IntoIterator<Item = usize>) -> usize {
+    rows_per_episode.into_iter().max().unwrap_or(0) + 1
 }
 
 /// The `language_events` column of an episode of `frames` frames: an empty list on each.
@@ -311,34 +338,42 @@ mod tests {
                 text: "b".into(),
             },
         ];
-        let col = persistent_column(&rows, "the task", 30, 5);
+        let col = persistent_column(&rows, "the task", 4, 30, 5);
         let list = col.as_any().downcast_ref::<ListArray>().unwrap();
         assert_eq!(list.len(), 5);
-        assert_eq!(list.value_length(4), 1);
-        let row = |f: usize| {
+        assert_eq!(
+            list.value_length(4),
+            4,
+            "2 subtask rows and 2 task_aug rows"
+        );
+        let slice = |f: usize| -> Vec<(String, String, f32)> {
             let v = list.value(f);
             let s = v.as_any().downcast_ref::<StructArray>().unwrap();
-            let text = |c: usize| {
+            let text = |c: usize, i: usize| {
                 s.column(c)
                     .as_any()
                     .downcast_ref::<StringArray>()
                     .unwrap()
-                    .value(0)
+                    .value(i)
                     .to_owned()
             };
-            let ts = s
-                .column(3)
-                .as_any()
-                .downcast_ref::<Float32Array>()
-                .unwrap()
-                .value(0);
-            (text(1), text(2), ts)
+            let ts = s.column(3).as_any().downcast_ref::<Float32Array>().unwrap();
+            (0..s.len())
+                .map(|i| (text(1, i), text(2, i), ts.value(i)))
+                .collect()
         };
-        assert_eq!(row(2), ("a".to_owned(), "subtask".to_owned(), 0.0));
-        assert_eq!(row(4), ("b".to_owned(), "subtask".to_owned(), 0.1));
-        let none = persistent_column(&[], "the task", 30, 2);
-        let list = none.as_any().downcast_ref::<ListArray>().unwrap();
-        assert_eq!(list.value_length(1), 1, "the instruction's task_aug row");
+        assert_eq!(slice(0), slice(4), "the same slice on every frame");
+        let t = |f: usize| (f as f64 / 30.0) as f32;
+        assert_eq!(
+            slice(0),
+            [
+                ("a".to_owned(), "subtask".to_owned(), t(0)),
+                ("the task".to_owned(), "task_aug".to_owned(), t(0)),
+                ("the task".to_owned(), "task_aug".to_owned(), t(1)),
+                ("b".to_owned(), "subtask".to_owned(), t(3)),
+            ]
+        );
+        assert_eq!(slots_for([2, 0, 3]), 4);
         let events = events_column(5);
         let list = events.as_any().downcast_ref::<ListArray>().unwrap();
         assert_eq!((list.len(), list.value_length(0)), (5, 0));

@@ -37,6 +37,10 @@ pub struct V3Options {
     pub data_file_mb: f64,
     /// Video file size cap in MB (info.json records it rounded, at least 1).
     pub video_file_mb: f64,
+    /// Rows of every episode's `language_persistent` slice (its subtask rows, then
+    /// `task_aug` rows): the most any episode of the dataset has, plus one
+    /// ([`super::language::slots_for`]); 0: each episode's own count plus one.
+    pub language_slots: usize,
 }
 
 impl Default for V3Options {
@@ -45,6 +49,7 @@ impl Default for V3Options {
             robot_type: None,
             data_file_mb: DEFAULT_DATA_FILE_MB,
             video_file_mb: DEFAULT_VIDEO_FILE_MB,
+            language_slots: 0,
         }
     }
 }
@@ -588,7 +593,13 @@ impl DatasetWriter for V3Writer {
             columns.extend([
                 (
                     LANGUAGE_PERSISTENT.to_owned(),
-                    persistent_column(&ep.subtasks, &ep.instruction, self.fps, n),
+                    persistent_column(
+                        &ep.subtasks,
+                        &ep.instruction,
+                        self.options.language_slots,
+                        self.fps,
+                        n,
+                    ),
                 ),
                 (LANGUAGE_EVENTS.to_owned(), events_column(n)),
             ]);
