@@ -3,8 +3,8 @@
 //! Rerun's own LeRobot importer (`rerun <dataset>`, rerun-sdk 0.41 in the test venv)
 //! with every episode as a recording, and in each the action and state series, the task
 //! text and both cameras' videos cover every frame, and its subtasks (lerobot 0.6's
-//! `language_persistent` rows) show as text: one per subtask of click_mouse, and the
-//! instruction's `task_aug` row.
+//! `language_persistent` rows) show as text: one per subtask of click_mouse, and a
+//! `task_aug` row for the instruction and each of the task spec's prompt variants.
 
 mod common;
 
@@ -25,6 +25,11 @@ fn rerun_loads_every_episode_with_its_series_and_videos() {
     let frames = info["total_frames"].as_u64().unwrap();
     assert_eq!(episodes, 2);
 
+    let variants = dexjoco_core::TaskSpec::builtin("click_mouse")
+        .unwrap()
+        .prompt_variants
+        .len();
+    assert!(variants > 0, "click_mouse's spec has prompt variants");
     let rrd = tmp.path().join("dataset.rrd");
     let report = dexjoco_testkit::run_python(
         "rerun_import.py",
@@ -48,7 +53,7 @@ fn rerun_loads_every_episode_with_its_series_and_videos() {
             rec["language"],
             serde_json::json!({
                 "/language_persistent/subtask/assistant": 2,
-                "/language_persistent/task_aug/user": 1
+                "/language_persistent/task_aug/user": 1 + variants
             }),
             "{rec}"
         );

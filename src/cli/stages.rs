@@ -156,6 +156,7 @@ Examples:
   dexjoco-data convert raw/ --config selection.toml --reencode --video-codec h264
   dexjoco-data convert raw/ --overwrite --no-skip-static
   dexjoco-data convert raw/ --format diffusion-policy --videos --norm-stats
+  dexjoco-data convert dexjoco-work/augment --instructions paraphrases.yaml
 
 Input: an episode store (a folder with manifest.json, as `ingest` writes it: its landed
 episodes) or any folder of DexJoCo raw episode folders (replay.zarr + videos/<camera>.mp4),
@@ -175,6 +176,13 @@ encoded (AV1 by default).
 data/timestamp as float64, data/<camera> as uint8 frames, meta/episode_ends); --videos
 also keeps <out>/videos/<episode>/<camera>.mp4 with videos/name_map.json.
 --norm-stats writes openpi's <out>/norm_stats.json (state, actions: mean, std, q01, q99).
+
+Subtasks: replays that carry subtask spans (augment's replay.json) get each frame's
+running subtask: LeRobot v3.0 in lerobot 0.6's language columns (language_persistent:
+a `subtask` row where the running subtask changes, and `task_aug` rows with the
+instruction and its paraphrases: the task spec's prompt_variants, or --instructions),
+LeRobot v2.1 and Diffusion Policy as a per-frame subtask_index (texts in
+meta/subtasks.jsonl, meta/.zattrs).
 
 An episode that cannot be read, lacks what the selection asks for or does not fit the
 dataset's layout is left out and named with its reason; the rest is written and the exit
@@ -203,6 +211,11 @@ pub struct ConvertArgs {
     /// folder (selected_data.yaml, slice_config.yaml, language_instructions.yaml).
     #[arg(long, env = "DEXJOCO_CONVERT_CONFIG")]
     pub config: Option<PathBuf>,
+    /// Prompt variants: a TOML/YAML file of task id -> paraphrases of its instruction
+    /// (a list, or one text), written as `task_aug` rows in LeRobot v3.0 (replaces the
+    /// task spec's prompt_variants for the tasks it names).
+    #[arg(long, value_name = "FILE")]
+    pub instructions: Option<PathBuf>,
     /// Replace a non-empty output folder (only a dataset convert made).
     #[arg(long)]
     pub overwrite: bool,

@@ -61,8 +61,10 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
         out.display()
     );
     // Every episode's language slice has the length the longest needs.
-    options.v3.language_slots =
-        dexjoco_convert::language_slots(sources.iter().map(|s| s.path.as_path()));
+    options.v3.language_slots = dexjoco_convert::language_slots(
+        sources.iter().map(|s| s.path.as_path()),
+        &options.selection,
+    );
     let bar = Bar::new("convert", global.quiet);
     bar.0.set_length(sources.len() as u64);
     let inputs = sources.iter().map(|s| read_episode(s, &tasks));

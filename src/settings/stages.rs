@@ -305,6 +305,7 @@ impl ConvertSettings {
             out,
             format,
             config,
+            instructions,
             overwrite,
             include_failed,
             include_flagged,
@@ -339,13 +340,29 @@ impl ConvertSettings {
         let out = out.unwrap_or_else(|| global.work_dir.join("convert").join(format_dir));
         outputs_apart(
             &[&out],
-            &reads(&inputs, &[config.as_deref(), tasks_dir.as_deref()]),
+            &reads(
+                &inputs,
+                &[
+                    config.as_deref(),
+                    tasks_dir.as_deref(),
+                    instructions.as_deref(),
+                ],
+            ),
         )?;
         let mut selection = match &config {
             None => Selection::default(),
             Some(p) if p.is_dir() => Selection::from_reference_dir(p)?,
             Some(p) => Selection::load(p)?,
         };
+        // The task set's own variants (a --tasks-dir spec's too), then the file's.
+        for spec in tasks.iter() {
+            (selection.prompt_variants)
+                .entry(spec.id.clone())
+                .or_insert_with(|| spec.prompt_variants.clone());
+        }
+        if let Some(path) = &instructions {
+            selection.load_prompt_variants(path)?;
+        }
         if no_skip_static {
             selection.skip_static_frames = false;
         }

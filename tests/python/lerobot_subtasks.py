@@ -1,6 +1,7 @@
 """Reads each frame's running subtask back from converted datasets, as their users read
 it, and prints JSON {"v3": [...], "v21": [...], "dp": [...]} (one text per frame, in
-dataset order; null where none):
+dataset order; null where none), and "task_aug": each v3 episode's distinct `task_aug`
+texts, in row order:
 
 - LeRobot v3.0 through lerobot 0.6.1's own API: `LeRobotDataset` items carry
   `language_persistent`, resolved at the item's timestamp by lerobot's
@@ -26,13 +27,16 @@ def v3(root):
 
     ds = LeRobotDataset("local/subtasks", root=root)
     assert ds.meta.features["language_persistent"]["dtype"] == "language"
-    out = []
+    out, aug = [], {}
     for i in range(len(ds)):
         item = ds[i]
-        row = active_at(float(item["timestamp"]), persistent=item["language_persistent"], style="subtask")
+        rows = item["language_persistent"]
+        row = active_at(float(item["timestamp"]), persistent=rows, style="subtask")
         assert item["language_events"] == [], item["language_events"]
         out.append(row["content"] if row else None)
-    return out
+        texts = [r["content"] for r in rows if r["style"] == "task_aug" and r["role"] == "user"]
+        aug.setdefault(int(item["episode_index"]), list(dict.fromkeys(texts)))
+    return out, [aug[e] for e in sorted(aug)]
 
 
 def v21(root):
@@ -58,4 +62,5 @@ def dp(root):
 
 if __name__ == "__main__":
     a, b, c = sys.argv[1:4]
-    print(json.dumps({"v3": v3(a), "v21": v21(b), "dp": dp(c)}))
+    frames, aug = v3(a)
+    print(json.dumps({"v3": frames, "task_aug": aug, "v21": v21(b), "dp": dp(c)}))

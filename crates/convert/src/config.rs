@@ -76,6 +76,10 @@ pub struct Selection {
     /// task spec's prompt).
     #[serde(default)]
     pub instructions: BTreeMap<String, String>,
+    /// Task id -> other ways to say its instruction (the `task_aug` rows of LeRobot
+    /// v3.0's language columns; overrides the task spec's `prompt_variants`).
+    #[serde(default)]
+    pub prompt_variants: BTreeMap<String, Vec<String>>,
     /// Episode ids to leave out.
     #[serde(default)]
     pub bad_episodes: BTreeSet<String>,
@@ -98,6 +102,7 @@ impl Default for Selection {
             default: TaskSelection::default(),
             tasks: BTreeMap::new(),
             instructions: BTreeMap::new(),
+            prompt_variants: BTreeMap::new(),
             bad_episodes: BTreeSet::new(),
             skip_static_frames: true,
             merge_bimanual: false,
@@ -124,6 +129,64 @@ impl Selection {
             return prompt.to_owned();
         }
         dexjoco_core::TaskSpec::builtin(task).map_or_else(|| task.to_owned(), |s| s.prompt.clone())
+    }
+
+    /// The `task_aug` texts of an episode of `task` whose instruction is `instruction`:
+    /// the instruction, then the task's prompt variants (this selection's, else its
+    /// built-in spec's), each once.
+    pub fn task_aug(&self, task: &str, instruction: &str) -> Vec<String> {
+        let builtin = || dexjoco_core::TaskSpec::builtin(task).map(|s| &s.prompt_variants);
+        let variants = self.prompt_variants.get(task).or_else(builtin);
+        let mut out = vec![instruction.to_owned()];
+        for v in variants.into_iter().flatten() {
+            if !v.trim().is_empty() && !out.contains(v) {
+                out.push(v.clone());
+            }
+        }
+        out
+    }
+
+    /// The most `task_aug` texts an episode of any task named in this selection or
+    /// built in can get (every episode's language slice is padded to one length).
+    pub fn most_task_aug(&self) -> usize {
+        let builtin = dexjoco_core::TaskSet::builtin().ids();
+        // An empty instruction equals no variant: the count is an upper bound.
+        self.prompt_variants
+            .keys()
+            .map(String::as_str)
+            .chain(builtin)
+            .map(|t| self.task_aug(t, "").len())
+            .max()
+            .unwrap_or(1)
+    }
+
+    /// Reads an instructions file (`--instructions`): TOML (`.toml`) or YAML, task id ->
+    /// its prompt variants (a list of texts, or one text), into [`Self::prompt_variants`].
+    pub fn load_prompt_variants(&mut self, path: &Path) -> Result<(), ConvertError> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Texts {
+            One(String),
+            Many(Vec<String>),
+        }
+        let text = fs_err::read_to_string(path)?;
+        let bad = |message: String| ConvertError::Config {
+            path: path.to_path_buf(),
+            message,
+        };
+        let map: BTreeMap<String, Texts> = if path.extension().is_some_and(|e| e == "toml") {
+            toml::from_str(&text).map_err(|e| bad(e.to_string()))?
+        } else {
+            serde_norway::from_str(&text).map_err(|e| bad(e.to_string()))?
+        };
+        for (task, texts) in map {
+            let texts = match texts {
+                Texts::One(t) => vec![t],
+                Texts::Many(v) => v,
+            };
+            self.prompt_variants.insert(task, texts);
+        }
+        Ok(())
     }
 
     /// Reads a selection config: TOML (`.toml`) or YAML (anything else), with the fields
@@ -327,5 +390,32 @@ mod tests {
         fs_err::write(&y, "defaults: {}\n").unwrap();
         let e = Selection::load(&y).unwrap_err().to_string();
         assert!(e.contains("sel.yaml") && e.contains("defaults"), "{e}");
+    }
+
+    #[test]
+    fn prompt_variants_from_the_spec_or_an_instructions_file() {
+        let spec = dexjoco_core::TaskSpec::builtin("hammer_nail").unwrap();
+        let mut sel = Selection::default();
+        let aug = sel.task_aug("hammer_nail", &spec.prompt);
+        assert_eq!(aug[0], spec.prompt, "the instruction first");
+        assert_eq!(aug[1..], spec.prompt_variants[..]);
+        assert_eq!(sel.most_task_aug(), 1 + spec.prompt_variants.len());
+        let dir = tempfile::tempdir().unwrap();
+        let y = dir.path().join("variants.yaml");
+        fs_err::write(
+            &y,
+            "hammer_nail: [\"hit the nail\", \"hit the nail\", \"\"]\nmy_task: do it\n",
+        )
+        .unwrap();
+        sel.load_prompt_variants(&y).unwrap();
+        assert_eq!(
+            sel.task_aug("hammer_nail", "drive it"),
+            ["drive it", "hit the nail"],
+            "each once, empty texts dropped"
+        );
+        assert_eq!(sel.task_aug("my_task", "my_task"), ["my_task", "do it"]);
+        fs_err::write(&y, "hammer_nail: {a: 1}\n").unwrap();
+        let e = sel.load_prompt_variants(&y).unwrap_err().to_string();
+        assert!(e.contains("variants.yaml"), "{e}");
     }
 }

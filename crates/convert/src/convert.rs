@@ -235,14 +235,19 @@ fn new_writer(
 /// The `language_persistent` slice length a LeRobot v3.0 dataset of these episode
 /// folders needs ([`dexjoco_formats::dataset::lerobot_v3::V3Options::language_slots`]):
 /// read from their replay records before any episode is written, since every episode's
-/// slice must have it. Folders without a readable record count as none.
-pub fn language_slots<'a>(dirs: impl IntoIterator<Item = &'a Path>) -> usize {
-    dexjoco_formats::dataset::language::slots_for(dirs.into_iter().map(|dir| {
-        match dexjoco_formats::raw::read_replay_label(dir) {
+/// slice must have it. Folders without a readable record count as none; every episode
+/// may get as many `task_aug` rows as `selection` gives any task.
+pub fn language_slots<'a>(
+    dirs: impl IntoIterator<Item = &'a Path>,
+    selection: &Selection,
+) -> usize {
+    let rows = dirs
+        .into_iter()
+        .map(|dir| match dexjoco_formats::raw::read_replay_label(dir) {
             Ok(Some(l)) => subtask_rows(&l.subtasks, 0, l.steps.max(1)).len(),
             _ => 0,
-        }
-    }))
+        });
+    dexjoco_formats::dataset::language::slots_for(rows, selection.most_task_aug())
 }
 
 /// The episode whose layout (fps, widths, cameras and their videos) the dataset takes:

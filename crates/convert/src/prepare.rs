@@ -153,10 +153,11 @@ pub fn prepare(
         videos.push(part);
     }
     videos.sort_by(|a, b| a.name.cmp(&b.name));
+    let instruction = selection.instruction(&ep.task, &ep.prompt);
     Ok(PreparedEpisode {
         id: ep.id.clone(),
         task: ep.task.clone(),
-        instruction: selection.instruction(&ep.task, &ep.prompt),
+        instruction: instruction.clone(),
         fps,
         action,
         state,
@@ -170,6 +171,7 @@ pub fn prepare(
         privileged_names: Vec::new(),
         depth: Vec::new(),
         subtasks: Vec::new(),
+        task_aug: selection.task_aug(&ep.task, &instruction),
     })
 }
 

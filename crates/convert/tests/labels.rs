@@ -495,6 +495,9 @@ fn fixture_with_subtasks() -> (Fixture, Vec<Vec<dexjoco_core::SubtaskSpan>>) {
 #[test]
 fn each_frames_subtask_reads_back_from_every_format_as_the_labels_say() {
     let (fx, spans) = fixture_with_subtasks();
+    let task = fx.inputs[0].episode.task.clone();
+    let instruction = (options(OutputFormat::LeRobotV3).selection)
+        .instruction(&task, &fx.inputs[0].episode.prompt);
     let dir = tempfile::tempdir().unwrap();
     let roots: Vec<_> = [
         ("v3", OutputFormat::LeRobotV3),
@@ -505,11 +508,16 @@ fn each_frames_subtask_reads_back_from_every_format_as_the_labels_say() {
     .map(|(name, format)| {
         let root = dir.path().join(name);
         let mut opts = options(format);
-        opts.v3.language_slots =
-            dexjoco_convert::language_slots(fx.inputs.iter().map(|i| i.dir.as_path()));
+        opts.selection.prompt_variants = [(
+            task.clone(),
+            vec!["press it".to_owned(), "click".to_owned()],
+        )]
+        .into();
+        let dirs = fx.inputs.iter().map(|i| i.dir.as_path());
+        opts.v3.language_slots = dexjoco_convert::language_slots(dirs, &opts.selection);
         assert_eq!(
-            opts.v3.language_slots, 3,
-            "2 subtask rows at most, and a task_aug row"
+            opts.v3.language_slots, 5,
+            "2 subtask rows at most, and 3 task_aug rows (the instruction, 2 variants)"
         );
         convert(fx.inputs.iter().cloned().map(Ok), &root, &opts, &NoProgress).unwrap();
         root
@@ -551,4 +559,7 @@ fn each_frames_subtask_reads_back_from_every_format_as_the_labels_say() {
     for format in ["v3", "v21", "dp"] {
         assert_eq!(got[format], json!(want), "{format}");
     }
+    // Every episode's prompt variants, the instruction first, whatever its subtask rows.
+    let aug = json!([instruction, "press it", "click"]);
+    assert_eq!(got["task_aug"], json!([aug, aug, aug]));
 }

@@ -96,6 +96,7 @@ fn episode(e: usize, n: usize, instruction: &str, video: Option<VideoPart>) -> P
         privileged_names: Vec::new(),
         depth: Vec::new(),
         subtasks: Vec::new(),
+        task_aug: vec![instruction.into()],
     }
 }
 

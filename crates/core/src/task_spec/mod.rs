@@ -63,6 +63,10 @@ pub struct TaskSpec {
     pub scene: String,
     /// The language instruction.
     pub prompt: String,
+    /// Other ways a person says the instruction (paraphrases of `prompt`): the `task_aug`
+    /// rows `convert` gives each episode of the task in LeRobot v3.0's language columns.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub prompt_variants: Vec<String>,
     /// Episode length limit in control steps.
     pub step_cap: usize,
     /// Camera streams: raw key and scene camera.

@@ -126,11 +126,21 @@ fn event_fields() -> Fields {
 }
 
 /// The rows of an episode's persistent slice, sorted as lerobot's writer sorts them
-/// (timestamp, style, role): its `subtask` rows (role `assistant`), and `task_aug` rows
-/// (role `user`) with the episode's instruction on its first frames, enough to make
-/// `slots` rows in all (at least one).
-fn slice_rows<'a>(rows: &'a [SubtaskRow], instruction: &'a str, slots: usize) -> Vec<SliceRow<'a>> {
-    let fill = slots.saturating_sub(rows.len()).max(1);
+/// (timestamp, style, role): its `subtask` rows (role `assistant`), and on its first
+/// frame a `task_aug` row (role `user`) per prompt variant (`task_aug`, the instruction
+/// first), repeated in turn to make `slots` rows in all (lerobot draws the `${task}` of a
+/// sample uniformly from the `task_aug` rows: taking turns keeps the draw near uniform).
+fn slice_rows<'a>(
+    rows: &'a [SubtaskRow],
+    task_aug: &'a [String],
+    slots: usize,
+) -> Vec<SliceRow<'a>> {
+    let aug_rows = slots.saturating_sub(rows.len()).max(task_aug.len()).max(1);
+    let aug = (0..aug_rows).map(|k| {
+        task_aug
+            .get(k % task_aug.len().max(1))
+            .map_or("", String::as_str)
+    });
     let mut out: Vec<SliceRow<'a>> = rows
         .iter()
         .map(|r| SliceRow {
@@ -139,13 +149,14 @@ fn slice_rows<'a>(rows: &'a [SubtaskRow], instruction: &'a str, slots: usize) ->
             role: "assistant",
             content: &r.text,
         })
-        .chain((0..fill).map(|f| SliceRow {
-            frame: f,
+        .chain(aug.map(|content| SliceRow {
+            frame: 0,
             style: "task_aug",
             role: "user",
-            content: instruction,
+            content,
         }))
         .collect();
+    // Stable: the variants keep their order.
     out.sort_by(|a, b| (a.frame, a.style, a.role).cmp(&(b.frame, b.style, b.role)));
     out
 }
@@ -167,12 +178,12 @@ struct SliceRow<'a> {
 /// consistency check fails a dataset whose episodes' slices differ in length.
 pub fn persistent_column(
     rows: &[SubtaskRow],
-    instruction: &str,
+    task_aug: &[String],
     slots: usize,
     fps: u32,
     frames: usize,
 ) -> ArrayRef {
-    let slice = slice_rows(rows, instruction, slots);
+    let slice = slice_rows(rows, task_aug, slots);
     let repeat = |f: fn(&SliceRow<'_>) -> String| -> ArrayRef {
         Arc::new(StringArray::from_iter_values(
             (0..frames).flat_map(|_| slice.iter().map(f)),
@@ -201,9 +212,9 @@ pub fn persistent_column(
 }
 
 /// The slice length that fits every episode: the most subtask rows any of them has, plus
-/// one `task_aug` row.
-pub fn slots_for(rows_per_episode: impl IntoIterator<Item = usize>) -> usize {
-    rows_per_episode.into_iter().max().unwrap_or(0) + 1
+/// the most `task_aug` rows any gets (at least one, the instruction).
+pub fn slots_for(rows_per_episode: impl IntoIterator<Item = usize>, most_task_aug: usize) -> usize {
+    rows_per_episode.into_iter().max().unwrap_or(0) + most_task_aug.max(1)
 }
 
 /// The `language_events` column of an episode of `frames` frames: an empty list on each.
@@ -338,13 +349,14 @@ mod tests {
                 text: "b".into(),
             },
         ];
-        let col = persistent_column(&rows, "the task", 4, 30, 5);
+        let aug = ["the task".to_owned(), "do it".to_owned()];
+        let col = persistent_column(&rows, &aug, 5, 30, 5);
         let list = col.as_any().downcast_ref::<ListArray>().unwrap();
         assert_eq!(list.len(), 5);
         assert_eq!(
             list.value_length(4),
-            4,
-            "2 subtask rows and 2 task_aug rows"
+            5,
+            "2 subtask rows and 3 task_aug rows"
         );
         let slice = |f: usize| -> Vec<(String, String, f32)> {
             let v = list.value(f);
@@ -369,11 +381,12 @@ mod tests {
             [
                 ("a".to_owned(), "subtask".to_owned(), t(0)),
                 ("the task".to_owned(), "task_aug".to_owned(), t(0)),
-                ("the task".to_owned(), "task_aug".to_owned(), t(1)),
+                ("do it".to_owned(), "task_aug".to_owned(), t(0)),
+                ("the task".to_owned(), "task_aug".to_owned(), t(0)),
                 ("b".to_owned(), "subtask".to_owned(), t(3)),
             ]
         );
-        assert_eq!(slots_for([2, 0, 3]), 4);
+        assert_eq!(slots_for([2, 0, 3], 3), 6);
         let events = events_column(5);
         let list = events.as_any().downcast_ref::<ListArray>().unwrap();
         assert_eq!((list.len(), list.value_length(0)), (5, 0));

@@ -595,7 +595,7 @@ impl DatasetWriter for V3Writer {
                     LANGUAGE_PERSISTENT.to_owned(),
                     persistent_column(
                         &ep.subtasks,
-                        &ep.instruction,
+                        &ep.task_aug,
                         self.options.language_slots,
                         self.fps,
                         n,

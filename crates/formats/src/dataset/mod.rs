@@ -143,6 +143,9 @@ pub struct PreparedEpisode {
     /// Where the running subtasks change (from the replay's subtask spans); empty for an
     /// episode without them.
     pub subtasks: Vec<language::SubtaskRow>,
+    /// The episode's prompt variants (`task_aug` rows in LeRobot v3.0): the instruction
+    /// first, then its paraphrases from the task spec or an instructions file.
+    pub task_aug: Vec<String>,
 }
 
 /// A camera's depth for one episode: augment's `videos/<camera>_depth.npz` (key
