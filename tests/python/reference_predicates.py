@@ -212,8 +212,17 @@ def _answer_water_plant(u, prior, _primed):
         pulled = True
     u._trigger_pulled = pulled
     u._success_counter = 29
+    # panda_water_plant_env.py:558-565, inline in _compute_success: the can's reference
+    # point inside the cylinder about the plant (the subtask "point it at the plant").
+    d = u._data.site_xpos[u._model.site("ref_point").id] - u._data.body("plant").xpos
+    inside = d[0] * d[0] + d[1] * d[1] <= 0.2 * 0.2 and -0.2 <= d[2] <= 0.2
     watering, spilled = u._compute_success()
-    return {"trigger": pulled, "watering": bool(watering), "spilled": bool(spilled)}
+    return {
+        "trigger": pulled,
+        "watering": bool(watering),
+        "spilled": bool(spilled),
+        "over_plant": bool(inside),
+    }
 
 
 # ---------------------------------------------------------------- contacts
@@ -471,7 +480,28 @@ def _answer_bimanual_hanoi(u, _prior, _primed):
     u._illegal_trigger_count = held if u._illegal_trigger_reason else 0
     u._success_trigger_count = u._success_trigger_target - 1
     success, m = u._compute_success_metrics()
-    return {"hanoi": success, "hanoi.illegal": m["illegal_state"]}
+    return {"hanoi": success, "hanoi.illegal": m["illegal_state"], "hanoi.on_goal": _on_goal(u)}
+
+
+def _on_goal(u):
+    """The disks seated on the goal post C in the goal order from the bottom, when its stack
+    is within the position and height tolerances (0 otherwise): the reference's own tower
+    reconstruction and geometry check (`_reconstruct_tower_state`, `_tower_geometry_errors`)
+    against its `target_stack` (panda_bimanual_hanoi_env.py, _compute_success_metrics)."""
+    state = u._reconstruct_tower_state()
+    stack = state["towers"]["C"]
+    xy, height = u._tower_geometry_errors(
+        stack, "C", state["disk_positions"], state["post_positions"], state["base_top_z"]
+    )
+    if not (xy <= u._post_assignment_tol and height <= u._placement_height_tol):
+        return 0
+    target = ["hanoi_disk_large", "hanoi_disk_medium", "hanoi_disk_small"]
+    count = 0
+    for have, want in zip(stack, target):
+        if have != want:
+            break
+        count += 1
+    return count
 
 
 # ---------------------------------------------------------------- the table
