@@ -69,13 +69,18 @@ fn case(task: &str, variant: Variant) -> Case {
     let planned = scripted::plan(&scene, &spec, &s0, &name, variant)
         .unwrap_or_else(|e| panic!("{name}: no plan on the reference scene: {e}"));
     // A successful plan on the reference scene goes through every subtask, the last
-    // ending on the success step.
+    // ending on the success step, each near the planner's own phase end.
     if let Some(at) = planned.success_at {
         let ends: Vec<Option<usize>> = planned.subtasks.iter().map(|s| s.end).collect();
         assert!(
             ends.iter().all(Option::is_some) && ends.last() == Some(&Some(at)),
             "{name}: subtasks {:?}",
             planned.subtasks
+        );
+        assert_eq!(
+            planned.phase_disagreements(),
+            Vec::<String>::new(),
+            "{name}"
         );
     }
     Case {

@@ -21,9 +21,15 @@ fn reset(task: &str, seed: u64) -> (dexjoco_sim::Scene, TaskSpec, Vec<f64>) {
 }
 
 /// Every subtask of a successful plan ended, each within its span, the last on the
-/// success step.
-fn assert_segmented(task: &str, spans: &[dexjoco_core::SubtaskSpan], success: usize) {
+/// success step, and within the documented agreement of the planner's own phase end.
+fn assert_segmented(task: &str, planned: &scripted::Planned, success: usize) {
+    let spans = &planned.subtasks;
     assert!(!spans.is_empty(), "{task}: no subtasks");
+    assert_eq!(
+        planned.phase_disagreements(),
+        Vec::<String>::new(),
+        "{task}"
+    );
     for s in spans {
         let (Some(start), Some(end)) = (s.start, s.end) else {
             panic!("{task}: subtask '{}' did not end: {spans:?}", s.id);
@@ -49,7 +55,7 @@ fn plan_record_replay(task: &str, seed: u64) {
     assert_eq!(at, ep.len() - 1, "{task}: recorded up to the success step");
     assert!(!planned.failed);
     assert_eq!(ep.task, task);
-    assert_segmented(task, &planned.subtasks, at);
+    assert_segmented(task, &planned, at);
 
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("in").join(task).join("episode_000000");

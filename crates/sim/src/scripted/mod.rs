@@ -396,6 +396,15 @@ pub(crate) fn debug() -> bool {
     std::env::var_os("DEXJOCO_PLAN_DEBUG").is_some()
 }
 
+/// How far a planner's own phase end may lie from the predicate's end of the same
+/// subtask, in control steps: the predicate ends at most `PHASE_AGREEMENT.0` steps after
+/// the phase (a grasp closing after the approach phase is over) and at most
+/// `PHASE_AGREEMENT.1` steps before it (a predicate holds as soon as its condition does;
+/// the planner marks its phase after the motion completes). Measured over scripted's 20
+/// resets of seed 0 on both scene sets (`examples/subtask_agreement.rs`,
+/// docs/tasks-and-scenes.md).
+pub const PHASE_AGREEMENT: (usize, usize) = (60, 130);
+
 /// A planned demonstration: the recorded frames (up to and including the success step,
 /// or all of them when the plan did not succeed) and how the recording ended.
 #[derive(Debug, Clone)]
@@ -411,6 +420,31 @@ pub struct Planned {
     pub subtasks: Vec<crate::SubtaskSpan>,
     /// Where the planner's own phases ended, by subtask id ([`Recorder::phase`]).
     pub phases: Vec<(String, usize)>,
+}
+
+impl Planned {
+    /// The subtasks whose predicate end is not within [`PHASE_AGREEMENT`] of the
+    /// planner's own phase end, each described (also those that never ended or have no
+    /// phase). Empty for a plan whose segmentation agrees with its planner.
+    pub fn phase_disagreements(&self) -> Vec<String> {
+        let (after, before) = PHASE_AGREEMENT;
+        let mut out = Vec::new();
+        for s in &self.subtasks {
+            let phase = self.phases.iter().find(|(id, _)| *id == s.id).map(|p| p.1);
+            match (s.end, phase) {
+                (None, _) => out.push(format!("'{}' never ended", s.id)),
+                (_, None) => out.push(format!("the planner marks no phase '{}'", s.id)),
+                (Some(end), Some(phase)) if end > phase + after || end + before < phase => {
+                    out.push(format!(
+                        "'{}' ended on step {end}, the planner's phase on {phase}",
+                        s.id
+                    ));
+                }
+                _ => {}
+            }
+        }
+        out
+    }
 }
 
 /// Which plan to make: the task's demonstration, or a deliberately wrong one that
