@@ -122,6 +122,21 @@ fn dataset_statistics_of_raw_episode_folders_leave_out_unreadable_ones() {
         let dir = data.join(task).join(format!("episode_{k:06}"));
         dexjoco_formats::raw::write_replay_zarr(&dir, &ep).unwrap();
     }
+    // Subtask spans: a scripted plan's record on one, an eval record on the other (the
+    // click never ended); the Hanoi episode has none and is not counted.
+    let spans = |click_end: serde_json::Value| {
+        serde_json::json!({"subtasks": [
+            {"id": "push_mouse", "text": "move the mouse onto the pad", "start": 0, "end": 9},
+            {"id": "click", "text": "click", "start": 10, "end": click_end},
+        ]})
+    };
+    let ep = |k: usize| data.join(format!("click_mouse/episode_{k:06}"));
+    fs_err::write(ep(0).join("plan.json"), spans(39.into()).to_string()).unwrap();
+    fs_err::write(
+        ep(1).join("episode.json"),
+        spans(serde_json::Value::Null).to_string(),
+    )
+    .unwrap();
     let out = stats(
         work.path(),
         &["--dataset", data.to_str().unwrap(), "--json"],
@@ -135,6 +150,17 @@ fn dataset_statistics_of_raw_episode_folders_leave_out_unreadable_ones() {
     let d = &json["dataset"];
     assert_eq!(d["episodes"], 3, "{d}");
     assert_eq!(d["frames"], 150);
+    let sub = d["subtasks"].as_array().unwrap();
+    let row = |i: usize, k: &str| sub[i][k].clone();
+    assert_eq!(sub.len(), 2, "click_mouse's two subtasks only: {sub:?}");
+    assert_eq!(
+        (row(0, "completed"), row(0, "rollouts")),
+        (2.into(), 2.into())
+    );
+    assert_eq!(
+        (row(1, "completed"), row(1, "mean_steps")),
+        (1.into(), 30.0.into())
+    );
     let stats_dir = work.path().join("stats/dataset");
     for f in ["dataset_stats.json", "summary.md", "source_norm_stats.json"] {
         assert!(stats_dir.join(f).is_file(), "{f} missing");

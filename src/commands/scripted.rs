@@ -134,11 +134,8 @@ fn write_plan_record(
         "subtasks": plan.subtasks,
     });
     let bytes = serde_json::to_vec_pretty(&record).expect("serializable");
-    dexjoco_formats::write_atomic(&dir.join(PLAN_RECORD), &bytes)
+    dexjoco_formats::write_atomic(&dir.join(dexjoco_formats::raw::PLAN_RECORD), &bytes)
 }
-
-/// The record of a scripted plan in its episode folder.
-const PLAN_RECORD: &str = "plan.json";
 
 /// `grasp_hammer 374, hit_nail 587, drive_nail -`: where each subtask ended.
 fn subtask_words(ends: &[dexjoco_core::SubtaskSpan]) -> String {

@@ -242,6 +242,10 @@ pub struct DatasetStats {
     /// length outliers, duplicates, replay outcomes and flags).
     #[serde(default)]
     pub health: Health,
+    /// Each task's subtasks over the episodes whose folders record them (augment's
+    /// replays, scripted plans, eval episodes): completed, when, how long.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub subtasks: Vec<crate::subtasks::SubtaskSummary>,
 }
 
 /// The episodes that do not fit their task's layout: per task and array, the width most
@@ -328,6 +332,12 @@ impl DatasetStats {
         specs: &TaskSet,
     ) -> Result<Self, StatsError> {
         let mut stats = Self::compute_arrays(episodes, specs)?;
+        stats.subtasks = crate::subtasks::summarize(
+            episodes
+                .iter()
+                .zip(files)
+                .filter_map(|(e, f)| Some((e.task.as_str(), f.subtasks.as_deref()?))),
+        );
         stats.health = Health::compute(stats.flat_dimensions(), episodes, files);
         stats.health.warnings = warnings(&stats.health);
         Ok(stats)
@@ -431,6 +441,7 @@ impl DatasetStats {
             mixed_width_arrays,
             norm_stats,
             health: Health::default(),
+            subtasks: Vec::new(),
         })
     }
 
@@ -477,6 +488,14 @@ impl DatasetStats {
             }
         }
         s.push('\n');
+        if !self.subtasks.is_empty() {
+            s.push_str(
+                "Subtasks (from the episodes' replay, plan or eval records; steps from the end of \
+                 what each waits for to its own end):\n\n",
+            );
+            s.push_str(&crate::subtasks::to_markdown(&self.subtasks));
+            s.push('\n');
+        }
         s.push_str(&self.health.to_markdown());
         s
     }

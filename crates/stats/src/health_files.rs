@@ -19,6 +19,9 @@ pub struct EpisodeFiles {
     /// SHA-256 (hex) of the episode's video files, camera by camera in the episode's
     /// camera order (name and bytes); `None` when it has no video file.
     pub videos_sha256: Option<String>,
+    /// Where each of its task's subtasks ran, from its folder's replay, plan or eval
+    /// record ([`dexjoco_formats::raw::read_subtask_spans`]).
+    pub subtasks: Option<Vec<dexjoco_core::SubtaskSpan>>,
 }
 
 fn hex(digest: &[u8]) -> String {
@@ -68,6 +71,7 @@ impl EpisodeFiles {
         Ok(Self {
             label,
             videos_sha256: any.then(|| hex(&hasher.finalize())),
+            subtasks: dexjoco_formats::raw::read_subtask_spans(path),
         })
     }
 }

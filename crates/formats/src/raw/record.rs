@@ -16,6 +16,10 @@ use crate::error::{FormatError, ProblemCode, Result};
 /// whether the task succeeded in the replay; `--keep-failed` keeps failed ones).
 pub const REPLAY_RECORD: &str = "replay.json";
 
+/// The record `dexjoco-data scripted` writes beside a plan's `replay.zarr`: its seed,
+/// reset, success step and subtask spans.
+pub const PLAN_RECORD: &str = "plan.json";
+
 /// One render check a replay can fail.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -163,4 +167,24 @@ pub fn read_replay_label(dir: &Path) -> Result<Option<ReplayLabel>> {
 /// succeeded: `None` when the folder has no record (a recording, not a replay).
 pub fn replay_success(dir: &Path) -> Result<Option<bool>> {
     Ok(read_replay_label(dir)?.map(|l| l.success))
+}
+
+/// The subtask spans an episode folder's record gives: its replay record's
+/// (`replay.json`, augment), its plan record's (`plan.json`, scripted) or its eval
+/// record's (`episode.json`, eval), the first of them that has any; `None` when none
+/// does (a recording, or records made before subtasks existed). A record that cannot be
+/// read gives none here (the readers of each record name it).
+pub fn read_subtask_spans(dir: &Path) -> Option<Vec<dexjoco_core::SubtaskSpan>> {
+    #[derive(Deserialize)]
+    struct Spans {
+        #[serde(default)]
+        subtasks: Vec<dexjoco_core::SubtaskSpan>,
+    }
+    [REPLAY_RECORD, PLAN_RECORD, super::EVAL_RECORD]
+        .into_iter()
+        .find_map(|name| {
+            let bytes = fs_err::read(dir.join(name)).ok()?;
+            let spans = serde_json::from_slice::<Spans>(&bytes).ok()?.subtasks;
+            (!spans.is_empty()).then_some(spans)
+        })
 }
