@@ -96,6 +96,21 @@ fn yes() -> bool {
     true
 }
 
+/// Reads a config file: TOML (`.toml`) or YAML (anything else); a parse error names the
+/// file.
+fn read_config<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, ConvertError> {
+    let text = fs_err::read_to_string(path)?;
+    let parsed = if path.extension().is_some_and(|e| e == "toml") {
+        toml::from_str(&text).map_err(|e| e.to_string())
+    } else {
+        serde_norway::from_str(&text).map_err(|e| e.to_string())
+    };
+    parsed.map_err(|message| ConvertError::Config {
+        path: path.to_path_buf(),
+        message,
+    })
+}
+
 impl Default for Selection {
     fn default() -> Self {
         Self {
@@ -169,16 +184,7 @@ impl Selection {
             One(String),
             Many(Vec<String>),
         }
-        let text = fs_err::read_to_string(path)?;
-        let bad = |message: String| ConvertError::Config {
-            path: path.to_path_buf(),
-            message,
-        };
-        let map: BTreeMap<String, Texts> = if path.extension().is_some_and(|e| e == "toml") {
-            toml::from_str(&text).map_err(|e| bad(e.to_string()))?
-        } else {
-            serde_norway::from_str(&text).map_err(|e| bad(e.to_string()))?
-        };
+        let map: BTreeMap<String, Texts> = read_config(path)?;
         for (task, texts) in map {
             let texts = match texts {
                 Texts::One(t) => vec![t],
@@ -192,17 +198,7 @@ impl Selection {
     /// Reads a selection config: TOML (`.toml`) or YAML (anything else), with the fields
     /// of [`Selection`].
     pub fn load(path: &Path) -> Result<Self, ConvertError> {
-        let text = fs_err::read_to_string(path)?;
-        let bad = |message: String| ConvertError::Config {
-            path: path.to_path_buf(),
-            message,
-        };
-        let sel: Self = if path.extension().is_some_and(|e| e == "toml") {
-            toml::from_str(&text).map_err(|e| bad(e.to_string()))?
-        } else {
-            serde_norway::from_str(&text).map_err(|e| bad(e.to_string()))?
-        };
-        sel.check_names(path)
+        read_config::<Self>(path)?.check_names(path)
     }
 
     /// The selection when every output camera name is a name, not a path: it names the

@@ -215,6 +215,18 @@ pub struct Run {
 }
 
 impl Run {
+    /// The folders between the searched root and the run, joined by `/` (`""` when the
+    /// run sits directly in the root): what names its policy or its config.
+    pub fn parents(&self) -> String {
+        self.relative
+            .parent()
+            .unwrap_or(Path::new(""))
+            .components()
+            .map(|c| c.as_os_str().to_string_lossy())
+            .collect::<Vec<_>>()
+            .join("/")
+    }
+
     /// Success rate in [0, 1] and episode count: from the marker file when present,
     /// else from the episode folders. `None` when it has neither.
     pub fn success_rate(&self) -> Option<(f64, u32)> {

@@ -271,18 +271,14 @@ impl SuccessTable {
 /// The policy of a run: the path of its parent below the root, or the root's own name
 /// when the run sits directly in it (or is the root).
 fn policy_of(root: &Path, run: &Run) -> String {
-    let parent = run.relative.parent().unwrap_or(Path::new(""));
-    if parent.as_os_str().is_empty() {
+    let parents = run.parents();
+    if parents.is_empty() {
         root.canonicalize()
             .ok()
             .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
             .unwrap_or_else(|| "policy".into())
     } else {
-        parent
-            .components()
-            .map(|c| c.as_os_str().to_string_lossy())
-            .collect::<Vec<_>>()
-            .join("/")
+        parents
     }
 }
 

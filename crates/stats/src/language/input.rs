@@ -416,8 +416,8 @@ fn group_by_config<'r>(
     let mut configs: Vec<String> = manifest.iter().map(|(c, _)| c.clone()).collect();
     let mut by_config: BTreeMap<String, Vec<&Run>> = BTreeMap::new();
     for run in runs {
-        let parent = run.relative.parent().unwrap_or(Path::new(""));
-        let config = if parent.as_os_str().is_empty() {
+        let parents = run.parents();
+        let config = if parents.is_empty() {
             let name = &run.name;
             if name.regime == crate::evaltree::DEFAULT_REGIME {
                 name.task.clone()
@@ -425,11 +425,7 @@ fn group_by_config<'r>(
                 format!("{}_{}", name.task, name.regime)
             }
         } else {
-            parent
-                .components()
-                .map(|c| c.as_os_str().to_string_lossy())
-                .collect::<Vec<_>>()
-                .join("/")
+            parents
         };
         if !configs.contains(&config) {
             configs.push(config.clone());
