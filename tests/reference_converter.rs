@@ -278,8 +278,15 @@ fn check_zarr(r: &Value, o: &Value, lengths: &[usize], skipped: &[usize]) {
         o["arrays"].as_object().unwrap(),
     );
     let ours_only: Vec<&String> = oa.keys().filter(|k| !ra.contains_key(*k)).collect();
+    // The camera frames, and each frame's subtask (the replays carry their spans).
     let cameras: Vec<&str> = CAMERA_NAMES.iter().map(|(_, r)| *r).collect();
-    assert_eq!(ours_only, cameras, "our extra arrays are the camera frames");
+    let mut extra = cameras.clone();
+    extra.push("subtask_index");
+    extra.sort_unstable();
+    assert_eq!(
+        ours_only, extra,
+        "our extra arrays are the camera frames and the subtask index"
+    );
     for key in ["action", "state"] {
         for field in ["dtype", "shape", "values"] {
             assert!(ra[key][field] == oa[key][field], "{key}: {field}");
