@@ -4,7 +4,8 @@
 //! - [`ArmSetup`] and [`ArrayLayout`]: the robot's array layouts, Allegro ranges, 30 fps;
 //! - [`TaskSpec`] (`schemas/tasks/<id>.toml`, the only source of task facts) and
 //!   [`TaskSet`], the known tasks, parsed once;
-//! - rotations in the DexJoCo convention; [`synth`]: valid synthetic episodes;
+//! - rotations in the DexJoCo convention and rigid [`Pose`]s; [`synth`]: valid synthetic
+//!   episodes;
 //! - [`Progress`]: how every stage reports long work; [`available_cores`]: the default
 //!   worker count;
 //! - [`CoreError`] and [`Location`]: errors that name file, episode, field and frame;
@@ -18,6 +19,7 @@ mod error;
 mod layout;
 mod names;
 mod parallelism;
+pub mod pose;
 mod progress;
 mod rotation;
 pub mod synth;
@@ -32,6 +34,7 @@ pub use layout::{
 };
 pub use names::{MAX_NAME_BYTES, UnsafeName, safe_name};
 pub use parallelism::available_cores;
+pub use pose::{Pose, Quat, Vec3};
 pub use progress::{NoProgress, Progress};
 pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};
 pub use task_set::TaskSet;

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use dexjoco_core::{
     ArmTargetInit, ArrayLayout, DerivedPose, FrameArray, HAND_DOF, HandSource, LegStyle, NameKind,
-    PoseSource, TaskSpec, ZRule,
+    Pose, PoseSource, TaskSpec, ZRule,
 };
 use mujoco_rs::prelude::{MjData, MjModel, MjtDisableBit};
 
@@ -442,6 +442,29 @@ impl TaskEnv {
     /// Where each of the task's subtasks ended so far (`None`: not yet).
     pub fn subtask_spans(&self) -> Vec<SubtaskSpan> {
         self.subtasks.spans()
+    }
+
+    /// The world pose now of the state object `name`: the body its pose source names
+    /// (a free joint's body, a static or mocap body), or the geom for a geom's pose;
+    /// `None` when the task has no state object of that name.
+    pub fn object_pose(&self, name: &str) -> Option<Pose> {
+        let object = self.spec.state.objects.iter().find(|o| o.name == name)?;
+        let m = self.data.model();
+        let (pos, mat) = match &object.source {
+            PoseSource::FreeJoint(j) => {
+                let b = m.jnt_bodyid()[name_id(m, NameKind::Joint, j)?] as usize;
+                (self.data.xpos()[b], self.data.xmat()[b])
+            }
+            PoseSource::Body(n) | PoseSource::BodyPosition(n) | PoseSource::Mocap(n) => {
+                let b = name_id(m, NameKind::Body, n)?;
+                (self.data.xpos()[b], self.data.xmat()[b])
+            }
+            PoseSource::GeomLocal(n) => {
+                let g = name_id(m, NameKind::Geom, n)?;
+                (self.data.geom_xpos()[g], self.data.geom_xmat()[g])
+            }
+        };
+        Some(Pose::new(pos, crate::control::mat_to_quat(&mat)))
     }
 
     /// Applies every action (the reference replay does not stop at success or failure)

@@ -1,0 +1,88 @@
+//! Generation success per task, without writing anything: sources are the shipped sample
+//! demonstration of each task (`datasets/demos`) plus `SCRIPTED` scripted plans (from
+//! `scripted --seed 1000`'s resets), attempts from `generate --seed SEED`'s resets; prints
+//! a Markdown table (attempts, successes, where the failures stopped, time per attempt).
+//!
+//! `cargo run --release -p dexjoco-generate --example generate_rates -- [ATTEMPTS] [SCRIPTED] [SCENE_DIR|-] [TASK...]`
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use dexjoco_core::TaskSpec;
+use dexjoco_generate::{AttemptOptions, SourceDemo, attempt};
+use dexjoco_sim::scripted::{self, PLANNED_TASKS, Variant};
+use dexjoco_sim::{SceneSource, TaskEnv, load_task_scene};
+use rand::{Rng, SeedableRng};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut args = std::env::args().skip(1);
+    let attempts: usize = args.next().map_or(Ok(20), |s| s.parse())?;
+    let scripted_sources: usize = args.next().map_or(Ok(0), |s| s.parse())?;
+    let dir = args.next().filter(|a| a != "-");
+    let tasks: Vec<String> = {
+        let t: Vec<String> = args.collect();
+        if t.is_empty() {
+            PLANNED_TASKS.iter().map(|s| (*s).to_owned()).collect()
+        } else {
+            t
+        }
+    };
+    let source = dir.map_or(SceneSource::BuiltIn, |d| SceneSource::Dir(d.into()));
+    let demos = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../datasets/demos");
+    println!("| task | sources | attempts | successes | rate | failed at | s / attempt |");
+    println!("|---|---:|---:|---:|---:|---|---:|");
+    for task in &tasks {
+        let spec = TaskSpec::builtin(task).ok_or("unknown task")?;
+        let scene = load_task_scene(&source, spec)?;
+        let mut sources = Vec::new();
+        let raw = dexjoco_formats::raw::read_raw_episode(&demos.join(task).join("episode_000000"), spec)?;
+        let mut ep = raw.episode;
+        ep.id = format!("{task}_sample");
+        match SourceDemo::prepare(&scene, spec, &ep) {
+            Ok(s) => sources.push(s),
+            Err(e) => eprintln!("{task}: sample not usable: {e}"),
+        }
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1000);
+        for k in 0..scripted_sources {
+            let s0 = TaskEnv::sample_initial_state(&scene, spec, &mut || rng.random::<f64>())?;
+            let p = scripted::plan(&scene, spec, &s0, &format!("{task}_scripted_{k}"), Variant::Demo)?;
+            if p.success_at.is_some() {
+                if let Ok(s) = SourceDemo::prepare(&scene, spec, &p.episode) {
+                    sources.push(s);
+                }
+            }
+        }
+        if sources.is_empty() {
+            println!("| {task} | 0 | - | - | - | no usable source | - |");
+            continue;
+        }
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+        let mut ok = 0;
+        let mut failed: BTreeMap<String, usize> = BTreeMap::new();
+        let t = Instant::now();
+        for k in 0..attempts {
+            let s0 = TaskEnv::sample_initial_state(&scene, spec, &mut || rng.random::<f64>())?;
+            let a = attempt(&scene, spec, &sources, s0, k, 0, &AttemptOptions::default())?;
+            match &a.failure {
+                None => ok += 1,
+                Some(f) => {
+                    if std::env::var_os("GEN_DEBUG").is_some() {
+                        eprintln!("{task} attempt {k}: {f:?}");
+                    }
+                    *failed
+                        .entry(f.subtask.clone().unwrap_or_else(|| "-".into()))
+                        .or_default() += 1
+                }
+            }
+        }
+        let per = t.elapsed().as_secs_f64() / attempts.max(1) as f64;
+        let failed: Vec<String> = failed.iter().map(|(s, n)| format!("{s} {n}")).collect();
+        println!(
+            "| {task} | {} | {attempts} | {ok} | {:.0} % | {} | {per:.2} |",
+            sources.len(),
+            100.0 * ok as f64 / attempts.max(1) as f64,
+            failed.join(", ")
+        );
+    }
+    Ok(())
+}

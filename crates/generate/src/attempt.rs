@@ -1,0 +1,343 @@
+//! One generation attempt: a new reset, then the task's subtasks in the spec's order,
+//! each arm on its own lane (in parallel where the spec lets the arms run so, together
+//! for a `both` subtask, waiting where `after` says): a source segment of the subtask is
+//! chosen, its arm targets carried from the source's reference-object pose to the new
+//! one, bridged from where the arm is, executed through the DexJoCo controller, and the
+//! subtask's end condition checked. Kept only when the task succeeds.
+
+use dexjoco_core::{HAND_DOF, Pose, TaskSpec};
+use dexjoco_sim::scripted::{Planned, Recorder};
+use dexjoco_sim::{EnvOptions, Scene, TaskEnv};
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+
+use crate::error::GenerateError;
+use crate::source::{ArmTarget, Segment, SourceDemo, current_targets};
+
+/// How a source segment is chosen for each subtask.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SegmentChoice {
+    /// Uniformly among the sources (drawn from the attempt's seed).
+    #[default]
+    Random,
+    /// The source whose reference object was closest to where it is now (position, plus
+    /// 0.1 m per radian of rotation), as MimicGen's nearest-neighbour selection.
+    Nearest,
+}
+
+/// Settings of an attempt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AttemptOptions {
+    /// How a segment is chosen.
+    pub choice: SegmentChoice,
+    /// Steps a lane waits, holding its last target, for its subtask's end after its
+    /// segment is done, before the attempt fails at that subtask.
+    pub grace_steps: usize,
+    /// Bridge speed: metres per step of the target (and `bridge_rad_per_step` radians).
+    pub bridge_m_per_step: f64,
+    /// Bridge turning speed (radians per step).
+    pub bridge_rad_per_step: f64,
+    /// Fewest bridge steps.
+    pub bridge_min_steps: usize,
+}
+
+impl Default for AttemptOptions {
+    fn default() -> Self {
+        Self {
+            choice: SegmentChoice::Random,
+            grace_steps: 60,
+            bridge_m_per_step: 0.005,
+            bridge_rad_per_step: 0.03,
+            bridge_min_steps: 10,
+        }
+    }
+}
+
+/// What was used for one subtask of a generated episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// The subtask's id.
+    pub subtask: String,
+    /// The source episode the segment came from.
+    pub source: String,
+    /// The segment's steps in the source (inclusive).
+    pub source_steps: [usize; 2],
+    /// The reference object's pose in the source when the segment began, and in the new
+    /// episode when it was carried over (`[x, y, z, qw, qx, qy, qz]`).
+    pub source_object: [f64; 7],
+    /// The same object's pose in the new episode.
+    pub new_object: [f64; 7],
+    /// The step of the new episode on which the bridge to the segment began, and the
+    /// bridge's length.
+    pub started_at: usize,
+    /// Bridge steps.
+    pub bridge_steps: usize,
+}
+
+/// Where and why an attempt failed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AttemptFailure {
+    /// The first subtask that did not end (its id), or `None` when all ended and the task
+    /// still did not succeed.
+    pub subtask: Option<String>,
+    /// The step the attempt stopped on.
+    pub step: usize,
+    /// Why.
+    pub reason: String,
+}
+
+/// One attempt's outcome.
+#[derive(Debug)]
+pub struct Attempt {
+    /// The attempt's index (also its reset's index in the seed's draws).
+    pub index: usize,
+    /// The reset it started from (`state[0]`).
+    pub reset: Vec<f64>,
+    /// The recording (the episode up to success, or where it stopped) and its subtasks.
+    pub planned: Planned,
+    /// Per subtask started, what it used.
+    pub provenance: Vec<Provenance>,
+    /// Why it failed, when it did.
+    pub failure: Option<AttemptFailure>,
+}
+
+/// A started subtask's work: its bridged, carried-over targets, for its arms.
+struct Run {
+    /// Per step, per arm of `arms`.
+    targets: Vec<Vec<ArmTarget>>,
+    arms: Vec<usize>,
+    /// The next step of `targets`.
+    cursor: usize,
+    /// Steps waited for its end after the last target.
+    waited: usize,
+}
+
+/// Runs attempt `index` from the reset `reset` with the given sources.
+pub fn attempt(
+    scene: &Scene,
+    spec: &TaskSpec,
+    sources: &[SourceDemo],
+    reset: Vec<f64>,
+    index: usize,
+    seed: u64,
+    options: &AttemptOptions,
+) -> Result<Attempt, GenerateError> {
+    let env = TaskEnv::from_initial_state(scene, spec, &reset, EnvOptions::default())?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(index as u64 + 1);
+    let n = spec.subtasks.len();
+    let before = spec.subtask_predecessors();
+    let arms = spec.setup.arms();
+    let mut last: Vec<ArmTarget> = current_targets(&env);
+    let mut rec = Recorder::new(env);
+    // Which subtask each lane works on (a `both` subtask holds both), and each started
+    // subtask's run until its lanes are free again.
+    let mut lanes: Vec<Option<usize>> = vec![None; arms];
+    let mut runs: Vec<Option<Run>> = (0..n).map(|_| None).collect();
+    let mut started = vec![false; n];
+    let mut provenance = Vec::new();
+    let mut failure = None;
+    while !rec.done() {
+        let spans = rec.env().subtask_spans();
+        let ended = |i: usize| spans[i].end.is_some();
+        // A run whose segment is done frees its lanes once its subtask ended; it fails
+        // when the end does not come within the grace steps.
+        for (i, slot) in runs.iter_mut().enumerate() {
+            let Some(run) = slot else { continue };
+            if run.cursor < run.targets.len() {
+                continue;
+            }
+            if ended(i) {
+                *slot = None;
+                lanes.iter_mut().filter(|l| **l == Some(i)).for_each(|l| *l = None);
+            } else if run.waited >= options.grace_steps {
+                failure = Some(AttemptFailure {
+                    subtask: Some(spec.subtasks[i].id.clone()),
+                    step: rec.env().steps(),
+                    reason: format!(
+                        "its end condition '{}' did not hold within {} steps after the segment",
+                        spec.subtasks[i].end, options.grace_steps
+                    ),
+                });
+                break;
+            } else {
+                run.waited += 1;
+            }
+        }
+        if failure.is_some() {
+            break;
+        }
+        for i in 0..n {
+            let free = spec.subtasks[i].arm.lanes().iter().all(|&l| lanes[l].is_none());
+            if started[i] || !free || !before[i].iter().all(|&b| ended(b)) {
+                continue;
+            }
+            let (run, prov) = start(rec.env(), spec, sources, i, &last, &mut rng, options)?;
+            provenance.push(Provenance {
+                started_at: rec.env().steps(),
+                ..prov
+            });
+            for &l in &run.arms {
+                lanes[l] = Some(i);
+            }
+            runs[i] = Some(run);
+            started[i] = true;
+        }
+        // Each arm: the next target of its run, else the last one it was given.
+        for run in runs.iter_mut().flatten() {
+            if run.cursor < run.targets.len() {
+                for (k, &a) in run.arms.iter().enumerate() {
+                    last[a] = run.targets[run.cursor][k];
+                }
+                run.cursor += 1;
+            }
+        }
+        let mut action = vec![0.0; spec.setup.action_dim()];
+        let per_arm = action.len() / arms;
+        for (a, t) in last.iter().enumerate() {
+            let o = a * per_arm;
+            t.pose.write(&mut action[o..o + 7]);
+            action[o + 7..o + 7 + HAND_DOF].copy_from_slice(&t.hand);
+        }
+        rec.step(action)?;
+    }
+    let steps = rec.env().steps();
+    let spans = rec.env().subtask_spans();
+    let planned = rec.finish(&format!("{}_generated_{index:06}", spec.id))?;
+    if planned.success_at.is_none() && failure.is_none() {
+        let first_open = spans.iter().find(|s| s.end.is_none()).map(|s| s.id.clone());
+        failure = Some(AttemptFailure {
+            subtask: first_open,
+            step: steps,
+            reason: if planned.failed {
+                "the task's failure condition was reached".into()
+            } else {
+                format!("no success within the task's {} steps", spec.step_cap)
+            },
+        });
+    }
+    Ok(Attempt {
+        index,
+        reset,
+        planned,
+        provenance,
+        failure,
+    })
+}
+
+/// Chooses a segment of subtask `i`, carries it to the reference object's pose now and
+/// bridges each of its arms from its last target to the segment's first.
+fn start(
+    env: &TaskEnv,
+    spec: &TaskSpec,
+    sources: &[SourceDemo],
+    i: usize,
+    last: &[ArmTarget],
+    rng: &mut rand_chacha::ChaCha8Rng,
+    options: &AttemptOptions,
+) -> Result<(Run, Provenance), GenerateError> {
+    let sub = &spec.subtasks[i];
+    let now = env
+        .object_pose(&sub.object)
+        .ok_or_else(|| GenerateError::Spec(format!("no state object '{}'", sub.object)))?;
+    let segment = choose(sources, i, &now, rng, options.choice);
+    let carried = carry(segment, &now);
+    let first = &carried[0];
+    let bridge = segment
+        .arms
+        .iter()
+        .enumerate()
+        .map(|(k, &a)| bridge_steps(&last[a].pose, &first[k].pose, options))
+        .max()
+        .unwrap_or(options.bridge_min_steps);
+    let mut targets: Vec<Vec<ArmTarget>> = (1..=bridge)
+        .map(|s| {
+            let t = s as f64 / (bridge + 1) as f64;
+            segment
+                .arms
+                .iter()
+                .enumerate()
+                .map(|(k, &a)| blend(&last[a], &first[k], t))
+                .collect()
+        })
+        .collect();
+    targets.extend(carried);
+    let pose7 = |p: &Pose| {
+        let mut v = [0.0; 7];
+        p.write(&mut v);
+        v
+    };
+    let prov = Provenance {
+        subtask: sub.id.clone(),
+        source: segment.source.clone(),
+        source_steps: [segment.start, segment.end],
+        source_object: pose7(&segment.object_pose),
+        new_object: pose7(&now),
+        started_at: 0,
+        bridge_steps: bridge,
+    };
+    Ok((
+        Run {
+            targets,
+            arms: segment.arms.clone(),
+            cursor: 0,
+            waited: 0,
+        },
+        prov,
+    ))
+}
+
+/// The segment of subtask `i` to use.
+fn choose<'s>(
+    sources: &'s [SourceDemo],
+    i: usize,
+    now: &Pose,
+    rng: &mut rand_chacha::ChaCha8Rng,
+    choice: SegmentChoice,
+) -> &'s Segment {
+    match choice {
+        SegmentChoice::Random => &sources[rng.random_range(0..sources.len())].segments[i],
+        SegmentChoice::Nearest => {
+            let cost = |s: &Segment| s.object_pose.distance(now) + 0.1 * s.object_pose.angle_to(now);
+            sources
+                .iter()
+                .map(|d| &d.segments[i])
+                .min_by(|a, b| cost(a).total_cmp(&cost(b)))
+                .expect("at least one source")
+        }
+    }
+}
+
+/// The segment's targets carried from its reference object's pose in the source to
+/// `now`: `now * source^-1 * target`; the hands as recorded.
+pub fn carry(segment: &Segment, now: &Pose) -> Vec<Vec<ArmTarget>> {
+    let delta = now.compose(&segment.object_pose.inverse());
+    segment
+        .targets
+        .iter()
+        .map(|step| {
+            step.iter()
+                .map(|t| ArmTarget {
+                    pose: delta.compose(&t.pose),
+                    hand: t.hand,
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Bridge length from `from` to `to` at the bridge speeds.
+fn bridge_steps(from: &Pose, to: &Pose, options: &AttemptOptions) -> usize {
+    let by_distance = from.distance(to) / options.bridge_m_per_step;
+    let by_angle = from.angle_to(to) / options.bridge_rad_per_step;
+    (by_distance.max(by_angle).ceil() as usize).max(options.bridge_min_steps)
+}
+
+/// The target `t` of the way from `a` to `b` (hands linearly).
+fn blend(a: &ArmTarget, b: &ArmTarget, t: f64) -> ArmTarget {
+    ArmTarget {
+        pose: a.pose.interpolate(&b.pose, t),
+        hand: std::array::from_fn(|j| a.hand[j] + (b.hand[j] - a.hand[j]) * t),
+    }
+}

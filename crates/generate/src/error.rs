@@ -1,0 +1,36 @@
+//! Errors of the generate stage.
+
+use std::path::PathBuf;
+
+/// Why generation could not go on.
+#[derive(Debug, thiserror::Error)]
+pub enum GenerateError {
+    /// A source episode cannot serve as a source.
+    #[error("source episode '{episode}': {message}")]
+    Source {
+        /// The episode's id.
+        episode: String,
+        /// Why.
+        message: String,
+    },
+    /// The task spec lacks what generation needs.
+    #[error("task spec: {0}")]
+    Spec(String),
+    /// The output folder holds another run's episodes.
+    #[error("'{path}' was generated with other settings ({difference}): choose another --out, or remove it")]
+    OtherRun {
+        /// The output folder.
+        path: PathBuf,
+        /// The first difference.
+        difference: String,
+    },
+    /// The simulation failed.
+    #[error(transparent)]
+    Sim(#[from] dexjoco_sim::SimError),
+    /// Reading or writing files failed.
+    #[error(transparent)]
+    Format(#[from] dexjoco_formats::FormatError),
+    /// I/O.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+}

@@ -1,0 +1,21 @@
+//! `dexjoco-data generate`: new demonstrations at new object poses from a few, object
+//! centric as MimicGen and DexMimicGen make them, in MuJoCo, on every DexJoCo task.
+//!
+//! - [`source`]: a source episode replayed and cut at its task's subtasks (the spec's
+//!   predicates), each segment with its reference object's pose when it began;
+//! - [`attempt`]: one new episode from a new reset: per subtask a source segment carried
+//!   to the object's new pose (`new * source^-1 * target`), bridged, executed through the
+//!   DexJoCo controller, its end checked; both arms on their own lanes;
+//! - [`run`]: attempts in index order, in parallel, committed in order; resumable.
+
+pub mod attempt;
+mod error;
+pub mod run;
+pub mod source;
+
+pub use attempt::{
+    Attempt, AttemptFailure, AttemptOptions, Provenance, SegmentChoice, attempt, carry,
+};
+pub use error::GenerateError;
+pub use run::{AttemptRecord, GENERATE_RECORD, GenerateConfig, GenerateReport, SubtaskOutcome, generate};
+pub use source::{ArmTarget, Segment, SourceDemo, episode_sha256};

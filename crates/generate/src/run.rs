@@ -1,0 +1,402 @@
+//! A generation run into one task's output folder: attempts in index order (attempt k
+//! starts from reset k of the seed's draws, as `scripted --seed` and `eval --seed` draw
+//! them), computed in parallel in batches and committed in order, so the same seed gives
+//! the same episodes whatever the worker count; a killed run continues with the attempts
+//! it lacks.
+//!
+//! ```text
+//! <out>/episode_NNNNNN/replay.zarr       a successful attempt N (raw layout), NNNNNN = N
+//! <out>/episode_NNNNNN/generate.json     its record: reset, provenance, subtasks
+//! <out>/.attempts/attempt_NNNNNN.json    every finished attempt's record (the resume log)
+//! <out>/.failed/attempt_NNNNNN/          with keep_failed: a failed attempt's episode and record
+//! <out>/generate_settings.json           what decides the bytes (a resume must match)
+//! <out>/generate_report.json, .md        attempts, successes, per-subtask outcomes
+//! ```
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use dexjoco_core::{Progress, TaskSpec};
+use dexjoco_formats::raw::RawFolder;
+use dexjoco_formats::{EpisodeContainer, EpisodeMeta, write_atomic};
+use dexjoco_sim::{Scene, TaskEnv};
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::attempt::{Attempt, AttemptFailure, AttemptOptions, Provenance, attempt};
+use crate::error::GenerateError;
+use crate::source::SourceDemo;
+
+/// The file of a generated episode's record, beside its `replay.zarr`.
+pub const GENERATE_RECORD: &str = "generate.json";
+/// The settings file of a run's folder.
+pub const SETTINGS_FILE: &str = "generate_settings.json";
+
+/// What a run does.
+#[derive(Debug, Clone)]
+pub struct GenerateConfig {
+    /// The task's output folder.
+    pub out: PathBuf,
+    /// Seed of the resets and of the segment choices.
+    pub seed: u64,
+    /// Successful episodes wanted.
+    pub count: usize,
+    /// Attempts at most (over all runs into this folder).
+    pub max_attempts: usize,
+    /// Attempts computed at once.
+    pub workers: usize,
+    /// Keep failed attempts' episodes under `.failed/`.
+    pub keep_failed: bool,
+    /// How each attempt runs.
+    pub options: AttemptOptions,
+    /// The scene the sources and attempts run on (`built-in` or a scene folder), for
+    /// the settings file.
+    pub scene: String,
+}
+
+/// An attempt's record (`.attempts/attempt_NNNNNN.json`, and a generated episode's
+/// `generate.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AttemptRecord {
+    /// What wrote it.
+    pub written_by: String,
+    /// The attempt's index (its reset's index in the seed's draws).
+    pub attempt: usize,
+    /// The run's seed.
+    pub seed: u64,
+    /// Whether the task succeeded.
+    pub success: bool,
+    /// The success step.
+    pub success_step: Option<usize>,
+    /// Steps recorded.
+    pub steps: usize,
+    /// Where and why it failed.
+    pub failure: Option<AttemptFailure>,
+    /// Where each subtask ran (the task spec's predicates).
+    pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
+    /// Per subtask started: the source segment and the transform used.
+    pub provenance: Vec<Provenance>,
+    /// The reset (`state[0]`).
+    pub reset: Vec<f64>,
+}
+
+impl AttemptRecord {
+    fn of(a: &Attempt, seed: u64) -> Self {
+        Self {
+            written_by: "dexjoco-data generate".into(),
+            attempt: a.index,
+            seed,
+            success: a.planned.success_at.is_some(),
+            success_step: a.planned.success_at,
+            steps: a.planned.episode.len(),
+            failure: a.failure.clone(),
+            subtasks: a.planned.subtasks.clone(),
+            provenance: a.provenance.clone(),
+            reset: a.reset.clone(),
+        }
+    }
+}
+
+/// Per subtask over a run's attempts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SubtaskOutcome {
+    /// The subtask's id.
+    pub subtask: String,
+    /// Attempts that started it.
+    pub started: usize,
+    /// Attempts in which it ended.
+    pub completed: usize,
+    /// Attempts that failed at it.
+    pub failed_at: usize,
+}
+
+/// What a run's folder holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GenerateReport {
+    /// The task.
+    pub task: String,
+    /// The seed.
+    pub seed: u64,
+    /// Attempts made (over every run into the folder).
+    pub attempts: usize,
+    /// Successful ones.
+    pub successes: usize,
+    /// The successful attempts' indices.
+    pub episodes: Vec<usize>,
+    /// Per subtask: started, completed, failed at.
+    pub subtasks: Vec<SubtaskOutcome>,
+    /// The sources: id and SHA-256.
+    pub sources: Vec<[String; 2]>,
+}
+
+impl GenerateReport {
+    /// Successes / attempts.
+    pub fn success_rate(&self) -> f64 {
+        self.successes as f64 / self.attempts.max(1) as f64
+    }
+
+    /// The report as Markdown.
+    pub fn to_markdown(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = format!(
+            "# generate: {}\n\n{} of {} attempts succeeded ({:.1} %), seed {}, from {} source episode(s).\n\n\
+             | Subtask | Started | Completed | Failed at |\n|---|---:|---:|---:|\n",
+            self.task,
+            self.successes,
+            self.attempts,
+            100.0 * self.success_rate(),
+            self.seed,
+            self.sources.len()
+        );
+        for o in &self.subtasks {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} |",
+                o.subtask, o.started, o.completed, o.failed_at
+            );
+        }
+        s
+    }
+}
+
+/// Draws resets in the seed's order, as `scripted --seed` draws them.
+struct Resets<'a> {
+    scene: &'a Scene,
+    spec: &'a TaskSpec,
+    rng: rand_chacha::ChaCha8Rng,
+    drawn: Vec<Vec<f64>>,
+}
+
+impl Resets<'_> {
+    fn get(&mut self, k: usize) -> Result<Vec<f64>, GenerateError> {
+        while self.drawn.len() <= k {
+            let rng = &mut self.rng;
+            let s = TaskEnv::sample_initial_state(self.scene, self.spec, &mut || rng.random::<f64>())?;
+            self.drawn.push(s);
+        }
+        Ok(self.drawn[k].clone())
+    }
+}
+
+/// Hex SHA-256 of a serializable value's JSON.
+fn sha256_json(v: &impl Serialize) -> String {
+    let bytes = serde_json::to_vec(v).expect("serializable");
+    format!("{:x}", Sha256::digest(bytes))
+}
+
+/// The settings that decide a run's bytes.
+fn settings(config: &GenerateConfig, spec: &TaskSpec, sources: &[SourceDemo]) -> serde_json::Value {
+    serde_json::json!({
+        "format": "dexjoco-data/generate-settings",
+        "version": 1,
+        "task": spec.id,
+        "spec": format!("sha256:{}", sha256_json(spec)),
+        "scene": config.scene,
+        "seed": config.seed,
+        "options": config.options,
+        "sources": sources.iter().map(|s| [s.id.clone(), s.sha256.clone()]).collect::<Vec<_>>(),
+    })
+}
+
+/// Writes the settings file, or checks an earlier run's against it.
+fn check_settings(out: &Path, want: &serde_json::Value) -> Result<(), GenerateError> {
+    let path = out.join(SETTINGS_FILE);
+    let bytes = serde_json::to_vec_pretty(want).expect("serializable");
+    match fs_err::read(&path) {
+        Ok(old) => {
+            let old: serde_json::Value = serde_json::from_slice(&old).unwrap_or_default();
+            let keys = want.as_object().expect("an object");
+            if let Some((k, _)) = keys.iter().find(|(k, v)| old.get(k.as_str()) != Some(v)) {
+                return Err(GenerateError::OtherRun {
+                    path: out.to_path_buf(),
+                    difference: format!("{k} differs from {}", path.display()),
+                });
+            }
+            Ok(())
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(write_atomic(&path, &bytes)?),
+        Err(e) => Err(e.into()),
+    }
+}
+
+fn attempt_name(k: usize) -> String {
+    format!("attempt_{k:06}")
+}
+
+/// The records of the attempts earlier runs finished, by index.
+fn finished(out: &Path) -> Result<BTreeMap<usize, AttemptRecord>, GenerateError> {
+    let mut done = BTreeMap::new();
+    let dir = out.join(".attempts");
+    let Ok(entries) = fs_err::read_dir(&dir) else {
+        return Ok(done);
+    };
+    for e in entries.flatten() {
+        let path = e.path();
+        let Ok(bytes) = fs_err::read(&path) else { continue };
+        // A record a killed run left half written is redone (written atomically, so
+        // only a foreign file can be unreadable).
+        if let Ok(r) = serde_json::from_slice::<AttemptRecord>(&bytes) {
+            done.insert(r.attempt, r);
+        }
+    }
+    Ok(done)
+}
+
+/// Commits one attempt: a success's episode folder (staged, renamed into place), a
+/// failure's folder under `.failed/` with `keep_failed`; then its record, which marks it
+/// done.
+fn commit(
+    out: &Path,
+    spec: &TaskSpec,
+    a: &Attempt,
+    config: &GenerateConfig,
+) -> Result<AttemptRecord, GenerateError> {
+    let record = AttemptRecord::of(a, config.seed);
+    let json = serde_json::to_vec_pretty(&record).expect("serializable");
+    let folder = if record.success {
+        Some(out.join(format!("episode_{:06}", a.index)))
+    } else if config.keep_failed {
+        Some(out.join(".failed").join(attempt_name(a.index)))
+    } else {
+        None
+    };
+    if let Some(folder) = folder {
+        let staging = out.join(".staging").join(attempt_name(a.index));
+        if staging.exists() {
+            fs_err::remove_dir_all(&staging)?;
+        }
+        RawFolder.write(&staging, &a.planned.episode, spec, &EpisodeMeta::default())?;
+        write_atomic(&staging.join(GENERATE_RECORD), &json)?;
+        if folder.exists() {
+            fs_err::remove_dir_all(&folder)?;
+        }
+        fs_err::create_dir_all(folder.parent().expect("in out"))?;
+        fs_err::rename(&staging, &folder)?;
+    }
+    write_atomic(&out.join(".attempts").join(format!("{}.json", attempt_name(a.index))), &json)?;
+    Ok(record)
+}
+
+/// Runs attempts until `count` succeeded or `max_attempts` were made, committing each in
+/// index order; returns the folder's report (also written there).
+pub fn generate(
+    config: &GenerateConfig,
+    scene: &Scene,
+    spec: &TaskSpec,
+    sources: &[SourceDemo],
+    progress: &dyn Progress,
+) -> Result<GenerateReport, GenerateError> {
+    if sources.is_empty() {
+        return Err(GenerateError::Spec("no source episodes".into()));
+    }
+    let out = &config.out;
+    fs_err::create_dir_all(out.join(".attempts"))?;
+    let _lock = dexjoco_formats::lock::DirLock::acquire(out)?;
+    check_settings(out, &settings(config, spec, sources))?;
+    if out.join(".staging").exists() {
+        fs_err::remove_dir_all(out.join(".staging"))?;
+    }
+    let mut done = finished(out)?;
+    // A success whose record is missing was cut short before its record: redone.
+    let mut resets = Resets {
+        scene,
+        spec,
+        rng: rand_chacha::ChaCha8Rng::seed_from_u64(config.seed),
+        drawn: Vec::new(),
+    };
+    let successes_before = |done: &BTreeMap<usize, AttemptRecord>, k: usize| {
+        done.range(..k).filter(|(_, r)| r.success).count()
+    };
+    progress.start(config.count as u64);
+    progress.advance(successes_before(&done, usize::MAX).min(config.count) as u64, "");
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(config.workers.max(1))
+        .build()
+        .map_err(|e| std::io::Error::other(e.to_string()))?;
+    let batch = (config.workers.max(1) * 2).max(2);
+    let mut k = 0;
+    'run: while k < config.max_attempts && successes_before(&done, k) < config.count {
+        let todo: Vec<usize> = (k..config.max_attempts)
+            .filter(|i| !done.contains_key(i))
+            .take(batch)
+            .collect();
+        let Some(&last) = todo.last() else { break };
+        let inputs = todo
+            .iter()
+            .map(|&i| Ok((i, resets.get(i)?)))
+            .collect::<Result<Vec<_>, GenerateError>>()?;
+        let results: Vec<Result<Attempt, GenerateError>> = pool.install(|| {
+            inputs
+                .into_par_iter()
+                .map(|(i, reset)| attempt(scene, spec, sources, reset, i, config.seed, &config.options))
+                .collect()
+        });
+        for result in results {
+            let a = result?;
+            // Attempts already done before this one count first (in index order).
+            if successes_before(&done, a.index) >= config.count {
+                break 'run;
+            }
+            let record = commit(out, spec, &a, config)?;
+            let line = match &record.failure {
+                None => format!("attempt {}: success at step {}", a.index, record.steps - 1),
+                Some(f) => format!(
+                    "attempt {}: failed at {} (step {}): {}",
+                    a.index,
+                    f.subtask.as_deref().unwrap_or("the end"),
+                    f.step,
+                    f.reason
+                ),
+            };
+            progress.note(&line);
+            if record.success {
+                progress.advance(1, &format!("attempt {}", a.index));
+            }
+            done.insert(a.index, record);
+        }
+        k = last + 1;
+    }
+    let report = report(spec, config, sources, &done);
+    let json = serde_json::to_vec_pretty(&report).expect("serializable");
+    write_atomic(&out.join("generate_report.json"), &json)?;
+    write_atomic(&out.join("generate_report.md"), report.to_markdown().as_bytes())?;
+    Ok(report)
+}
+
+/// The report over every finished attempt.
+fn report(
+    spec: &TaskSpec,
+    config: &GenerateConfig,
+    sources: &[SourceDemo],
+    done: &BTreeMap<usize, AttemptRecord>,
+) -> GenerateReport {
+    let subtasks = spec
+        .subtasks
+        .iter()
+        .map(|s| {
+            let count = |f: &dyn Fn(&AttemptRecord) -> bool| done.values().filter(|r| f(r)).count();
+            SubtaskOutcome {
+                subtask: s.id.clone(),
+                started: count(&|r| r.provenance.iter().any(|p| p.subtask == s.id)),
+                completed: count(&|r| {
+                    r.subtasks.iter().any(|sp| sp.id == s.id && sp.end.is_some())
+                }),
+                failed_at: count(&|r| {
+                    r.failure.as_ref().and_then(|f| f.subtask.as_deref()) == Some(s.id.as_str())
+                }),
+            }
+        })
+        .collect();
+    let episodes: Vec<usize> = done.values().filter(|r| r.success).map(|r| r.attempt).collect();
+    GenerateReport {
+        task: spec.id.clone(),
+        seed: config.seed,
+        attempts: done.len(),
+        successes: episodes.len(),
+        episodes,
+        subtasks,
+        sources: sources.iter().map(|s| [s.id.clone(), s.sha256.clone()]).collect(),
+    }
+}
