@@ -35,7 +35,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let spec = TaskSpec::builtin(task).ok_or("unknown task")?;
         let scene = load_task_scene(&source, spec)?;
         let mut sources = Vec::new();
-        let raw = dexjoco_formats::raw::read_raw_episode(&demos.join(task).join("episode_000000"), spec)?;
+        let raw =
+            dexjoco_formats::raw::read_raw_episode(&demos.join(task).join("episode_000000"), spec)?;
         let mut ep = raw.episode;
         ep.id = format!("{task}_sample");
         match SourceDemo::prepare(&scene, spec, &ep) {
@@ -45,7 +46,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1000);
         for k in 0..scripted_sources {
             let s0 = TaskEnv::sample_initial_state(&scene, spec, &mut || rng.random::<f64>())?;
-            let p = scripted::plan(&scene, spec, &s0, &format!("{task}_scripted_{k}"), Variant::Demo)?;
+            let p = scripted::plan(
+                &scene,
+                spec,
+                &s0,
+                &format!("{task}_scripted_{k}"),
+                Variant::Demo,
+            )?;
             if p.success_at.is_some() {
                 if let Ok(s) = SourceDemo::prepare(&scene, spec, &p.episode) {
                     sources.push(s);

@@ -150,7 +150,10 @@ pub fn attempt(
             }
             if ended(i) {
                 *slot = None;
-                lanes.iter_mut().filter(|l| **l == Some(i)).for_each(|l| *l = None);
+                lanes
+                    .iter_mut()
+                    .filter(|l| **l == Some(i))
+                    .for_each(|l| *l = None);
             } else if run.waited >= options.grace_steps {
                 failure = Some(AttemptFailure {
                     subtask: Some(spec.subtasks[i].id.clone()),
@@ -169,7 +172,11 @@ pub fn attempt(
             break;
         }
         for i in 0..n {
-            let free = spec.subtasks[i].arm.lanes().iter().all(|&l| lanes[l].is_none());
+            let free = spec.subtasks[i]
+                .arm
+                .lanes()
+                .iter()
+                .all(|&l| lanes[l].is_none());
             if started[i] || !free || !before[i].iter().all(|&b| ended(b)) {
                 continue;
             }
@@ -271,7 +278,7 @@ fn start(
     let prov = Provenance {
         subtask: sub.id.clone(),
         source: segment.source.clone(),
-        source_steps: [segment.start, segment.end],
+        source_steps: [segment.start, segment.last],
         source_object: pose7(&segment.object_pose),
         new_object: pose7(&now),
         started_at: 0,
@@ -299,7 +306,8 @@ fn choose<'s>(
     match choice {
         SegmentChoice::Random => &sources[rng.random_range(0..sources.len())].segments[i],
         SegmentChoice::Nearest => {
-            let cost = |s: &Segment| s.object_pose.distance(now) + 0.1 * s.object_pose.angle_to(now);
+            let cost =
+                |s: &Segment| s.object_pose.distance(now) + 0.1 * s.object_pose.angle_to(now);
             sources
                 .iter()
                 .map(|d| &d.segments[i])

@@ -17,7 +17,9 @@ pub enum GenerateError {
     #[error("task spec: {0}")]
     Spec(String),
     /// The output folder holds another run's episodes.
-    #[error("'{path}' was generated with other settings ({difference}): choose another --out, or remove it")]
+    #[error(
+        "'{path}' was generated with other settings ({difference}): choose another --out, or remove it"
+    )]
     OtherRun {
         /// The output folder.
         path: PathBuf,

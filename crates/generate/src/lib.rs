@@ -17,5 +17,7 @@ pub use attempt::{
     Attempt, AttemptFailure, AttemptOptions, Provenance, SegmentChoice, attempt, carry,
 };
 pub use error::GenerateError;
-pub use run::{AttemptRecord, GENERATE_RECORD, GenerateConfig, GenerateReport, SubtaskOutcome, generate};
+pub use run::{
+    AttemptRecord, GENERATE_RECORD, GenerateConfig, GenerateReport, SubtaskOutcome, generate,
+};
 pub use source::{ArmTarget, Segment, SourceDemo, episode_sha256};

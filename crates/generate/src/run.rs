@@ -173,7 +173,8 @@ impl Resets<'_> {
     fn get(&mut self, k: usize) -> Result<Vec<f64>, GenerateError> {
         while self.drawn.len() <= k {
             let rng = &mut self.rng;
-            let s = TaskEnv::sample_initial_state(self.scene, self.spec, &mut || rng.random::<f64>())?;
+            let s =
+                TaskEnv::sample_initial_state(self.scene, self.spec, &mut || rng.random::<f64>())?;
             self.drawn.push(s);
         }
         Ok(self.drawn[k].clone())
@@ -234,7 +235,9 @@ fn finished(out: &Path) -> Result<BTreeMap<usize, AttemptRecord>, GenerateError>
     };
     for e in entries.flatten() {
         let path = e.path();
-        let Ok(bytes) = fs_err::read(&path) else { continue };
+        let Ok(bytes) = fs_err::read(&path) else {
+            continue;
+        };
         // A record a killed run left half written is redone (written atomically, so
         // only a foreign file can be unreadable).
         if let Ok(r) = serde_json::from_slice::<AttemptRecord>(&bytes) {
@@ -275,7 +278,11 @@ fn commit(
         fs_err::create_dir_all(folder.parent().expect("in out"))?;
         fs_err::rename(&staging, &folder)?;
     }
-    write_atomic(&out.join(".attempts").join(format!("{}.json", attempt_name(a.index))), &json)?;
+    write_atomic(
+        &out.join(".attempts")
+            .join(format!("{}.json", attempt_name(a.index))),
+        &json,
+    )?;
     Ok(record)
 }
 
@@ -310,7 +317,10 @@ pub fn generate(
         done.range(..k).filter(|(_, r)| r.success).count()
     };
     progress.start(config.count as u64);
-    progress.advance(successes_before(&done, usize::MAX).min(config.count) as u64, "");
+    progress.advance(
+        successes_before(&done, usize::MAX).min(config.count) as u64,
+        "",
+    );
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(config.workers.max(1))
         .build()
@@ -330,7 +340,9 @@ pub fn generate(
         let results: Vec<Result<Attempt, GenerateError>> = pool.install(|| {
             inputs
                 .into_par_iter()
-                .map(|(i, reset)| attempt(scene, spec, sources, reset, i, config.seed, &config.options))
+                .map(|(i, reset)| {
+                    attempt(scene, spec, sources, reset, i, config.seed, &config.options)
+                })
                 .collect()
         });
         for result in results {
@@ -361,7 +373,10 @@ pub fn generate(
     let report = report(spec, config, sources, &done);
     let json = serde_json::to_vec_pretty(&report).expect("serializable");
     write_atomic(&out.join("generate_report.json"), &json)?;
-    write_atomic(&out.join("generate_report.md"), report.to_markdown().as_bytes())?;
+    write_atomic(
+        &out.join("generate_report.md"),
+        report.to_markdown().as_bytes(),
+    )?;
     Ok(report)
 }
 
@@ -381,7 +396,9 @@ fn report(
                 subtask: s.id.clone(),
                 started: count(&|r| r.provenance.iter().any(|p| p.subtask == s.id)),
                 completed: count(&|r| {
-                    r.subtasks.iter().any(|sp| sp.id == s.id && sp.end.is_some())
+                    r.subtasks
+                        .iter()
+                        .any(|sp| sp.id == s.id && sp.end.is_some())
                 }),
                 failed_at: count(&|r| {
                     r.failure.as_ref().and_then(|f| f.subtask.as_deref()) == Some(s.id.as_str())
@@ -389,7 +406,11 @@ fn report(
             }
         })
         .collect();
-    let episodes: Vec<usize> = done.values().filter(|r| r.success).map(|r| r.attempt).collect();
+    let episodes: Vec<usize> = done
+        .values()
+        .filter(|r| r.success)
+        .map(|r| r.attempt)
+        .collect();
     GenerateReport {
         task: spec.id.clone(),
         seed: config.seed,
@@ -397,6 +418,9 @@ fn report(
         successes: episodes.len(),
         episodes,
         subtasks,
-        sources: sources.iter().map(|s| [s.id.clone(), s.sha256.clone()]).collect(),
+        sources: sources
+            .iter()
+            .map(|s| [s.id.clone(), s.sha256.clone()])
+            .collect(),
     }
 }

@@ -27,10 +27,14 @@ pub struct Segment {
     pub subtask: usize,
     /// The source episode's id.
     pub source: String,
-    /// First and last step of the segment in the source (inclusive).
+    /// The segment's first step in the source.
     pub start: usize,
-    /// Last step (the step its end node first held).
+    /// The step its end node first held.
     pub end: usize,
+    /// The segment's last step: the arms go on as the source did after the subtask
+    /// ended (a hand withdrawn from the microwave, a tray held still) until their next
+    /// subtask starts, or to the source's end after an arm's last subtask.
+    pub last: usize,
     /// The arms (lanes: 0 right or single, 1 left) whose targets it holds.
     pub arms: Vec<usize>,
     /// The subtask's reference object's world pose before the segment's first step.
@@ -93,7 +97,11 @@ impl SourceDemo {
     /// Replays `episode` of `spec` on `scene` up to the task's success and cuts it into
     /// its subtasks' segments. Fails, naming the episode and the subtask, when a
     /// subtask never ends in the replay (a source must show every subtask).
-    pub fn prepare(scene: &Scene, spec: &TaskSpec, episode: &Episode) -> Result<Self, GenerateError> {
+    pub fn prepare(
+        scene: &Scene,
+        spec: &TaskSpec,
+        episode: &Episode,
+    ) -> Result<Self, GenerateError> {
         let bad = |message: String| GenerateError::Source {
             episode: episode.id.clone(),
             message,
@@ -104,12 +112,16 @@ impl SourceDemo {
                 spec.id
             )));
         }
-        let (actions, states) = match (episode.array(Episode::ACTION), episode.array(Episode::STATE)) {
+        let (actions, states) = match (
+            episode.array(Episode::ACTION),
+            episode.array(Episode::STATE),
+        ) {
             (Some(a), Some(s)) if s.len() > 0 => (a, s),
             _ => return Err(bad("no action or state array".into())),
         };
-        let mut env = TaskEnv::from_initial_state(scene, spec, states.row(0), EnvOptions::default())
-            .map_err(|e| bad(e.to_string()))?;
+        let mut env =
+            TaskEnv::from_initial_state(scene, spec, states.row(0), EnvOptions::default())
+                .map_err(|e| bad(e.to_string()))?;
         let objects: Vec<&str> = spec.subtasks.iter().map(|s| s.object.as_str()).collect();
         let pose_of = |env: &TaskEnv, o: &str| {
             env.object_pose(o)
@@ -123,7 +135,12 @@ impl SourceDemo {
         let mut poses: Vec<Vec<Pose>> = Vec::with_capacity(actions.len());
         let mut given: Vec<Vec<ArmTarget>> = Vec::with_capacity(actions.len());
         for row in actions.rows() {
-            poses.push(objects.iter().map(|o| pose_of(&env, o)).collect::<Result<_, _>>()?);
+            poses.push(
+                objects
+                    .iter()
+                    .map(|o| pose_of(&env, o))
+                    .collect::<Result<_, _>>()?,
+            );
             let verdict = env.step(row).map_err(|e| bad(e.to_string()))?;
             given.push(current_targets(&env));
             if verdict.success {
@@ -132,6 +149,15 @@ impl SourceDemo {
         }
         let spans = env.subtask_spans();
         let mut segments = Vec::with_capacity(spans.len());
+        // Where each arm's next subtask starts after subtask i (the arm's motion until
+        // then belongs to subtask i's segment).
+        let next_start = |i: usize, lane: usize| {
+            spec.subtasks[i + 1..]
+                .iter()
+                .zip(&spans[i + 1..])
+                .find(|(s, _)| s.arm.lanes().contains(&lane))
+                .map_or(Some(given.len()), |(_, sp)| sp.start)
+        };
         for (i, (span, sub)) in spans.iter().zip(&spec.subtasks).enumerate() {
             let (Some(start), Some(end)) = (span.start, span.end) else {
                 return Err(bad(format!(
@@ -142,7 +168,12 @@ impl SourceDemo {
                 )));
             };
             let arms = sub.arm.lanes().to_vec();
-            let targets = given[start..=end]
+            let last = arms
+                .iter()
+                .filter_map(|&l| next_start(i, l))
+                .min()
+                .map_or(end, |n| n.saturating_sub(1).max(end));
+            let targets = given[start..=last]
                 .iter()
                 .map(|t| arms.iter().map(|&a| t[a]).collect())
                 .collect();
@@ -151,6 +182,7 @@ impl SourceDemo {
                 source: episode.id.clone(),
                 start,
                 end,
+                last,
                 arms,
                 object_pose: poses[start][i],
                 targets,

@@ -163,6 +163,7 @@ fn stow(rec: &mut Recorder, table: f64, home: Q, pace: &Pace) -> Result<(), SimE
     rec.snap(0, "glasses_pinched");
     let lift = kin::add(at, [0.0, 0.0, 0.16]);
     rec.go(0, lift, q, CLOSE, 45)?;
+    rec.phase("pick_glasses");
     // Over the case: the glasses' origin above the case's, then down and let go.
     let e = rec.env();
     let off = kin::sub(kin::body(e, "glass")?.0, kin::tcp(e, 0).0);
