@@ -53,10 +53,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &format!("{task}_scripted_{k}"),
                 Variant::Demo,
             )?;
-            if p.success_at.is_some() {
-                if let Ok(s) = SourceDemo::prepare(&scene, spec, &p.episode) {
-                    sources.push(s);
-                }
+            if p.success_at.is_some()
+                && let Ok(s) = SourceDemo::prepare(&scene, spec, &p.episode)
+            {
+                sources.push(s);
             }
         }
         if sources.is_empty() {

@@ -113,6 +113,107 @@ struct Run {
     waited: usize,
 }
 
+/// The lanes and runs of an attempt in progress.
+struct Lanes {
+    /// Which subtask each arm's lane works on (a `both` subtask holds both).
+    held: Vec<Option<usize>>,
+    /// Each started subtask's run, until its lanes are free again.
+    runs: Vec<Option<Run>>,
+    started: Vec<bool>,
+    /// Each arm's last target (held when it has nothing new).
+    last: Vec<ArmTarget>,
+}
+
+impl Lanes {
+    /// A run whose segment is done frees its lanes once its subtask ended; the attempt
+    /// fails when that end does not come within the grace steps.
+    fn retire(
+        &mut self,
+        spec: &TaskSpec,
+        env: &TaskEnv,
+        options: &AttemptOptions,
+    ) -> Option<AttemptFailure> {
+        let spans = env.subtask_spans();
+        for (i, slot) in self.runs.iter_mut().enumerate() {
+            let Some(run) = slot else { continue };
+            if run.cursor < run.targets.len() {
+                continue;
+            }
+            if spans[i].end.is_some() {
+                *slot = None;
+                self.held
+                    .iter_mut()
+                    .filter(|l| **l == Some(i))
+                    .for_each(|l| *l = None);
+            } else if run.waited >= options.grace_steps {
+                return Some(AttemptFailure {
+                    subtask: Some(spec.subtasks[i].id.clone()),
+                    step: env.steps(),
+                    reason: format!(
+                        "its end condition '{}' did not hold within {} steps after the segment",
+                        spec.subtasks[i].end, options.grace_steps
+                    ),
+                });
+            } else {
+                run.waited += 1;
+            }
+        }
+        None
+    }
+
+    /// Starts every subtask whose lanes are free and whose predecessors ended.
+    fn start_ready(
+        &mut self,
+        spec: &TaskSpec,
+        env: &TaskEnv,
+        sources: &[SourceDemo],
+        rng: &mut rand_chacha::ChaCha8Rng,
+        options: &AttemptOptions,
+        provenance: &mut Vec<Provenance>,
+    ) -> Result<(), GenerateError> {
+        let spans = env.subtask_spans();
+        let before = spec.subtask_predecessors();
+        for (i, sub) in spec.subtasks.iter().enumerate() {
+            let free = sub.arm.lanes().iter().all(|&l| self.held[l].is_none());
+            let ready = before[i].iter().all(|&b| spans[b].end.is_some());
+            if self.started[i] || !free || !ready {
+                continue;
+            }
+            let (run, prov) = start(env, spec, sources, i, &self.last, rng, options)?;
+            provenance.push(Provenance {
+                started_at: env.steps(),
+                ..prov
+            });
+            for &l in &run.arms {
+                self.held[l] = Some(i);
+            }
+            self.runs[i] = Some(run);
+            self.started[i] = true;
+        }
+        Ok(())
+    }
+
+    /// The next action: each arm's next target of its run, else the last one it had.
+    fn next_action(&mut self, spec: &TaskSpec) -> Vec<f64> {
+        for run in self.runs.iter_mut().flatten() {
+            if run.cursor < run.targets.len() {
+                for (k, &a) in run.arms.iter().enumerate() {
+                    self.last[a] = run.targets[run.cursor][k];
+                }
+                run.cursor += 1;
+            }
+        }
+        let mut action = vec![0.0; spec.setup.action_dim()];
+        let per_arm = action.len() / self.last.len();
+        for (a, t) in self.last.iter().enumerate() {
+            let o = a * per_arm;
+            t.pose.write(&mut action[o..o + 7]);
+            action[o + 7..o + 7 + HAND_DOF].copy_from_slice(&t.hand);
+        }
+        action
+    }
+}
+
 /// Runs attempt `index` from the reset `reset` with the given sources.
 pub fn attempt(
     scene: &Scene,
@@ -127,93 +228,33 @@ pub fn attempt(
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(index as u64 + 1);
     let n = spec.subtasks.len();
-    let before = spec.subtask_predecessors();
-    let arms = spec.setup.arms();
-    let mut last: Vec<ArmTarget> = current_targets(&env);
+    let mut lanes = Lanes {
+        held: vec![None; spec.setup.arms()],
+        runs: (0..n).map(|_| None).collect(),
+        started: vec![false; n],
+        last: current_targets(&env),
+    };
     let mut rec = Recorder::new(env);
-    // Which subtask each lane works on (a `both` subtask holds both), and each started
-    // subtask's run until its lanes are free again.
-    let mut lanes: Vec<Option<usize>> = vec![None; arms];
-    let mut runs: Vec<Option<Run>> = (0..n).map(|_| None).collect();
-    let mut started = vec![false; n];
     let mut provenance = Vec::new();
     let mut failure = None;
     while !rec.done() {
-        let spans = rec.env().subtask_spans();
-        let ended = |i: usize| spans[i].end.is_some();
-        // A run whose segment is done frees its lanes once its subtask ended; it fails
-        // when the end does not come within the grace steps.
-        for (i, slot) in runs.iter_mut().enumerate() {
-            let Some(run) = slot else { continue };
-            if run.cursor < run.targets.len() {
-                continue;
-            }
-            if ended(i) {
-                *slot = None;
-                lanes
-                    .iter_mut()
-                    .filter(|l| **l == Some(i))
-                    .for_each(|l| *l = None);
-            } else if run.waited >= options.grace_steps {
-                failure = Some(AttemptFailure {
-                    subtask: Some(spec.subtasks[i].id.clone()),
-                    step: rec.env().steps(),
-                    reason: format!(
-                        "its end condition '{}' did not hold within {} steps after the segment",
-                        spec.subtasks[i].end, options.grace_steps
-                    ),
-                });
-                break;
-            } else {
-                run.waited += 1;
-            }
-        }
+        failure = lanes.retire(spec, rec.env(), options);
         if failure.is_some() {
             break;
         }
-        for i in 0..n {
-            let free = spec.subtasks[i]
-                .arm
-                .lanes()
-                .iter()
-                .all(|&l| lanes[l].is_none());
-            if started[i] || !free || !before[i].iter().all(|&b| ended(b)) {
-                continue;
-            }
-            let (run, prov) = start(rec.env(), spec, sources, i, &last, &mut rng, options)?;
-            provenance.push(Provenance {
-                started_at: rec.env().steps(),
-                ..prov
-            });
-            for &l in &run.arms {
-                lanes[l] = Some(i);
-            }
-            runs[i] = Some(run);
-            started[i] = true;
-        }
-        // Each arm: the next target of its run, else the last one it was given.
-        for run in runs.iter_mut().flatten() {
-            if run.cursor < run.targets.len() {
-                for (k, &a) in run.arms.iter().enumerate() {
-                    last[a] = run.targets[run.cursor][k];
-                }
-                run.cursor += 1;
-            }
-        }
-        let mut action = vec![0.0; spec.setup.action_dim()];
-        let per_arm = action.len() / arms;
-        for (a, t) in last.iter().enumerate() {
-            let o = a * per_arm;
-            t.pose.write(&mut action[o..o + 7]);
-            action[o + 7..o + 7 + HAND_DOF].copy_from_slice(&t.hand);
-        }
+        lanes.start_ready(spec, rec.env(), sources, &mut rng, options, &mut provenance)?;
+        let action = lanes.next_action(spec);
         rec.step(action)?;
     }
     let steps = rec.env().steps();
-    let spans = rec.env().subtask_spans();
+    let first_open = rec
+        .env()
+        .subtask_spans()
+        .iter()
+        .find(|s| s.end.is_none())
+        .map(|s| s.id.clone());
     let planned = rec.finish(&format!("{}_generated_{index:06}", spec.id))?;
     if planned.success_at.is_none() && failure.is_none() {
-        let first_open = spans.iter().find(|s| s.end.is_none()).map(|s| s.id.clone());
         failure = Some(AttemptFailure {
             subtask: first_open,
             step: steps,

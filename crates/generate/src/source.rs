@@ -116,7 +116,7 @@ impl SourceDemo {
             episode.array(Episode::ACTION),
             episode.array(Episode::STATE),
         ) {
-            (Some(a), Some(s)) if s.len() > 0 => (a, s),
+            (Some(a), Some(s)) if !s.is_empty() => (a, s),
             _ => return Err(bad("no action or state array".into())),
         };
         let mut env =
