@@ -40,6 +40,7 @@ fn main() -> ExitCode {
         Command::EvalWorker(_) => commands::eval::run_worker(),
         Command::Scripted(args) => settings::ScriptedSettings::resolve(&args, &cli.global)
             .and_then(commands::scripted::run),
+        Command::Generate(args) => commands::generate::run(&cli.global, args),
     };
     match result {
         Ok(status) => status.into(),

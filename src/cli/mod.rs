@@ -1,14 +1,17 @@
 //! Every clap definition of the `dexjoco-data` command line: this file holds the
 //! top level (global options, subcommands, shared value types); `stages` the pipeline
-//! commands (ingest, export, scripted, augment, cameras, convert, stats); `eval` the
+//! commands (ingest, export, scripted, augment, cameras, convert, stats); `generate` the
+//! demonstration generator; `eval` the
 //! policy evaluation; `tools` doctor, render and bench. Commands (`src/commands/`) turn these into settings
 //! (`src/settings/`); neither is imported here, so the modules form no circle.
 
 mod eval;
+mod generate;
 mod stages;
 mod tools;
 
 pub use eval::*;
+pub use generate::*;
 pub use stages::*;
 pub use tools::*;
 
@@ -25,6 +28,7 @@ Examples:
   dexjoco-data ingest recordings/             # validate and store MCAP logs and raw folders
   dexjoco-data export --to mcap               # stored episodes -> MCAP teleop logs
   dexjoco-data scripted --task pinch_tongs --episodes 5 --out demos/
+  dexjoco-data generate --task click_mouse --count 20   # new demos at new object poses
   dexjoco-data augment --replays 10           # randomized replays of the sample demos
   dexjoco-data convert                        # augment output -> LeRobot v3.0
   dexjoco-data convert dexjoco-work/ingest --out ds/ --overwrite
@@ -116,6 +120,10 @@ pub enum Command {
     /// Plan scripted demonstrations of a task from random resets and write the
     /// successful ones in the DexJoCo raw layout.
     Scripted(ScriptedArgs),
+    /// New demonstrations at new object poses from a few (MimicGen-style): source
+    /// segments per subtask carried to each new reset's object poses, run in MuJoCo, kept
+    /// when the task succeeds.
+    Generate(GenerateArgs),
     /// Build a third-person camera pose pool for a task: sample poses on a sphere, keep the
     /// least occluded (the DexJoCo paper's way); `augment --camera-pool` reads it.
     Cameras(CamerasArgs),

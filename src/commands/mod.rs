@@ -9,6 +9,7 @@ pub mod convert;
 pub mod doctor;
 pub mod eval;
 pub mod export;
+pub mod generate;
 pub mod ingest;
 pub mod render;
 pub mod scripted;

@@ -4,7 +4,7 @@
 //! here fails to compile.
 //!
 //! `stages.rs`: the pipeline stages (ingest, export, augment, convert, stats); `eval.rs`:
-//! the policy evaluation;
+//! the policy evaluation; `generate.rs`: the demonstration generator;
 //! `tools.rs`: the other commands (render, bench, doctor, scripted, cameras); here what
 //! they share (task sets, usage errors, EGL device choice, worker counts).
 
@@ -29,10 +29,12 @@ use crate::cli::{
 use crate::exit::{CliError, ExitStatus};
 
 mod eval;
+mod generate;
 mod stages;
 mod tools;
 
 pub use eval::*;
+pub use generate::*;
 pub use stages::*;
 pub use tools::*;
 

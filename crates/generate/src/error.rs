@@ -18,13 +18,21 @@ pub enum GenerateError {
     Spec(String),
     /// The output folder holds another run's episodes.
     #[error(
-        "'{path}' was generated with other settings ({difference}): choose another --out, or remove it"
+        "'{path}' was generated with other settings ({difference}): choose another --out, or give --overwrite to replace it"
     )]
     OtherRun {
         /// The output folder.
         path: PathBuf,
         /// The first difference.
         difference: String,
+    },
+    /// The output folder holds files generate did not write.
+    #[error("'{path}' holds '{name}', which generate does not write: it is not written into")]
+    Foreign {
+        /// The output folder.
+        path: PathBuf,
+        /// The first foreign entry.
+        name: String,
     },
     /// The simulation failed.
     #[error(transparent)]

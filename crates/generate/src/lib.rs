@@ -18,6 +18,7 @@ pub use attempt::{
 };
 pub use error::GenerateError;
 pub use run::{
-    AttemptRecord, GENERATE_RECORD, GenerateConfig, GenerateReport, SubtaskOutcome, generate,
+    AttemptRecord, GENERATE_RECORD, GenerateConfig, GenerateOutcome, GenerateReport, SETTINGS_FILE,
+    SubtaskOutcome, TIMES_FILE, generate, pilot,
 };
 pub use source::{ArmTarget, Segment, SourceDemo, episode_sha256};

@@ -49,6 +49,8 @@ pub struct GenerateConfig {
     pub workers: usize,
     /// Keep failed attempts' episodes under `.failed/`.
     pub keep_failed: bool,
+    /// Empty a folder an earlier run wrote with other settings, instead of refusing it.
+    pub overwrite: bool,
     /// How each attempt runs.
     pub options: AttemptOptions,
     /// The scene the sources and attempts run on (`built-in` or a scene folder), for
@@ -201,25 +203,56 @@ fn settings(config: &GenerateConfig, spec: &TaskSpec, sources: &[SourceDemo]) ->
     })
 }
 
-/// Writes the settings file, or checks an earlier run's against it.
-fn check_settings(out: &Path, want: &serde_json::Value) -> Result<(), GenerateError> {
+/// Writes the settings file, or checks an earlier run's against it; with `overwrite`, an
+/// earlier run's folder of other settings is emptied first. A folder that holds files
+/// but no settings file is not a generate run's, and is never written into.
+fn check_settings(
+    out: &Path,
+    want: &serde_json::Value,
+    overwrite: bool,
+) -> Result<(), GenerateError> {
     let path = out.join(SETTINGS_FILE);
     let bytes = serde_json::to_vec_pretty(want).expect("serializable");
-    match fs_err::read(&path) {
-        Ok(old) => {
-            let old: serde_json::Value = serde_json::from_slice(&old).unwrap_or_default();
-            let keys = want.as_object().expect("an object");
-            if let Some((k, _)) = keys.iter().find(|(k, v)| old.get(k.as_str()) != Some(v)) {
-                return Err(GenerateError::OtherRun {
-                    path: out.to_path_buf(),
-                    difference: format!("{k} differs from {}", path.display()),
-                });
-            }
-            Ok(())
+    let old = match fs_err::read(&path) {
+        Ok(old) => Some(serde_json::from_slice::<serde_json::Value>(&old).unwrap_or_default()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+        Err(e) => return Err(e.into()),
+    };
+    let Some(old) = old else {
+        let foreign = fs_err::read_dir(out)?
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .find(|n| n != dexjoco_formats::lock::LOCK_FILE && n != ".attempts");
+        if let Some(name) = foreign {
+            return Err(GenerateError::Foreign {
+                path: out.to_path_buf(),
+                name,
+            });
         }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(write_atomic(&path, &bytes)?),
-        Err(e) => Err(e.into()),
+        return Ok(write_atomic(&path, &bytes)?);
+    };
+    let keys = want.as_object().expect("an object");
+    let Some((k, _)) = keys.iter().find(|(k, v)| old.get(k.as_str()) != Some(v)) else {
+        return Ok(());
+    };
+    if !overwrite {
+        return Err(GenerateError::OtherRun {
+            path: out.to_path_buf(),
+            difference: format!("{k} differs from {}", path.display()),
+        });
     }
+    for e in fs_err::read_dir(out)?.flatten() {
+        if e.file_name() == dexjoco_formats::lock::LOCK_FILE {
+            continue;
+        }
+        if e.file_type()?.is_dir() {
+            fs_err::remove_dir_all(e.path())?;
+        } else {
+            fs_err::remove_file(e.path())?;
+        }
+    }
+    fs_err::create_dir_all(out.join(".attempts"))?;
+    Ok(write_atomic(&path, &bytes)?)
 }
 
 fn attempt_name(k: usize) -> String {
@@ -286,22 +319,36 @@ fn commit(
     Ok(record)
 }
 
+/// What a call of [`generate`] did, beside the folder's report.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GenerateOutcome {
+    /// The folder's report (every run into it).
+    pub report: GenerateReport,
+    /// Attempts made by this call.
+    pub attempts_now: usize,
+    /// Seconds those attempts took, summed over the workers.
+    pub attempt_seconds: f64,
+}
+
+/// The file of a run's timing: the one file whose bytes depend on the machine.
+pub const TIMES_FILE: &str = "generate_times.json";
+
 /// Runs attempts until `count` succeeded or `max_attempts` were made, committing each in
-/// index order; returns the folder's report (also written there).
+/// index order; writes the folder's report and returns it with this call's work.
 pub fn generate(
     config: &GenerateConfig,
     scene: &Scene,
     spec: &TaskSpec,
     sources: &[SourceDemo],
     progress: &dyn Progress,
-) -> Result<GenerateReport, GenerateError> {
+) -> Result<GenerateOutcome, GenerateError> {
     if sources.is_empty() {
         return Err(GenerateError::Spec("no source episodes".into()));
     }
     let out = &config.out;
     fs_err::create_dir_all(out.join(".attempts"))?;
     let _lock = dexjoco_formats::lock::DirLock::acquire(out)?;
-    check_settings(out, &settings(config, spec, sources))?;
+    check_settings(out, &settings(config, spec, sources), config.overwrite)?;
     if out.join(".staging").exists() {
         fs_err::remove_dir_all(out.join(".staging"))?;
     }
@@ -321,11 +368,9 @@ pub fn generate(
         successes_before(&done, usize::MAX).min(config.count) as u64,
         "",
     );
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(config.workers.max(1))
-        .build()
-        .map_err(|e| std::io::Error::other(e.to_string()))?;
+    let pool = worker_pool(config)?;
     let batch = (config.workers.max(1) * 2).max(2);
+    let (mut attempts_now, mut attempt_seconds) = (0usize, 0.0f64);
     let mut k = 0;
     'run: while k < config.max_attempts && successes_before(&done, k) < config.count {
         let todo: Vec<usize> = (k..config.max_attempts)
@@ -337,16 +382,9 @@ pub fn generate(
             .iter()
             .map(|&i| Ok((i, resets.get(i)?)))
             .collect::<Result<Vec<_>, GenerateError>>()?;
-        let results: Vec<Result<Attempt, GenerateError>> = pool.install(|| {
-            inputs
-                .into_par_iter()
-                .map(|(i, reset)| {
-                    attempt(scene, spec, sources, reset, i, config.seed, &config.options)
-                })
-                .collect()
-        });
+        let results = in_parallel(&pool, scene, spec, sources, config, inputs);
         for result in results {
-            let a = result?;
+            let (a, seconds) = result?;
             // Attempts already done before this one count first (in index order).
             if successes_before(&done, a.index) >= config.count {
                 break 'run;
@@ -363,12 +401,22 @@ pub fn generate(
                 ),
             };
             progress.note(&line);
-            if record.success {
-                progress.advance(1, &format!("attempt {}", a.index));
-            }
+            attempts_now += 1;
+            attempt_seconds += seconds;
+            let success = record.success;
             done.insert(a.index, record);
+            let ok = done.values().filter(|r| r.success).count();
+            let rate = format!(
+                "{:.0} % of {} attempts succeeded",
+                100.0 * ok as f64 / done.len() as f64,
+                done.len()
+            );
+            progress.advance(u64::from(success), &rate);
         }
         k = last + 1;
+    }
+    if out.join(".staging").exists() {
+        fs_err::remove_dir_all(out.join(".staging"))?;
     }
     let report = report(spec, config, sources, &done);
     let json = serde_json::to_vec_pretty(&report).expect("serializable");
@@ -377,7 +425,80 @@ pub fn generate(
         &out.join("generate_report.md"),
         report.to_markdown().as_bytes(),
     )?;
-    Ok(report)
+    let times = serde_json::json!({
+        "attempts_now": attempts_now,
+        "attempt_seconds": attempt_seconds,
+        "seconds_per_attempt": attempt_seconds / attempts_now.max(1) as f64,
+        "workers": config.workers,
+    });
+    write_atomic(
+        &out.join(TIMES_FILE),
+        &serde_json::to_vec_pretty(&times).expect("serializable"),
+    )?;
+    Ok(GenerateOutcome {
+        report,
+        attempts_now,
+        attempt_seconds,
+    })
+}
+
+/// The run's threads: attempts are independent simulations without rendering, so they
+/// run as threads of one process (no EGL context to keep apart).
+fn worker_pool(config: &GenerateConfig) -> Result<rayon::ThreadPool, GenerateError> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(config.workers.max(1))
+        .thread_name(|i| format!("generate-{i}"))
+        .build()
+        .map_err(|e| std::io::Error::other(e.to_string()).into())
+}
+
+/// Makes the attempts `inputs` (index, reset) in parallel; each with its seconds.
+fn in_parallel(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    spec: &TaskSpec,
+    sources: &[SourceDemo],
+    config: &GenerateConfig,
+    inputs: Vec<(usize, Vec<f64>)>,
+) -> Vec<Result<(Attempt, f64), GenerateError>> {
+    pool.install(|| {
+        inputs
+            .into_par_iter()
+            .map(|(i, reset)| {
+                let t = std::time::Instant::now();
+                let a = attempt(scene, spec, sources, reset, i, config.seed, &config.options)?;
+                Ok((a, t.elapsed().as_secs_f64()))
+            })
+            .collect()
+    })
+}
+
+/// A pilot for `--dry-run`: attempts `0..attempts` of the seed, made and not written;
+/// returns the successes and the seconds per attempt (one worker).
+pub fn pilot(
+    config: &GenerateConfig,
+    scene: &Scene,
+    spec: &TaskSpec,
+    sources: &[SourceDemo],
+    attempts: usize,
+) -> Result<(usize, f64), GenerateError> {
+    let mut resets = Resets {
+        scene,
+        spec,
+        rng: rand_chacha::ChaCha8Rng::seed_from_u64(config.seed),
+        drawn: Vec::new(),
+    };
+    let inputs = (0..attempts)
+        .map(|i| Ok((i, resets.get(i)?)))
+        .collect::<Result<Vec<_>, GenerateError>>()?;
+    let mut ok = 0;
+    let mut seconds = 0.0;
+    for r in in_parallel(&worker_pool(config)?, scene, spec, sources, config, inputs) {
+        let (a, s) = r?;
+        ok += usize::from(a.planned.success_at.is_some());
+        seconds += s;
+    }
+    Ok((ok, seconds / attempts.max(1) as f64))
 }
 
 /// The report over every finished attempt.

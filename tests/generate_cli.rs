@@ -1,0 +1,183 @@
+//! The `generate` command end to end on click_mouse from its shipped sample: the same
+//! bytes whatever `-j`, a run killed with SIGKILL continues to the same bytes, a larger
+//! `--count` goes on from a finished run, and a folder of other settings is refused
+//! unless `--overwrite`. The episodes written are read back as raw episodes of the task.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+mod common;
+
+/// `generate --task click_mouse` into `work`/generate with `args`.
+fn generate(work: &Path, args: &[&str]) -> Command {
+    let mut c = common::dexjoco();
+    c.env("DEXJOCO_LOG", "warn")
+        .arg("-q")
+        .arg("--work-dir")
+        .arg(work)
+        .args(["generate", "--task", "click_mouse"])
+        .args(args);
+    c
+}
+
+fn ok(out: Output) -> Output {
+    assert!(
+        out.status.success(),
+        "exit {:?}\n{}{}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// The run's files, without the one whose bytes depend on the machine (its timing).
+fn tree(work: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut t = dexjoco_testkit::file_tree(&work.join("generate/click_mouse"));
+    assert!(t.remove(dexjoco_generate::TIMES_FILE).is_some());
+    t
+}
+
+fn episodes(t: &BTreeMap<String, Vec<u8>>) -> Vec<&str> {
+    t.keys()
+        .filter(|k| k.ends_with("/generate.json") && k.starts_with("episode_"))
+        .map(|k| &k[..14])
+        .collect()
+}
+
+#[test]
+fn generate_is_deterministic_across_workers_and_resumes_after_sigkill() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (one, two, killed) = (
+        tmp.path().join("one"),
+        tmp.path().join("two"),
+        tmp.path().join("killed"),
+    );
+    let count = ["--count", "4", "--seed", "7"];
+    ok(generate(&one, &count).arg("-j1").output().unwrap());
+    ok(generate(&two, &count).arg("-j2").output().unwrap());
+    let a = tree(&one);
+    assert_eq!(episodes(&a).len(), 4, "{:?}", a.keys().collect::<Vec<_>>());
+    assert_eq!(a, tree(&two), "-j 1 and -j 2 write the same bytes");
+
+    // Each episode is a raw episode of the task, with its provenance.
+    let dir = one.join("generate/click_mouse").join(episodes(&a)[0]);
+    let ep = dexjoco_formats::read_episode(&dir, dexjoco_core::TaskSet::builtin()).unwrap();
+    assert_eq!(ep.task, "click_mouse");
+    let record: serde_json::Value =
+        serde_json::from_slice(&fs_err::read(dir.join("generate.json")).unwrap()).unwrap();
+    assert_eq!(record["success"], true);
+    let provenance = record["provenance"].as_array().unwrap();
+    assert_eq!(provenance.len(), 2, "push_mouse and click: {record}");
+    assert_eq!(provenance[0]["subtask"], "push_mouse");
+    assert!(
+        provenance[0]["source"]
+            .as_str()
+            .unwrap()
+            .starts_with("episode_0000")
+    );
+    // The reset differs from the source's: the segments were carried somewhere new.
+    assert_ne!(provenance[0]["source_object"], provenance[0]["new_object"]);
+
+    // Killed with SIGKILL once two attempts are committed, then rerun: the same bytes.
+    let mut child = generate(&killed, &count).arg("-j1").spawn().unwrap();
+    let attempts = killed.join("generate/click_mouse/.attempts");
+    let until = Instant::now() + Duration::from_secs(120);
+    while fs_err::read_dir(&attempts).map_or(0, |d| d.count()) < 2 {
+        assert!(Instant::now() < until, "no attempt committed in 120 s");
+        assert!(child.try_wait().unwrap().is_none(), "ended before the kill");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(
+        !killed
+            .join("generate/click_mouse/generate_report.json")
+            .exists(),
+        "killed before the end"
+    );
+    ok(generate(&killed, &count).arg("-j2").output().unwrap());
+    assert_eq!(a, tree(&killed), "a killed run continues to the same bytes");
+
+    // A larger --count goes on from there: the first four episodes stay as they were.
+    let more = ["--count", "6", "--seed", "7"];
+    let out = ok(generate(&one, &more).output().unwrap());
+    let b = tree(&one);
+    assert_eq!(
+        episodes(&b).len(),
+        6,
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    for (k, v) in &a {
+        if k.starts_with("episode_") {
+            assert_eq!(b.get(k), Some(v), "{k} was kept");
+        }
+    }
+}
+
+#[test]
+fn generate_refuses_a_folder_of_other_settings_unless_overwrite() {
+    let tmp = tempfile::tempdir().unwrap();
+    ok(generate(tmp.path(), &["--count", "1", "--seed", "1"])
+        .output()
+        .unwrap());
+    let other = generate(tmp.path(), &["--count", "1", "--seed", "2"])
+        .output()
+        .unwrap();
+    assert_eq!(other.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&other.stderr);
+    assert!(
+        err.contains("other settings")
+            && err.contains("seed differs")
+            && err.contains("--overwrite"),
+        "{err}"
+    );
+    ok(
+        generate(tmp.path(), &["--count", "1", "--seed", "2", "--overwrite"])
+            .output()
+            .unwrap(),
+    );
+    let settings: serde_json::Value = serde_json::from_slice(
+        &fs_err::read(
+            tmp.path()
+                .join("generate/click_mouse/generate_settings.json"),
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    assert_eq!(settings["seed"], 2);
+
+    // A source of another task is left out and named; no usable source: exit 1.
+    let pinch = dexjoco_testkit::workspace_root().join("datasets/demos/pinch_tongs");
+    let out = generate(&tmp.path().join("w2"), &["--count", "1"])
+        .arg(&pinch)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("source left out")
+            && err.contains("an episode of 'pinch_tongs', not 'click_mouse'"),
+        "{err}"
+    );
+}
+
+#[test]
+fn generate_dry_run_estimates_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = ok(
+        generate(tmp.path(), &["--count", "50", "--dry-run", "--pilot", "3"])
+            .output()
+            .unwrap(),
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("of 3 attempt(s) succeeded"), "{text}");
+    assert!(text.contains("--count 50 expects about"), "{text}");
+    assert!(
+        !tmp.path().join("generate").exists(),
+        "a dry run writes nothing"
+    );
+}
