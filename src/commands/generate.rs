@@ -82,6 +82,9 @@ pub fn run(global: &GlobalArgs, args: GenerateArgs) -> anyhow::Result<ExitStatus
     })
 }
 
+/// A source left out: its path, and why.
+type LeftOut = (String, String);
+
 /// The source episodes under `inputs` prepared for `spec` (replayed, cut at subtasks),
 /// in discovery order, and those left out with why.
 fn sources(
@@ -89,7 +92,7 @@ fn sources(
     tasks: &TaskSet,
     spec: &TaskSpec,
     scene: &Scene,
-) -> anyhow::Result<(Vec<SourceDemo>, Vec<(String, String)>)> {
+) -> anyhow::Result<(Vec<SourceDemo>, Vec<LeftOut>)> {
     let found = dexjoco_formats::discover(inputs, None)?;
     if found.is_empty() {
         return Err(CliError {
