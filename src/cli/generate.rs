@@ -70,6 +70,10 @@ pub struct GenerateArgs {
     /// How a source segment is chosen per subtask.
     #[arg(long, value_enum, default_value = "random")]
     pub choice: ChoiceArg,
+    /// Choose a source anew for every subtask (default: each arm keeps the source of its
+    /// first subtask, MimicGen's default).
+    #[arg(long)]
+    pub per_subtask: bool,
     /// Steps a subtask may take to end after its segment ran out, before the attempt fails
     /// there.
     #[arg(long, default_value_t = dexjoco_generate::AttemptOptions::default().grace_steps,

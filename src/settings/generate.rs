@@ -38,6 +38,7 @@ impl GenerateSettings {
             out,
             scene_dir,
             choice,
+            per_subtask,
             grace_steps,
             keep_failed,
             dry_run,
@@ -73,6 +74,7 @@ impl GenerateSettings {
                 ChoiceArg::Random => SegmentChoice::Random,
                 ChoiceArg::Nearest => SegmentChoice::Nearest,
             },
+            per_subtask,
             grace_steps,
             ..AttemptOptions::default()
         };

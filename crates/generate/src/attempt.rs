@@ -31,6 +31,11 @@ pub enum SegmentChoice {
 pub struct AttemptOptions {
     /// How a segment is chosen.
     pub choice: SegmentChoice,
+    /// Choose a source anew for every subtask; otherwise (MimicGen's default) each arm
+    /// keeps the source chosen for its first subtask, so that its consecutive segments
+    /// come from one demonstration (a `both` subtask whose arms kept different sources
+    /// chooses again, for both).
+    pub per_subtask: bool,
     /// Steps a lane waits, holding its last target, for its subtask's end after its
     /// segment is done, before the attempt fails at that subtask.
     pub grace_steps: usize,
@@ -38,7 +43,8 @@ pub struct AttemptOptions {
     pub bridge_m_per_step: f64,
     /// Bridge turning speed (radians per step).
     pub bridge_rad_per_step: f64,
-    /// Fewest bridge steps.
+    /// Fewest bridge steps (except where a segment continues the arm's last one in its
+    /// source).
     pub bridge_min_steps: usize,
 }
 
@@ -46,6 +52,7 @@ impl Default for AttemptOptions {
     fn default() -> Self {
         Self {
             choice: SegmentChoice::Random,
+            per_subtask: false,
             grace_steps: 60,
             bridge_m_per_step: 0.005,
             bridge_rad_per_step: 0.03,
@@ -122,6 +129,9 @@ struct Lanes {
     started: Vec<bool>,
     /// Each arm's last target (held when it has nothing new).
     last: Vec<ArmTarget>,
+    /// Each arm's source (its index) and the last source step of its last segment, once
+    /// chosen.
+    source: Vec<Option<(usize, usize)>>,
 }
 
 impl Lanes {
@@ -179,7 +189,14 @@ impl Lanes {
             if self.started[i] || !free || !ready {
                 continue;
             }
-            let (run, prov) = start(env, spec, sources, i, &self.last, rng, options)?;
+            let lanes = sub.arm.lanes();
+            let kept = self.source[lanes[0]].filter(|s| {
+                !options.per_subtask && lanes.iter().all(|&l| self.source[l] == Some(*s))
+            });
+            let (run, prov, chosen) = start(env, spec, sources, i, &self.last, kept, rng, options)?;
+            for &l in lanes {
+                self.source[l] = Some((chosen, prov.source_steps[1]));
+            }
             provenance.push(Provenance {
                 started_at: env.steps(),
                 ..prov
@@ -233,6 +250,7 @@ pub fn attempt(
         runs: (0..n).map(|_| None).collect(),
         started: vec![false; n],
         last: current_targets(&env),
+        source: vec![None; spec.setup.arms()],
     };
     let mut rec = Recorder::new(env);
     let mut provenance = Vec::new();
@@ -274,31 +292,42 @@ pub fn attempt(
     })
 }
 
-/// Chooses a segment of subtask `i`, carries it to the reference object's pose now and
-/// bridges each of its arms from its last target to the segment's first.
+/// Chooses a segment of subtask `i` (of source `kept.0` when given), carries it to the
+/// reference object's pose now and bridges each of its arms from its last target to the
+/// segment's first; returns the run, its provenance and the source's index. A segment
+/// that continues the arms' last one in their source (it starts on the step after
+/// `kept.1`) is bridged only as far as the two transforms differ, without the minimum:
+/// a pause mid-motion (a finger held on a button) is not in any source.
+#[allow(clippy::too_many_arguments)]
 fn start(
     env: &TaskEnv,
     spec: &TaskSpec,
     sources: &[SourceDemo],
     i: usize,
     last: &[ArmTarget],
+    kept: Option<(usize, usize)>,
     rng: &mut rand_chacha::ChaCha8Rng,
     options: &AttemptOptions,
-) -> Result<(Run, Provenance), GenerateError> {
+) -> Result<(Run, Provenance, usize), GenerateError> {
     let sub = &spec.subtasks[i];
     let now = env
         .object_pose(&sub.object)
         .ok_or_else(|| GenerateError::Spec(format!("no state object '{}'", sub.object)))?;
-    let segment = choose(sources, i, &now, rng, options.choice);
+    let chosen = kept.map_or_else(|| choose(sources, i, &now, rng, options.choice), |k| k.0);
+    let segment = &sources[chosen].segments[i];
+    let min_steps = match kept {
+        Some((_, last)) if segment.start == last + 1 => 0,
+        _ => options.bridge_min_steps,
+    };
     let carried = carry(segment, &now);
     let first = &carried[0];
     let bridge = segment
         .arms
         .iter()
         .enumerate()
-        .map(|(k, &a)| bridge_steps(&last[a].pose, &first[k].pose, options))
+        .map(|(k, &a)| bridge_steps(&last[a].pose, &first[k].pose, min_steps, options))
         .max()
-        .unwrap_or(options.bridge_min_steps);
+        .unwrap_or(min_steps);
     let mut targets: Vec<Vec<ArmTarget>> = (1..=bridge)
         .map(|s| {
             let t = s as f64 / (bridge + 1) as f64;
@@ -333,26 +362,27 @@ fn start(
             waited: 0,
         },
         prov,
+        chosen,
     ))
 }
 
-/// The segment of subtask `i` to use.
-fn choose<'s>(
-    sources: &'s [SourceDemo],
+/// The source (its index) whose segment of subtask `i` to use.
+fn choose(
+    sources: &[SourceDemo],
     i: usize,
     now: &Pose,
     rng: &mut rand_chacha::ChaCha8Rng,
     choice: SegmentChoice,
-) -> &'s Segment {
+) -> usize {
     match choice {
-        SegmentChoice::Random => &sources[rng.random_range(0..sources.len())].segments[i],
+        SegmentChoice::Random => rng.random_range(0..sources.len()),
         SegmentChoice::Nearest => {
             let cost =
                 |s: &Segment| s.object_pose.distance(now) + 0.1 * s.object_pose.angle_to(now);
-            sources
-                .iter()
-                .map(|d| &d.segments[i])
-                .min_by(|a, b| cost(a).total_cmp(&cost(b)))
+            (0..sources.len())
+                .min_by(|&a, &b| {
+                    cost(&sources[a].segments[i]).total_cmp(&cost(&sources[b].segments[i]))
+                })
                 .expect("at least one source")
         }
     }
@@ -377,10 +407,10 @@ pub fn carry(segment: &Segment, now: &Pose) -> Vec<Vec<ArmTarget>> {
 }
 
 /// Bridge length from `from` to `to` at the bridge speeds.
-fn bridge_steps(from: &Pose, to: &Pose, options: &AttemptOptions) -> usize {
+fn bridge_steps(from: &Pose, to: &Pose, min_steps: usize, options: &AttemptOptions) -> usize {
     let by_distance = from.distance(to) / options.bridge_m_per_step;
     let by_angle = from.angle_to(to) / options.bridge_rad_per_step;
-    (by_distance.max(by_angle).ceil() as usize).max(options.bridge_min_steps)
+    (by_distance.max(by_angle).ceil() as usize).max(min_steps)
 }
 
 /// The target `t` of the way from `a` to `b` (hands linearly).
