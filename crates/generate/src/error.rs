@@ -34,6 +34,14 @@ pub enum GenerateError {
         /// The first foreign entry.
         name: String,
     },
+    /// The pose figure could not be drawn.
+    #[error("drawing '{path}': {message}")]
+    Figure {
+        /// The figure's file.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
     /// The simulation failed.
     #[error(transparent)]
     Sim(#[from] dexjoco_sim::SimError),

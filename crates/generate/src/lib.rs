@@ -6,10 +6,12 @@
 //! - [`attempt`]: one new episode from a new reset: per subtask a source segment carried
 //!   to the object's new pose (`new * source^-1 * target`), bridged, executed through the
 //!   DexJoCo controller, its end checked; both arms on their own lanes;
-//! - [`run`]: attempts in index order, in parallel, committed in order; resumable.
+//! - [`run`]: attempts in index order, in parallel, committed in order; resumable;
+//!   a report and a figure of the object poses the attempts started from.
 
 pub mod attempt;
 mod error;
+mod figure;
 pub mod run;
 pub mod source;
 
@@ -18,7 +20,7 @@ pub use attempt::{
 };
 pub use error::GenerateError;
 pub use run::{
-    AttemptRecord, GENERATE_RECORD, GenerateConfig, GenerateOutcome, GenerateReport, SETTINGS_FILE,
-    SubtaskOutcome, TIMES_FILE, generate, pilot,
+    AttemptRecord, GENERATE_RECORD, GenerateConfig, GenerateOutcome, GenerateReport, POSES_FIGURE,
+    SETTINGS_FILE, SubtaskOutcome, TIMES_FILE, generate, pilot,
 };
 pub use source::{ArmTarget, Segment, SourceDemo, episode_sha256};

@@ -11,6 +11,8 @@
 //! <out>/.failed/attempt_NNNNNN/          with keep_failed: a failed attempt's episode and record
 //! <out>/generate_settings.json           what decides the bytes (a resume must match)
 //! <out>/generate_report.json, .md        attempts, successes, per-subtask outcomes
+//! <out>/generate_poses.png               placed objects at reset: sources, successes, failures
+//! <out>/generate_times.json              seconds per attempt (the one file that varies by machine)
 //! ```
 
 use std::collections::BTreeMap;
@@ -330,6 +332,9 @@ pub struct GenerateOutcome {
     pub attempt_seconds: f64,
 }
 
+/// The pose-spread figure of a run's folder.
+pub const POSES_FIGURE: &str = "generate_poses.png";
+
 /// The file of a run's timing: the one file whose bytes depend on the machine.
 pub const TIMES_FILE: &str = "generate_times.json";
 
@@ -419,6 +424,9 @@ pub fn generate(
         fs_err::remove_dir_all(out.join(".staging"))?;
     }
     let report = report(spec, config, sources, &done);
+    let resets: Vec<Vec<f64>> = sources.iter().map(|s| s.reset.clone()).collect();
+    let records: Vec<&AttemptRecord> = done.values().collect();
+    crate::figure::write_pose_figure(&out.join(POSES_FIGURE), spec, &resets, &records)?;
     let json = serde_json::to_vec_pretty(&report).expect("serializable");
     write_atomic(&out.join("generate_report.json"), &json)?;
     write_atomic(

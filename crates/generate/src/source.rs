@@ -52,8 +52,10 @@ pub struct SourceDemo {
     pub sha256: String,
     /// One segment per subtask of the task spec, in its order.
     pub segments: Vec<Segment>,
-    /// Each subtask's reference object's pose at reset (for the pose-spread figure).
+    /// Each subtask's reference object's pose at reset.
     pub reset_poses: Vec<Pose>,
+    /// Its reset (`state[0]`), for the pose-spread figure.
+    pub reset: Vec<f64>,
 }
 
 /// Hex SHA-256 of an episode's action and state values (little-endian f64 bits).
@@ -193,6 +195,7 @@ impl SourceDemo {
             sha256: episode_sha256(episode),
             segments,
             reset_poses,
+            reset: states.row(0).to_vec(),
         })
     }
 }
