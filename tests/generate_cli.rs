@@ -40,6 +40,16 @@ fn tree(work: &Path) -> BTreeMap<String, Vec<u8>> {
     t
 }
 
+/// Asserts two runs' files are the same, naming the files that differ.
+fn same(a: &BTreeMap<String, Vec<u8>>, b: &BTreeMap<String, Vec<u8>>, what: &str) {
+    let differ: Vec<&String> = a
+        .keys()
+        .chain(b.keys())
+        .filter(|k| a.get(*k) != b.get(*k))
+        .collect();
+    assert!(differ.is_empty(), "{what}: these differ: {differ:?}");
+}
+
 fn episodes(t: &BTreeMap<String, Vec<u8>>) -> Vec<&str> {
     t.keys()
         .filter(|k| k.ends_with("/generate.json") && k.starts_with("episode_"))
@@ -60,7 +70,7 @@ fn generate_is_deterministic_across_workers_and_resumes_after_sigkill() {
     ok(generate(&two, &count).arg("-j2").output().unwrap());
     let a = tree(&one);
     assert_eq!(episodes(&a).len(), 4, "{:?}", a.keys().collect::<Vec<_>>());
-    assert_eq!(a, tree(&two), "-j 1 and -j 2 write the same bytes");
+    same(&a, &tree(&two), "-j 1 and -j 2 write the same bytes");
 
     // Each episode is a raw episode of the task, with its provenance.
     let dir = one.join("generate/click_mouse").join(episodes(&a)[0]);
@@ -98,8 +108,18 @@ fn generate_is_deterministic_across_workers_and_resumes_after_sigkill() {
             .exists(),
         "killed before the end"
     );
+    // As a kill mid-write leaves it: an atomic write's temporary file.
+    fs_err::write(
+        attempts.join(".attempt_000003.json.partial-x1y2z3"),
+        b"{\"att",
+    )
+    .unwrap();
     ok(generate(&killed, &count).arg("-j2").output().unwrap());
-    assert_eq!(a, tree(&killed), "a killed run continues to the same bytes");
+    same(
+        &a,
+        &tree(&killed),
+        "a killed run continues to the same bytes",
+    );
 
     // A larger --count goes on from there: the first four episodes stay as they were.
     let more = ["--count", "6", "--seed", "7"];

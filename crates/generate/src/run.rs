@@ -354,8 +354,12 @@ pub fn generate(
     fs_err::create_dir_all(out.join(".attempts"))?;
     let _lock = dexjoco_formats::lock::DirLock::acquire(out)?;
     check_settings(out, &settings(config, spec, sources), config.overwrite)?;
+    // What a killed run left: its staged episode, its half-written files.
     if out.join(".staging").exists() {
         fs_err::remove_dir_all(out.join(".staging"))?;
+    }
+    for dir in [out.to_path_buf(), out.join(".attempts")] {
+        dexjoco_formats::fs::remove_partial_files(&dir)?;
     }
     let mut done = finished(out)?;
     // A success whose record is missing was cut short before its record: redone.
