@@ -86,8 +86,8 @@ pub struct GlobalArgs {
     /// Seed of every random choice; the same seed and inputs give identical outputs.
     #[arg(long, global = true, env = "DEXJOCO_SEED", default_value_t = 0)]
     pub seed: u64,
-    /// Work folder: each stage writes its own subfolder (ingest/, augment/, convert/,
-    /// stats/, render/, bench/) and reads the previous stage's.
+    /// Work folder: each stage writes its own subfolder (ingest/, generate/, augment/,
+    /// convert/, stats/, render/, bench/) and reads the previous stage's.
     #[arg(
         long,
         global = true,
