@@ -33,10 +33,12 @@ fn ok(out: Output) -> Output {
     out
 }
 
-/// The run's files, without the one whose bytes depend on the machine (its timing).
+/// The run's files, without the one whose bytes depend on the machine (its timing) and
+/// the attempts set aside past the run's end (`.surplus/`).
 fn tree(work: &Path) -> BTreeMap<String, Vec<u8>> {
     let mut t = dexjoco_testkit::file_tree(&work.join("generate/click_mouse"));
     assert!(t.remove(dexjoco_generate::TIMES_FILE).is_some());
+    t.retain(|k, _| !k.starts_with(".surplus/"));
     t
 }
 
@@ -120,6 +122,41 @@ fn generate_is_deterministic_across_workers_and_resumes_after_sigkill() {
         &tree(&killed),
         "a killed run continues to the same bytes",
     );
+}
+
+#[test]
+fn generate_shards_and_count_changes_write_what_one_run_writes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let one = tmp.path().join("one");
+    let count = ["--count", "4", "--seed", "7"];
+    ok(generate(&one, &count).arg("-j1").output().unwrap());
+    let a = tree(&one);
+    // Two shards at once into one folder, then the finalize step: the same bytes.
+    let sharded = tmp.path().join("sharded");
+    let shards: Vec<_> = ["0/2", "1/2"]
+        .iter()
+        .map(|s| {
+            generate(&sharded, &count)
+                .args(["-j1", "--shard", s])
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for mut s in shards {
+        assert!(s.wait().unwrap().success());
+    }
+    assert!(
+        !sharded
+            .join("generate/click_mouse/generate_report.json")
+            .exists(),
+        "a shard writes no report"
+    );
+    ok(generate(&sharded, &count).output().unwrap());
+    same(
+        &a,
+        &tree(&sharded),
+        "shards and their finalize step write the same bytes",
+    );
 
     // A larger --count goes on from there: the first four episodes stay as they were.
     let more = ["--count", "6", "--seed", "7"];
@@ -136,6 +173,19 @@ fn generate_is_deterministic_across_workers_and_resumes_after_sigkill() {
             assert_eq!(b.get(k), Some(v), "{k} was kept");
         }
     }
+    // Back to --count 4: the folder of a --count 4 run again, the two others set aside,
+    // and put back (not made again) by a run that needs them.
+    ok(generate(&one, &count).output().unwrap());
+    same(&a, &tree(&one), "a smaller --count sets the surplus aside");
+    let surplus = one.join("generate/click_mouse/.surplus");
+    assert_eq!(
+        fs_err::read_dir(surplus.join(".attempts")).unwrap().count(),
+        2
+    );
+    let out = ok(generate(&one, &more).output().unwrap());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("0 made now"), "{text}");
+    same(&b, &tree(&one), "the surplus put back");
 }
 
 #[test]

@@ -4,7 +4,8 @@
 //! sharded job submitted by the bundle's `share/dexjoco-data/slurm/submit.sh` (a job array
 //! of 4 shards running its `augment.sbatch`, then the finalize job with
 //! `--dependency=afterok`), every job running the bundle's own binary, and the output
-//! compared byte for byte with one unsharded run. The daemons it started are stopped (by pid) and the folder removed, also
+//! compared byte for byte with one unsharded run; then the same for `generate`
+//! (`submit.sh --stage generate`). The daemons it started are stopped (by pid) and the folder removed, also
 //! when the test fails. Needs root and the packages (`scripts/setup.sh --python`).
 
 use std::path::{Path, PathBuf};
@@ -160,11 +161,78 @@ fn a_sharded_augment_on_a_real_slurm_cluster_equals_one_run() {
         5,
         "{text}"
     );
-    drop(cluster);
-    assert!(!dir.exists(), "the cluster's folder is left behind");
-
     assert_eq!(
         dexjoco_testkit::file_tree(&sharded),
         dexjoco_testkit::file_tree(&single)
+    );
+
+    sharded_generate_equals_one_run(tmp.path(), &bundle, &cluster);
+    drop(cluster);
+    assert!(!dir.exists(), "the cluster's folder is left behind");
+}
+
+/// The same submit script and finalize step run `generate` (issue #46): 3 shards of
+/// click_mouse from the bundle's sample data, then the finalize, equal to one run.
+fn sharded_generate_equals_one_run(tmp: &Path, bundle: &Path, cluster: &Cluster) {
+    let bin = bundle.join("bin/dexjoco-data");
+    let gen_args = ["--task", "click_mouse", "--count", "5", "--seed", "3"];
+    let gen_single = tmp.join("gen-single");
+    let out = Command::new(&bin)
+        .args(["-q", "-j", "2", "generate"])
+        .args(gen_args)
+        .arg("--out")
+        .arg(&gen_single)
+        .env("DEXJOCO_LOG", "warn")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let gen_sharded = tmp.join("gen-sharded");
+    let gen_logs = tmp.join("gen-logs");
+    let out = Command::new(bundle.join("share/dexjoco-data/slurm/submit.sh"))
+        .args(["--wait", "--stage", "generate", "--logs"])
+        .arg(&gen_logs)
+        .arg("3")
+        .args(gen_args)
+        .arg("--out")
+        .arg(&gen_sharded)
+        .env("SLURM_CONF", cluster.conf())
+        .env_remove("DEXJOCO_BIN")
+        .env("DEXJOCO_LOG", "warn")
+        .env("SUBMIT_POLL_SECONDS", "0.5")
+        .current_dir(tmp)
+        .output()
+        .unwrap();
+    let text: String = fs_err::read_dir(&gen_logs)
+        .map(|rd| {
+            rd.flatten()
+                .map(|e| fs_err::read_to_string(e.path()).unwrap_or_default())
+                .collect()
+        })
+        .unwrap_or_default();
+    assert!(
+        out.status.success(),
+        "{out:?}\nstderr: {}\njob logs:\n{text}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for k in 0..3 {
+        assert!(text.contains(&format!("generate shard {k}/3:")), "{text}");
+    }
+    let generated = |d: &Path| {
+        let mut t = dexjoco_testkit::file_tree(&d.join("click_mouse"));
+        t.remove("generate_times.json");
+        t.retain(|k, _| !k.starts_with(".surplus/"));
+        t
+    };
+    let (a, b) = (generated(&gen_single), generated(&gen_sharded));
+    assert_eq!(
+        a.keys().filter(|k| k.ends_with("/generate.json")).count(),
+        5
+    );
+    assert!(
+        a == b,
+        "sharded generate differs: {:?}",
+        a.keys()
+            .filter(|k| a.get(*k) != b.get(*k))
+            .collect::<Vec<_>>()
     );
 }

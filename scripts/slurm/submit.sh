@@ -1,19 +1,21 @@
 #!/usr/bin/env bash
-# Submits a sharded `dexjoco-data augment` to Slurm: a job array of N shards
-# (scripts/slurm/augment.sbatch with --array=0-(N-1), each task running
-# `augment ARGS... --shard auto`) and a finalize job (`augment ARGS...`, no --shard) that
+# Submits a sharded `dexjoco-data augment` (or `generate`) to Slurm: a job array of N
+# shards (scripts/slurm/augment.sbatch with --array=0-(N-1), each task running
+# `STAGE ARGS... --shard auto`) and a finalize job (`STAGE ARGS...`, no --shard) that
 # starts only after every shard succeeded (--dependency=afterok:ARRAY) and is cancelled
 # by Slurm if any shard fails (--kill-on-invalid-dep=yes).
 #
 #   scripts/slurm/submit.sh [OPTIONS] N ARGS...
 #     e.g. scripts/slurm/submit.sh --wait 4 demo.json --out aug/ --replays 10
+#          scripts/slurm/submit.sh --stage generate 8 --task hammer_nail --count 1000 --out gen/
 #
+#   --stage STAGE   the command the jobs run: augment (default) or generate.
 #   --wait          wait until the finalize job and every shard have ended (polling
 #                   scontrol: sbatch's own --wait polls after 2, 8, 32 s, slow for short
 #                   jobs, and exits 0 for a finalize job cancelled for a failed shard);
 #                   exit 0 only if every shard and the finalize job completed with exit
 #                   code 0, else print the jobs' states and exit 1. Ctrl-C cancels both.
-#   --logs DIR      write the jobs' stdout/stderr to DIR/augment-ARRAYID_TASK.log and
+#   --logs DIR      write the jobs' stdout/stderr to DIR/STAGE-ARRAYID_TASK.log and
 #                   DIR/finalize-JOBID.log (default: sbatch's, slurm-*.out in the current
 #                   folder).
 #   --sbatch OPT    one more option for both sbatch calls (repeatable), e.g.
@@ -35,12 +37,13 @@ if [ -z "${DEXJOCO_BIN:-}" ] && [[ "$HERE" == */share/dexjoco-data/slurm ]] \
 fi
 export DEXJOCO_BIN="${DEXJOCO_BIN:-dexjoco-data}"
 log() { printf '[submit] %s\n' "$*" >&2; }
-usage() { sed -n '2,24p' "$0" >&2; exit 2; }
+usage() { sed -n '2,27p' "$0" >&2; exit 2; }
 
-wait_=0 logs="" extra=()
+wait_=0 logs="" extra=() stage=augment
 while (($#)); do
   case "$1" in
     --wait) wait_=1; shift ;;
+    --stage) (($# >= 2)) || usage; stage="$2"; shift 2 ;;
     --logs) (($# >= 2)) || usage; logs="$2"; shift 2 ;;
     --sbatch) (($# >= 2)) || usage; extra+=("$2"); shift 2 ;;
     -h|--help) usage ;;
@@ -48,6 +51,9 @@ while (($#)); do
   esac
 done
 if (($# < 1)) || ! [[ "$1" =~ ^[1-9][0-9]*$ ]]; then usage; fi
+case "$stage" in augment|generate) ;; *) log "--stage: augment or generate, not '$stage'"; exit 2 ;; esac
+# The batch script runs this stage (sbatch exports the submitting environment).
+export DEXJOCO_STAGE="$stage"
 n=$1; shift
 
 # Submitted from inside another Slurm job, these would leak into the jobs' environment
@@ -59,15 +65,15 @@ out_array=() out_final=()
 if [ -n "$logs" ]; then
   mkdir -p "$logs"
   logs="$(cd "$logs" && pwd)"
-  out_array=(--output="$logs/augment-%A_%a.log")
+  out_array=(--output="$logs/$stage-%A_%a.log")
   out_final=(--output="$logs/finalize-%j.log")
 fi
 
-array="$(sbatch --parsable --array="0-$((n - 1))" --job-name=dexjoco-augment \
+array="$(sbatch --parsable --array="0-$((n - 1))" --job-name="dexjoco-$stage" \
   "${out_array[@]}" "${extra[@]}" "$SCRIPT" "$@")"
 array="${array%%;*}"
 final="$(sbatch --parsable --dependency="afterok:$array" --kill-on-invalid-dep=yes \
-  --job-name=dexjoco-augment-finalize "${out_final[@]}" "${extra[@]}" "$SCRIPT" "$@")" || {
+  --job-name="dexjoco-$stage-finalize" "${out_final[@]}" "${extra[@]}" "$SCRIPT" "$@")" || {
   log "submitting the finalize job failed; cancelling the shards (job $array)"
   scancel "$array" || true
   exit 1

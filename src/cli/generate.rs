@@ -24,6 +24,7 @@ Examples:
   dexjoco-data scripted --task pick_bucket --episodes 3 --seed 1000 --out src/
   dexjoco-data generate src/pick_bucket --task pick_bucket --count 50
   dexjoco-data generate --task fold_glasses --count 500 --dry-run   # how many attempts?
+  dexjoco-data generate --task hammer_nail --count 1000 --out /shared/gen --shard auto
   dexjoco-data augment dexjoco-work/generate/click_mouse        # then render them
 
 For each attempt, a reset is drawn from the task spec's placement ranges (attempt k uses
@@ -43,7 +44,13 @@ attempt) with generate.json (reset, source segment and transform per subtask), t
 attempts' records in .attempts/, failed attempts' episodes in .failed/ with
 --keep-failed, and generate_report.md/.json (success per subtask). The same seed, sources
 and scene give the same bytes whatever -j; a killed run continues where it stopped; a
-rerun with a larger --count or --max-attempts goes on from there.
+rerun with a larger --count or --max-attempts goes on from there (attempts past the
+--count-th success wait in .surplus/ for a later run that needs them).
+
+Shards: --shard I/N makes every N-th attempt into a shared --out and stops once the
+attempts of all shards hold --count successes; the same command without --shard afterwards
+makes the attempts still missing and writes the report: the folder holds what one
+unsharded run writes. scripts/slurm/submit.sh --stage generate N ARGS... submits both.
 
 Exit code 3: fewer than --count episodes succeeded within --max-attempts, or some sources
 were left out; 1: nothing succeeded.")]
@@ -91,6 +98,11 @@ pub struct GenerateArgs {
     #[arg(long, default_value_t = 10,
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000))]
     pub pilot: usize,
+    /// Make only this share of the attempts: I/N (0-based; attempts k with k % N == I), or
+    /// `auto` from the cluster's environment (Slurm job array, Kubernetes Indexed Job);
+    /// then the same command without --shard finishes the run.
+    #[arg(long, value_name = "I/N|auto")]
+    pub shard: Option<String>,
     /// Replace OUT/<task> written by an earlier generate run with other settings.
     #[arg(long)]
     pub overwrite: bool,

@@ -53,6 +53,19 @@ pub fn run(global: &GlobalArgs, args: GenerateArgs) -> anyhow::Result<ExitStatus
         .with_context(|| format!("generating into {}", config.out.display()))?;
     bar.finish();
     let r = &outcome.report;
+    if let Some(shard) = config.shard {
+        outln!(
+            "generate shard {shard}: {} attempt(s) made now ({:.2} s each) into {}; run the same command without --shard after every shard for the report",
+            outcome.attempts_now,
+            outcome.attempt_seconds / outcome.attempts_now.max(1) as f64,
+            config.out.display()
+        );
+        return Ok(if left_out.is_empty() {
+            ExitStatus::Success
+        } else {
+            ExitStatus::Partial
+        });
+    }
     outln!(
         "generate {}: {} episode(s) from {} attempt(s) ({:.0} %; {} made now, {:.2} s each) from {} source(s), in {}",
         r.task,

@@ -43,9 +43,11 @@ impl GenerateSettings {
             keep_failed,
             dry_run,
             pilot,
+            shard,
             overwrite,
             tasks,
         } = args;
+        let shard = shard_of(shard.as_deref(), overwrite)?;
         let task_set = task_set(&tasks)?;
         let spec = known_task(&task_set, &task)?.clone();
         if spec.subtasks.is_empty() {
@@ -87,6 +89,7 @@ impl GenerateSettings {
                 workers: global.jobs.unwrap_or_else(rayon::current_num_threads),
                 keep_failed,
                 overwrite,
+                shard,
                 options,
                 scene: scene_label,
             },

@@ -130,7 +130,7 @@ pub struct AugmentSettings {
 }
 
 /// `--shard I/N` or `auto` (from the cluster's environment); refused with `--overwrite`.
-fn shard_of(shard: Option<&str>, overwrite: bool) -> anyhow::Result<Option<Shard>> {
+pub(crate) fn shard_of(shard: Option<&str>, overwrite: bool) -> anyhow::Result<Option<Shard>> {
     let shard = match shard {
         None => return Ok(None),
         Some("auto") => Shard::from_env(|k| std::env::var(k).ok()).map_err(|e| {

@@ -22,6 +22,7 @@ mod parallelism;
 pub mod pose;
 mod progress;
 mod rotation;
+pub mod shard;
 pub mod synth;
 mod task_set;
 mod task_spec;
@@ -37,6 +38,7 @@ pub use parallelism::available_cores;
 pub use pose::{Pose, Quat, Vec3};
 pub use progress::{NoProgress, Progress};
 pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};
+pub use shard::Shard;
 pub use task_set::TaskSet;
 pub use task_spec::{
     ArmTargetInit, Axis, BUILTIN_SPEC_FILES, BoxAxes, CameraSpec, Cmp, ConstraintKind, DerivedPose,

@@ -511,6 +511,41 @@ fn process_start(pid: u32) -> Option<u64> {
     }
 }
 
+/// One writer per output folder. An unsharded run holds `<out>/.lock`; shard `I/N` holds
+/// `<out>/.lock-shard-I-of-N`, so the shards of one split share the folder (they never
+/// write the same replay). Either refuses while a run that could write the same replays
+/// holds a lock there: an unsharded run refuses any shard, a shard refuses an unsharded
+/// run and the shards of another split. Both take their own lock before looking, so of
+/// two runs started together at least one sees the other.
+pub fn lock_output(out: &Path, shard: Option<dexjoco_core::Shard>) -> Result<DirLock> {
+    let own = match shard {
+        None => LOCK_FILE.to_owned(),
+        Some(s) => format!("{}-shard-{}-of-{}", LOCK_FILE, s.index, s.count),
+    };
+    let lock = DirLock::acquire_named(out, &own)?;
+    let same_split = shard.map(|s| format!("-of-{}", s.count));
+    for other in DirLock::live_locks(out)? {
+        let name = other
+            .file
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let compatible = name == own
+            || same_split
+                .as_deref()
+                .is_some_and(|tail| name.starts_with(".lock-shard-") && name.ends_with(tail));
+        if !compatible {
+            return Err(FormatError::Locked {
+                path: out.to_owned(),
+                file: other.file,
+                pid: other.pid,
+                host: other.host,
+            });
+        }
+    }
+    Ok(lock)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -12,6 +12,7 @@
 pub mod attempt;
 mod error;
 mod figure;
+mod folder;
 pub mod run;
 pub mod source;
 

@@ -16,19 +16,18 @@
 //! ```
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use dexjoco_core::{Progress, TaskSpec};
-use dexjoco_formats::raw::RawFolder;
-use dexjoco_formats::{EpisodeContainer, EpisodeMeta, write_atomic};
+use dexjoco_formats::write_atomic;
 use dexjoco_sim::{Scene, TaskEnv};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 use crate::attempt::{Attempt, AttemptFailure, AttemptOptions, Provenance, attempt};
 use crate::error::GenerateError;
+use crate::folder;
 use crate::source::SourceDemo;
 
 /// The file of a generated episode's record, beside its `replay.zarr`.
@@ -53,6 +52,9 @@ pub struct GenerateConfig {
     pub keep_failed: bool,
     /// Empty a folder an earlier run wrote with other settings, instead of refusing it.
     pub overwrite: bool,
+    /// This process's share of a run split over several (`None`: the whole run, or the
+    /// finalize step after the shards).
+    pub shard: Option<dexjoco_core::Shard>,
     /// How each attempt runs.
     pub options: AttemptOptions,
     /// The scene the sources and attempts run on (`built-in` or a scene folder), for
@@ -87,7 +89,7 @@ pub struct AttemptRecord {
 }
 
 impl AttemptRecord {
-    fn of(a: &Attempt, seed: u64) -> Self {
+    pub(crate) fn of(a: &Attempt, seed: u64) -> Self {
         Self {
             written_by: "dexjoco-data generate".into(),
             attempt: a.index,
@@ -117,7 +119,7 @@ pub struct SubtaskOutcome {
 }
 
 /// What a run's folder holds.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct GenerateReport {
     /// The task.
     pub task: String,
@@ -185,144 +187,8 @@ impl Resets<'_> {
     }
 }
 
-/// Hex SHA-256 of a serializable value's JSON.
-fn sha256_json(v: &impl Serialize) -> String {
-    let bytes = serde_json::to_vec(v).expect("serializable");
-    format!("{:x}", Sha256::digest(bytes))
-}
-
-/// The settings that decide a run's bytes.
-fn settings(config: &GenerateConfig, spec: &TaskSpec, sources: &[SourceDemo]) -> serde_json::Value {
-    serde_json::json!({
-        "format": "dexjoco-data/generate-settings",
-        "version": 1,
-        "task": spec.id,
-        "spec": format!("sha256:{}", sha256_json(spec)),
-        "scene": config.scene,
-        "seed": config.seed,
-        "options": config.options,
-        "sources": sources.iter().map(|s| [s.id.clone(), s.sha256.clone()]).collect::<Vec<_>>(),
-    })
-}
-
-/// Writes the settings file, or checks an earlier run's against it; with `overwrite`, an
-/// earlier run's folder of other settings is emptied first. A folder that holds files
-/// but no settings file is not a generate run's, and is never written into.
-fn check_settings(
-    out: &Path,
-    want: &serde_json::Value,
-    overwrite: bool,
-) -> Result<(), GenerateError> {
-    let path = out.join(SETTINGS_FILE);
-    let bytes = serde_json::to_vec_pretty(want).expect("serializable");
-    let old = match fs_err::read(&path) {
-        Ok(old) => Some(serde_json::from_slice::<serde_json::Value>(&old).unwrap_or_default()),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
-        Err(e) => return Err(e.into()),
-    };
-    let Some(old) = old else {
-        let foreign = fs_err::read_dir(out)?
-            .flatten()
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .find(|n| n != dexjoco_formats::lock::LOCK_FILE && n != ".attempts");
-        if let Some(name) = foreign {
-            return Err(GenerateError::Foreign {
-                path: out.to_path_buf(),
-                name,
-            });
-        }
-        return Ok(write_atomic(&path, &bytes)?);
-    };
-    let keys = want.as_object().expect("an object");
-    let Some((k, _)) = keys.iter().find(|(k, v)| old.get(k.as_str()) != Some(v)) else {
-        return Ok(());
-    };
-    if !overwrite {
-        return Err(GenerateError::OtherRun {
-            path: out.to_path_buf(),
-            difference: format!("{k} differs from {}", path.display()),
-        });
-    }
-    for e in fs_err::read_dir(out)?.flatten() {
-        if e.file_name() == dexjoco_formats::lock::LOCK_FILE {
-            continue;
-        }
-        if e.file_type()?.is_dir() {
-            fs_err::remove_dir_all(e.path())?;
-        } else {
-            fs_err::remove_file(e.path())?;
-        }
-    }
-    fs_err::create_dir_all(out.join(".attempts"))?;
-    Ok(write_atomic(&path, &bytes)?)
-}
-
-fn attempt_name(k: usize) -> String {
-    format!("attempt_{k:06}")
-}
-
-/// The records of the attempts earlier runs finished, by index.
-fn finished(out: &Path) -> Result<BTreeMap<usize, AttemptRecord>, GenerateError> {
-    let mut done = BTreeMap::new();
-    let dir = out.join(".attempts");
-    let Ok(entries) = fs_err::read_dir(&dir) else {
-        return Ok(done);
-    };
-    for e in entries.flatten() {
-        let path = e.path();
-        let Ok(bytes) = fs_err::read(&path) else {
-            continue;
-        };
-        // A record a killed run left half written is redone (written atomically, so
-        // only a foreign file can be unreadable).
-        if let Ok(r) = serde_json::from_slice::<AttemptRecord>(&bytes) {
-            done.insert(r.attempt, r);
-        }
-    }
-    Ok(done)
-}
-
-/// Commits one attempt: a success's episode folder (staged, renamed into place), a
-/// failure's folder under `.failed/` with `keep_failed`; then its record, which marks it
-/// done.
-fn commit(
-    out: &Path,
-    spec: &TaskSpec,
-    a: &Attempt,
-    config: &GenerateConfig,
-) -> Result<AttemptRecord, GenerateError> {
-    let record = AttemptRecord::of(a, config.seed);
-    let json = serde_json::to_vec_pretty(&record).expect("serializable");
-    let folder = if record.success {
-        Some(out.join(format!("episode_{:06}", a.index)))
-    } else if config.keep_failed {
-        Some(out.join(".failed").join(attempt_name(a.index)))
-    } else {
-        None
-    };
-    if let Some(folder) = folder {
-        let staging = out.join(".staging").join(attempt_name(a.index));
-        if staging.exists() {
-            fs_err::remove_dir_all(&staging)?;
-        }
-        RawFolder.write(&staging, &a.planned.episode, spec, &EpisodeMeta::default())?;
-        write_atomic(&staging.join(GENERATE_RECORD), &json)?;
-        if folder.exists() {
-            fs_err::remove_dir_all(&folder)?;
-        }
-        fs_err::create_dir_all(folder.parent().expect("in out"))?;
-        fs_err::rename(&staging, &folder)?;
-    }
-    write_atomic(
-        &out.join(".attempts")
-            .join(format!("{}.json", attempt_name(a.index))),
-        &json,
-    )?;
-    Ok(record)
-}
-
 /// What a call of [`generate`] did, beside the folder's report.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct GenerateOutcome {
     /// The folder's report (every run into it).
     pub report: GenerateReport,
@@ -340,6 +206,14 @@ pub const TIMES_FILE: &str = "generate_times.json";
 
 /// Runs attempts until `count` succeeded or `max_attempts` were made, committing each in
 /// index order; writes the folder's report and returns it with this call's work.
+///
+/// A shard (`config.shard`, `I/N`) makes only the attempts `k` with `k % N == I`, in
+/// order, into the folder the other shards share, and stops once the attempts every
+/// shard finished hold `count` successes before its next one (or at `max_attempts`); it
+/// writes no report. The unsharded run afterwards (the finalize step) makes the attempts
+/// still missing before the `count`-th success, sets aside those past it (`.surplus/`, put
+/// back by a later run that needs them) and writes the report: the folder then holds what
+/// one unsharded run writes.
 pub fn generate(
     config: &GenerateConfig,
     scene: &Scene,
@@ -352,38 +226,76 @@ pub fn generate(
     }
     let out = &config.out;
     fs_err::create_dir_all(out.join(".attempts"))?;
-    let _lock = dexjoco_formats::lock::DirLock::acquire(out)?;
-    check_settings(out, &settings(config, spec, sources), config.overwrite)?;
-    // What a killed run left: its staged episode, its half-written files.
-    if out.join(".staging").exists() {
-        fs_err::remove_dir_all(out.join(".staging"))?;
+    let _lock = dexjoco_formats::lock::lock_output(out, config.shard)?;
+    folder::check_settings(
+        out,
+        &folder::settings(config, spec, sources),
+        config.overwrite,
+    )?;
+    if config.shard.is_none() {
+        folder::restore_surplus(out)?;
     }
-    for dir in [out.to_path_buf(), out.join(".attempts")] {
-        dexjoco_formats::fs::remove_partial_files(&dir)?;
+    folder::clean_up(out, config.shard)?;
+    let mut done = folder::finished(out)?;
+    let work = attempt_loop(config, scene, spec, sources, progress, &mut done)?;
+    if config.shard.is_some() {
+        let report = report(spec, config, sources, &done);
+        return Ok(GenerateOutcome { report, ..work });
     }
-    let mut done = finished(out)?;
-    // A success whose record is missing was cut short before its record: redone.
+    let end = end_of_run(&done, config);
+    folder::set_aside(out, &mut done, end)?;
+    folder::remove_staging(out)?;
+    let report = report(spec, config, sources, &done);
+    write_outputs(config, spec, sources, &done, &report, &work)?;
+    Ok(GenerateOutcome { report, ..work })
+}
+
+/// Where an unsharded run with `config` stops: after the `count`-th success in attempt
+/// order, else at `max_attempts`.
+fn end_of_run(done: &BTreeMap<usize, AttemptRecord>, config: &GenerateConfig) -> usize {
+    done.values()
+        .filter(|r| r.success)
+        .nth(config.count.saturating_sub(1))
+        .map_or(config.max_attempts, |r| {
+            (r.attempt + 1).min(config.max_attempts)
+        })
+}
+
+/// Successes among the attempts before `k`.
+fn successes_before(done: &BTreeMap<usize, AttemptRecord>, k: usize) -> usize {
+    done.range(..k).filter(|(_, r)| r.success).count()
+}
+
+/// Makes the missing attempts (this shard's, or all) in batches, committing each in
+/// index order, until `count` successes or `max_attempts`; returns this call's work.
+fn attempt_loop(
+    config: &GenerateConfig,
+    scene: &Scene,
+    spec: &TaskSpec,
+    sources: &[SourceDemo],
+    progress: &dyn Progress,
+    done: &mut BTreeMap<usize, AttemptRecord>,
+) -> Result<GenerateOutcome, GenerateError> {
+    let out = &config.out;
     let mut resets = Resets {
         scene,
         spec,
         rng: rand_chacha::ChaCha8Rng::seed_from_u64(config.seed),
         drawn: Vec::new(),
     };
-    let successes_before = |done: &BTreeMap<usize, AttemptRecord>, k: usize| {
-        done.range(..k).filter(|(_, r)| r.success).count()
-    };
+    let mine = |k: &usize| config.shard.is_none_or(|s| k % s.count == s.index);
     progress.start(config.count as u64);
     progress.advance(
-        successes_before(&done, usize::MAX).min(config.count) as u64,
+        successes_before(done, usize::MAX).min(config.count) as u64,
         "",
     );
     let pool = worker_pool(config)?;
     let batch = (config.workers.max(1) * 2).max(2);
-    let (mut attempts_now, mut attempt_seconds) = (0usize, 0.0f64);
+    let mut work = GenerateOutcome::default();
     let mut k = 0;
-    'run: while k < config.max_attempts && successes_before(&done, k) < config.count {
+    'run: while k < config.max_attempts && successes_before(done, k) < config.count {
         let todo: Vec<usize> = (k..config.max_attempts)
-            .filter(|i| !done.contains_key(i))
+            .filter(|i| mine(i) && !done.contains_key(i))
             .take(batch)
             .collect();
         let Some(&last) = todo.last() else { break };
@@ -391,27 +303,16 @@ pub fn generate(
             .iter()
             .map(|&i| Ok((i, resets.get(i)?)))
             .collect::<Result<Vec<_>, GenerateError>>()?;
-        let results = in_parallel(&pool, scene, spec, sources, config, inputs);
-        for result in results {
+        for result in in_parallel(&pool, scene, spec, sources, config, inputs) {
             let (a, seconds) = result?;
             // Attempts already done before this one count first (in index order).
-            if successes_before(&done, a.index) >= config.count {
+            if successes_before(done, a.index) >= config.count {
                 break 'run;
             }
-            let record = commit(out, spec, &a, config)?;
-            let line = match &record.failure {
-                None => format!("attempt {}: success at step {}", a.index, record.steps - 1),
-                Some(f) => format!(
-                    "attempt {}: failed at {} (step {}): {}",
-                    a.index,
-                    f.subtask.as_deref().unwrap_or("the end"),
-                    f.step,
-                    f.reason
-                ),
-            };
-            progress.note(&line);
-            attempts_now += 1;
-            attempt_seconds += seconds;
+            let record = folder::commit(out, spec, &a, config)?;
+            progress.note(&attempt_line(&record));
+            work.attempts_now += 1;
+            work.attempt_seconds += seconds;
             let success = record.success;
             done.insert(a.index, record);
             let ok = done.values().filter(|r| r.success).count();
@@ -423,35 +324,63 @@ pub fn generate(
             progress.advance(u64::from(success), &rate);
         }
         k = last + 1;
+        if config.shard.is_some() {
+            // The other shards' attempts count too: stop once the successes before the
+            // next attempt of this shard are enough.
+            *done = folder::finished(out)?;
+        }
     }
-    if out.join(".staging").exists() {
-        fs_err::remove_dir_all(out.join(".staging"))?;
+    Ok(work)
+}
+
+/// One line per attempt, above the progress bar.
+fn attempt_line(record: &AttemptRecord) -> String {
+    match &record.failure {
+        None => format!(
+            "attempt {}: success at step {}",
+            record.attempt,
+            record.steps.saturating_sub(1)
+        ),
+        Some(f) => format!(
+            "attempt {}: failed at {} (step {}): {}",
+            record.attempt,
+            f.subtask.as_deref().unwrap_or("the end"),
+            f.step,
+            f.reason
+        ),
     }
-    let report = report(spec, config, sources, &done);
+}
+
+/// The report, the pose figure and the timing of an unsharded run.
+fn write_outputs(
+    config: &GenerateConfig,
+    spec: &TaskSpec,
+    sources: &[SourceDemo],
+    done: &BTreeMap<usize, AttemptRecord>,
+    report: &GenerateReport,
+    work: &GenerateOutcome,
+) -> Result<(), GenerateError> {
+    let out = &config.out;
     let resets: Vec<Vec<f64>> = sources.iter().map(|s| s.reset.clone()).collect();
     let records: Vec<&AttemptRecord> = done.values().collect();
     crate::figure::write_pose_figure(&out.join(POSES_FIGURE), spec, &resets, &records)?;
-    let json = serde_json::to_vec_pretty(&report).expect("serializable");
+    let json = serde_json::to_vec_pretty(report).expect("serializable");
     write_atomic(&out.join("generate_report.json"), &json)?;
     write_atomic(
         &out.join("generate_report.md"),
         report.to_markdown().as_bytes(),
     )?;
     let times = serde_json::json!({
-        "attempts_now": attempts_now,
-        "attempt_seconds": attempt_seconds,
-        "seconds_per_attempt": attempt_seconds / attempts_now.max(1) as f64,
+        "attempts_now": work.attempts_now,
+        "attempt_seconds": work.attempt_seconds,
+        "seconds_per_attempt": work.attempt_seconds / work.attempts_now.max(1) as f64,
         "workers": config.workers,
     });
     write_atomic(
         &out.join(TIMES_FILE),
         &serde_json::to_vec_pretty(&times).expect("serializable"),
     )?;
-    Ok(GenerateOutcome {
-        report,
-        attempts_now,
-        attempt_seconds,
-    })
+    Ok(())
 }
 
 /// The run's threads: attempts are independent simulations without rendering, so they

@@ -1,0 +1,264 @@
+//! A generation run's folder: the settings file every run into it must match, the
+//! attempts' records (the resume log), committing an attempt, the surplus a larger
+//! earlier run (or shards running past the end) left beyond this run's end, and what a
+//! killed run left behind.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use dexjoco_core::{Shard, TaskSpec};
+use dexjoco_formats::raw::RawFolder;
+use dexjoco_formats::{EpisodeContainer, EpisodeMeta, write_atomic};
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+
+use crate::attempt::Attempt;
+use crate::error::GenerateError;
+use crate::run::{AttemptRecord, GENERATE_RECORD, GenerateConfig, SETTINGS_FILE};
+use crate::source::SourceDemo;
+
+/// Records of finished attempts.
+const ATTEMPTS: &str = ".attempts";
+/// Failed attempts' episodes (`keep_failed`).
+const FAILED: &str = ".failed";
+/// Attempts set aside beyond a run's end, as they were (records, episodes).
+const SURPLUS: &str = ".surplus";
+/// Episodes being written.
+const STAGING: &str = ".staging";
+
+/// Hex SHA-256 of a serializable value's JSON.
+fn sha256_json(v: &impl Serialize) -> String {
+    let bytes = serde_json::to_vec(v).expect("serializable");
+    format!("{:x}", Sha256::digest(bytes))
+}
+
+/// The settings that decide a run's bytes.
+pub(crate) fn settings(
+    config: &GenerateConfig,
+    spec: &TaskSpec,
+    sources: &[SourceDemo],
+) -> serde_json::Value {
+    serde_json::json!({
+        "format": "dexjoco-data/generate-settings",
+        "version": 1,
+        "task": spec.id,
+        "spec": format!("sha256:{}", sha256_json(spec)),
+        "scene": config.scene,
+        "seed": config.seed,
+        "options": config.options,
+        "sources": sources.iter().map(|s| [s.id.clone(), s.sha256.clone()]).collect::<Vec<_>>(),
+    })
+}
+
+/// Writes the settings file, or checks an earlier run's against it; with `overwrite`, an
+/// earlier run's folder of other settings is emptied first. A folder that holds files
+/// but no settings file is not a generate run's, and is never written into.
+pub(crate) fn check_settings(
+    out: &Path,
+    want: &serde_json::Value,
+    overwrite: bool,
+) -> Result<(), GenerateError> {
+    let path = out.join(SETTINGS_FILE);
+    let bytes = serde_json::to_vec_pretty(want).expect("serializable");
+    let old = match fs_err::read(&path) {
+        Ok(old) => Some(serde_json::from_slice::<serde_json::Value>(&old).unwrap_or_default()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+        Err(e) => return Err(e.into()),
+    };
+    let Some(old) = old else {
+        let foreign = fs_err::read_dir(out)?
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .find(|n| !n.starts_with(dexjoco_formats::lock::LOCK_FILE) && n != ATTEMPTS);
+        if let Some(name) = foreign {
+            return Err(GenerateError::Foreign {
+                path: out.to_path_buf(),
+                name,
+            });
+        }
+        return Ok(write_atomic(&path, &bytes)?);
+    };
+    let keys = want.as_object().expect("an object");
+    let Some((k, _)) = keys.iter().find(|(k, v)| old.get(k.as_str()) != Some(v)) else {
+        return Ok(());
+    };
+    if !overwrite {
+        return Err(GenerateError::OtherRun {
+            path: out.to_path_buf(),
+            difference: format!("{k} differs from {}", path.display()),
+        });
+    }
+    for e in fs_err::read_dir(out)?.flatten() {
+        if e.file_name()
+            .to_string_lossy()
+            .starts_with(dexjoco_formats::lock::LOCK_FILE)
+        {
+            continue;
+        }
+        if e.file_type()?.is_dir() {
+            fs_err::remove_dir_all(e.path())?;
+        } else {
+            fs_err::remove_file(e.path())?;
+        }
+    }
+    fs_err::create_dir_all(out.join(ATTEMPTS))?;
+    Ok(write_atomic(&path, &bytes)?)
+}
+
+fn attempt_name(k: usize) -> String {
+    format!("attempt_{k:06}")
+}
+
+fn episode_name(k: usize) -> String {
+    format!("episode_{k:06}")
+}
+
+/// The records of the attempts earlier runs finished, by index.
+pub(crate) fn finished(out: &Path) -> Result<BTreeMap<usize, AttemptRecord>, GenerateError> {
+    let mut done = BTreeMap::new();
+    let dir = out.join(ATTEMPTS);
+    let Ok(entries) = fs_err::read_dir(&dir) else {
+        return Ok(done);
+    };
+    for e in entries.flatten() {
+        let path = e.path();
+        let Ok(bytes) = fs_err::read(&path) else {
+            continue;
+        };
+        // A record a killed run left half written is redone (written atomically, so
+        // only a foreign file can be unreadable).
+        if let Ok(r) = serde_json::from_slice::<AttemptRecord>(&bytes) {
+            done.insert(r.attempt, r);
+        }
+    }
+    Ok(done)
+}
+
+/// Commits one attempt: a success's episode folder (staged, renamed into place), a
+/// failure's folder under `.failed/` with `keep_failed`; then its record, which marks it
+/// done.
+pub(crate) fn commit(
+    out: &Path,
+    spec: &TaskSpec,
+    a: &Attempt,
+    config: &GenerateConfig,
+) -> Result<AttemptRecord, GenerateError> {
+    let record = AttemptRecord::of(a, config.seed);
+    let json = serde_json::to_vec_pretty(&record).expect("serializable");
+    let folder = if record.success {
+        Some(out.join(episode_name(a.index)))
+    } else if config.keep_failed {
+        Some(out.join(FAILED).join(attempt_name(a.index)))
+    } else {
+        None
+    };
+    if let Some(folder) = folder {
+        let staging = out.join(STAGING).join(attempt_name(a.index));
+        if staging.exists() {
+            fs_err::remove_dir_all(&staging)?;
+        }
+        RawFolder.write(&staging, &a.planned.episode, spec, &EpisodeMeta::default())?;
+        write_atomic(&staging.join(GENERATE_RECORD), &json)?;
+        if folder.exists() {
+            fs_err::remove_dir_all(&folder)?;
+        }
+        fs_err::create_dir_all(folder.parent().expect("in out"))?;
+        fs_err::rename(&staging, &folder)?;
+    }
+    write_atomic(
+        &out.join(ATTEMPTS)
+            .join(format!("{}.json", attempt_name(a.index))),
+        &json,
+    )?;
+    Ok(record)
+}
+
+/// The places attempt `k` may occupy in the folder, relative to it: its record, its
+/// episode (a success) and its failed episode (`keep_failed`).
+fn places(k: usize) -> [std::path::PathBuf; 3] {
+    [
+        Path::new(ATTEMPTS).join(format!("{}.json", attempt_name(k))),
+        Path::new(&episode_name(k)).to_path_buf(),
+        Path::new(FAILED).join(attempt_name(k)),
+    ]
+}
+
+/// Moves what attempt `k` left from under `from` to the same place under `to`.
+fn move_attempt(from: &Path, to: &Path, k: usize) -> Result<(), GenerateError> {
+    for rel in places(k) {
+        let (a, b) = (from.join(&rel), to.join(&rel));
+        if a.exists() {
+            if b.exists() {
+                fs_err::remove_dir_all(&b).or_else(|_| fs_err::remove_file(&b))?;
+            }
+            fs_err::create_dir_all(b.parent().expect("in the folder"))?;
+            fs_err::rename(&a, &b)?;
+        }
+    }
+    Ok(())
+}
+
+/// Puts back the attempts an earlier run set aside (before a run reads the records).
+pub(crate) fn restore_surplus(out: &Path) -> Result<(), GenerateError> {
+    let surplus = out.join(SURPLUS);
+    for k in finished(&surplus)?.into_keys() {
+        move_attempt(&surplus, out, k)?;
+    }
+    if surplus.exists() {
+        fs_err::remove_dir_all(&surplus)?;
+    }
+    Ok(())
+}
+
+/// Sets aside the attempts past `end` (exclusive), so that the folder holds what a run
+/// that stopped at `end` writes.
+pub(crate) fn set_aside(
+    out: &Path,
+    done: &mut BTreeMap<usize, AttemptRecord>,
+    end: usize,
+) -> Result<(), GenerateError> {
+    let past: Vec<usize> = done.range(end..).map(|(k, _)| *k).collect();
+    for k in past {
+        move_attempt(out, &out.join(SURPLUS), k)?;
+        done.remove(&k);
+    }
+    Ok(())
+}
+
+/// Removes what a killed run left: its staged episodes and half-written files. A shard
+/// removes only its own staged attempts (the others' may be in progress) and leaves the
+/// half-written files to the unsharded run that finalizes.
+pub(crate) fn clean_up(out: &Path, shard: Option<Shard>) -> Result<(), GenerateError> {
+    let staging = out.join(STAGING);
+    let Some(shard) = shard else {
+        if staging.exists() {
+            fs_err::remove_dir_all(&staging)?;
+        }
+        for dir in [out.to_path_buf(), out.join(ATTEMPTS)] {
+            dexjoco_formats::fs::remove_partial_files(&dir)?;
+        }
+        return Ok(());
+    };
+    let Ok(entries) = fs_err::read_dir(&staging) else {
+        return Ok(());
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let index = name
+            .strip_prefix("attempt_")
+            .and_then(|n| n.parse::<usize>().ok());
+        if index.is_some_and(|k| k % shard.count == shard.index) {
+            fs_err::remove_dir_all(e.path())?;
+        }
+    }
+    Ok(())
+}
+
+/// Removes the empty staging folder at the end of an unsharded run.
+pub(crate) fn remove_staging(out: &Path) -> Result<(), GenerateError> {
+    let staging = out.join(STAGING);
+    if staging.exists() {
+        fs_err::remove_dir_all(&staging)?;
+    }
+    Ok(())
+}
