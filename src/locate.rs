@@ -122,6 +122,25 @@ pub fn reference_scenes() -> Option<Located> {
     })
 }
 
+/// The Python of the DexJoCo reference code's own pins (the parity tests' venv):
+/// `$DEXJOCO_REFERENCE_PYTHON`, else `.deps/reference-python-path` of the binary's
+/// checkout or the current folder.
+pub fn reference_python() -> Option<Located> {
+    let recorded = |root: PathBuf, how: &str| {
+        let p = fs_err::read_to_string(root.join(".deps/reference-python-path")).ok()?;
+        Some(Located::new(PathBuf::from(p.trim()), how))
+    };
+    first(
+        "DEXJOCO_REFERENCE_PYTHON",
+        vec![
+            checkout_of_binary()
+                .and_then(|c| recorded(c, "the reference venv of the binary's checkout")),
+            recorded(PathBuf::from("."), "the reference venv of the current folder"),
+        ],
+        Path::is_file,
+    )
+}
+
 /// The Python of the readers: `$DEXJOCO_PYTHON`, the test venv `scripts/setup.sh
 /// --python` recorded in a checkout's `.deps/python-path`, or `python3` on PATH.
 pub fn python() -> Option<Located> {

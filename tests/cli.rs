@@ -773,3 +773,35 @@ fn cameras_writes_a_pool_that_augment_uses() {
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("no_such_task"));
 }
+
+#[test]
+fn bench_generate_runs_ours_and_the_python_loop_on_the_same_attempts() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "bench",
+        "generate",
+        "--task",
+        "click_mouse",
+        "--attempts",
+        "2",
+        "--sources",
+        "1",
+    ];
+    let out = run(&args, dir.path());
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let table = text(&out.stdout);
+    assert!(table.contains("| click_mouse | 1 | "), "{table}");
+    let json: serde_json::Value = serde_json::from_str(
+        &fs_err::read_to_string(dir.path().join("dexjoco-work/bench/generate.json")).unwrap(),
+    )
+    .unwrap();
+    let run = &json[0];
+    assert_eq!(run["ours"]["attempts"], 2);
+    assert_eq!(run["python"]["attempts"], 2, "{run}");
+    // The same attempts: the steps differ only where ours waits for a subtask's end.
+    let (ours, py) = (
+        run["ours"]["steps"].as_f64().unwrap(),
+        run["python"]["steps"].as_f64().unwrap(),
+    );
+    assert!(ours > 500.0 && (py - ours).abs() / ours < 0.1, "{run}");
+}

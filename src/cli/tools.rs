@@ -97,6 +97,9 @@ pub enum BenchCommand {
     /// `augment` with 1 and N worker processes against the reference approach (re-simulate
     /// and render every replay in one process) and the render-only limit of N processes.
     Augment(BenchAugmentArgs),
+    /// Generation attempts per second on one core, against the same loop in Python on the
+    /// DexJoCo reference environments.
+    Generate(BenchGenerateArgs),
     /// One process of `bench augment`'s render-only limit (started by it).
     #[command(hide = true)]
     RenderLimit(BenchRenderLimitArgs),
@@ -196,6 +199,44 @@ pub struct BenchRenderLimitArgs {
     /// The renderer's meshes.
     #[arg(long, value_enum, default_value_t = GeometryArg::Full)]
     pub geometry: GeometryArg,
+}
+
+/// `bench generate` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data bench generate
+  dexjoco-data bench generate --task hammer_nail --attempts 20 --sources 5
+
+Per task, on the DexJoCo reference scenes: scripted plans (`scripted --seed 1000`'s first
+resets) are the sources; attempts from --seed's resets run one after another on one core,
+ours in this process; then the same attempts, with the same source segment per subtask,
+in Python on the reference environments (tests/python/generate_loop.py: MuJoCo's Python
+bindings, the reference controller and task logic; it does not check the subtasks' ends,
+so it never waits for one). Both report attempts, steps and successes; the ratio is of
+seconds per step. Single-arm tasks only (the Python loop runs the arm's subtasks in
+order).
+
+Needs the reference venv (scripts/setup.sh --python; $DEXJOCO_REFERENCE_PYTHON or the
+checkout's .deps/reference-python-path) and the reference code ($DEXJOCO_THIRD_PARTY,
+else ../shared/third_party beside the checkout); without them the Python rows are
+skipped and the output says why. The table goes to stdout and
+<work-dir>/bench/generate.json.")]
+pub struct BenchGenerateArgs {
+    /// Tasks (single-arm), e.g. click_mouse,pick_bucket.
+    #[arg(long = "task", value_delimiter = ',', default_values_t = ["click_mouse".to_owned(), "pick_bucket".to_owned()])]
+    pub tasks: Vec<String>,
+    /// Attempts per task.
+    #[arg(long, default_value_t = 10,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000))]
+    pub attempts: usize,
+    /// Scripted source plans per task.
+    #[arg(long, default_value_t = 3,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100))]
+    pub sources: usize,
+    /// Skip the Python loop.
+    #[arg(long)]
+    pub no_reference: bool,
 }
 
 /// `bench convert` options.

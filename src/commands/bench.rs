@@ -18,6 +18,7 @@ pub fn run(global: &GlobalArgs, cmd: &BenchCommand) -> anyhow::Result<ExitStatus
         BenchCommand::Render(args) => render(&BenchRenderSettings::resolve(args, global)?),
         BenchCommand::Ingest(args) => ingest(&BenchIngestSettings::resolve(args, global)),
         BenchCommand::Convert(args) => super::bench_convert::run(global, args),
+        BenchCommand::Generate(args) => super::bench_generate::run(global, args),
         BenchCommand::Augment(args) => super::bench_augment::run(&BenchAugmentSettings::resolve(
             args,
             global,

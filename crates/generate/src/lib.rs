@@ -24,4 +24,4 @@ pub use run::{
     AttemptRecord, GENERATE_RECORD, GenerateConfig, GenerateOutcome, GenerateReport, POSES_FIGURE,
     SETTINGS_FILE, SubtaskOutcome, TIMES_FILE, generate, pilot,
 };
-pub use source::{ArmTarget, Segment, SourceDemo, episode_sha256};
+pub use source::{ArmTarget, Segment, SourceDemo, current_targets, episode_sha256};

@@ -76,7 +76,7 @@ pub fn episode_sha256(episode: &Episode) -> String {
 }
 
 /// The targets every arm was given on the last step (mocap pose, hand controls).
-pub(crate) fn current_targets(env: &TaskEnv) -> Vec<ArmTarget> {
+pub fn current_targets(env: &TaskEnv) -> Vec<ArmTarget> {
     let ctrl = env.data().ctrl();
     env.robot()
         .arms
