@@ -135,7 +135,10 @@ pub fn reference_python() -> Option<Located> {
         vec![
             checkout_of_binary()
                 .and_then(|c| recorded(c, "the reference venv of the binary's checkout")),
-            recorded(PathBuf::from("."), "the reference venv of the current folder"),
+            recorded(
+                PathBuf::from("."),
+                "the reference venv of the current folder",
+            ),
         ],
         Path::is_file,
     )

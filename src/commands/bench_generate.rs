@@ -162,14 +162,22 @@ fn reference_python() -> Result<(std::path::PathBuf, Vec<(String, std::path::Pat
         vec![
             ("DEXJOCO_REFERENCE_CODE".into(), code),
             ("DEXJOCO_UPSTREAM".into(), upstream),
-            ("DEXJOCO_PYTHON_SCRIPTS".into(), checkout.join("tests/python")),
+            (
+                "DEXJOCO_PYTHON_SCRIPTS".into(),
+                checkout.join("tests/python"),
+            ),
         ],
     ))
 }
 
 /// The MuJoCo element the Python loop reads a state object's pose from.
 fn object_ref(spec: &TaskSpec, name: &str) -> serde_json::Value {
-    let source = spec.state.objects.iter().find(|o| o.name == name).map(|o| &o.source);
+    let source = spec
+        .state
+        .objects
+        .iter()
+        .find(|o| o.name == name)
+        .map(|o| &o.source);
     let (kind, n) = match source {
         Some(PoseSource::FreeJoint(j)) => ("joint", j.as_str()),
         Some(PoseSource::GeomLocal(g)) => ("geom", g.as_str()),
@@ -248,9 +256,15 @@ fn python_side(
     let job = tmp.path().join("job.json");
     let json = python_job(spec, scene, sources, attempts)?;
     fs_err::write(&job, serde_json::to_vec(&json)?)?;
-    let scripts = &env.iter().find(|(k, _)| k == "DEXJOCO_PYTHON_SCRIPTS").expect("set").1;
+    let scripts = &env
+        .iter()
+        .find(|(k, _)| k == "DEXJOCO_PYTHON_SCRIPTS")
+        .expect("set")
+        .1;
     let mut cmd = Command::new(py);
-    cmd.arg(scripts.join("generate_loop.py")).arg(&job).current_dir(scripts);
+    cmd.arg(scripts.join("generate_loop.py"))
+        .arg(&job)
+        .current_dir(scripts);
     for (k, v) in env {
         cmd.env(k, v);
     }
@@ -261,8 +275,12 @@ fn python_side(
             String::from_utf8_lossy(&out.stderr)
         );
     }
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
-        .with_context(|| format!("the Python loop printed: {}", String::from_utf8_lossy(&out.stdout)))?;
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).with_context(|| {
+        format!(
+            "the Python loop printed: {}",
+            String::from_utf8_lossy(&out.stdout)
+        )
+    })?;
     let n = |k: &str| v[k].as_u64().unwrap_or(0) as usize;
     Ok(Side {
         attempts: n("attempts"),
