@@ -23,13 +23,7 @@ fn generate(work: &Path, args: &[&str]) -> Command {
 }
 
 fn ok(out: Output) -> Output {
-    assert!(
-        out.status.success(),
-        "exit {:?}\n{}{}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(out.status.success(), "{}", common::said(&out));
     out
 }
 

@@ -6,38 +6,30 @@
 //! bimanual task.
 
 use std::path::Path;
-use std::process::Command;
 
 mod common;
-
-fn run(cmd: &mut Command) {
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "exit {:?}\n{}{}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
 
 /// Generates `count` episodes of `task` on the reference scenes from `sources` scripted
 /// plans; returns the episode folders.
 fn generate(work: &Path, task: &str, sources: &str, count: &str) -> Vec<std::path::PathBuf> {
     let scenes = dexjoco_testkit::reference_scene_dir();
     let src = work.join("sources");
-    run(common::dexjoco()
-        .args(["-q", "--seed", "1000", "scripted", "--task", task])
-        .args(["--episodes", sources, "--scene-dir"])
-        .arg(&scenes)
-        .arg("--out")
-        .arg(&src));
-    run(common::dexjoco()
-        .args(["-q", "--seed", "5", "--work-dir"])
-        .arg(work)
-        .args(["generate", "--task", task, "--count", count, "--scene-dir"])
-        .arg(&scenes)
-        .arg(src.join(task)));
+    common::succeeds(
+        common::dexjoco()
+            .args(["-q", "--seed", "1000", "scripted", "--task", task])
+            .args(["--episodes", sources, "--scene-dir"])
+            .arg(&scenes)
+            .arg("--out")
+            .arg(&src),
+    );
+    common::succeeds(
+        common::dexjoco()
+            .args(["-q", "--seed", "5", "--work-dir"])
+            .arg(work)
+            .args(["generate", "--task", task, "--count", count, "--scene-dir"])
+            .arg(&scenes)
+            .arg(src.join(task)),
+    );
     let dir = work.join("generate").join(task);
     let mut eps: Vec<_> = fs_err::read_dir(&dir)
         .unwrap()
