@@ -1,7 +1,9 @@
-//! Generation success per task, without writing anything: sources are the shipped sample
+//! Generation success per task, writing no episodes: sources are the shipped sample
 //! demonstration of each task (`datasets/demos`) plus `SCRIPTED` scripted plans (from
 //! `scripted --seed 1000`'s resets), attempts from `generate --seed SEED`'s resets; prints
 //! a Markdown table (attempts, successes, where the failures stopped, time per attempt).
+//! `GEN_DEBUG=1` prints each failure; `GEN_FIGURES=DIR` writes each task's pose-spread
+//! figure (`DIR/<task>.png`, as `generate_poses.png`).
 //!
 //! `cargo run --release -p dexjoco-generate --example generate_rates -- [ATTEMPTS] [SCRIPTED] [SCENE_DIR|-] [TASK...]`
 
@@ -9,7 +11,7 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use dexjoco_core::TaskSpec;
-use dexjoco_generate::{AttemptOptions, SourceDemo, attempt};
+use dexjoco_generate::{AttemptOptions, AttemptRecord, SourceDemo, attempt, write_pose_figure};
 use dexjoco_sim::scripted::{self, PLANNED_TASKS, Variant};
 use dexjoco_sim::{SceneSource, TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
@@ -67,9 +69,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut ok = 0;
         let mut failed: BTreeMap<String, usize> = BTreeMap::new();
         let t = Instant::now();
+        let mut records = Vec::new();
         for k in 0..attempts {
             let s0 = TaskEnv::sample_initial_state(&scene, spec, &mut || rng.random::<f64>())?;
             let a = attempt(&scene, spec, &sources, s0, k, 0, &AttemptOptions::default())?;
+            records.push(AttemptRecord::of(&a, 0));
             match &a.failure {
                 None => ok += 1,
                 Some(f) => {
@@ -83,6 +87,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
         let per = t.elapsed().as_secs_f64() / attempts.max(1) as f64;
+        if let Some(dir) = std::env::var_os("GEN_FIGURES") {
+            let resets: Vec<Vec<f64>> = sources.iter().map(|s| s.reset.clone()).collect();
+            let refs: Vec<&AttemptRecord> = records.iter().collect();
+            let path = std::path::Path::new(&dir).join(format!("{task}.png"));
+            write_pose_figure(&path, spec, &resets, &refs)?;
+        }
         let failed: Vec<String> = failed.iter().map(|(s, n)| format!("{s} {n}")).collect();
         println!(
             "| {task} | {} | {attempts} | {ok} | {:.0} % | {} | {per:.2} |",

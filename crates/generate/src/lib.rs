@@ -20,6 +20,7 @@ pub use attempt::{
     Attempt, AttemptFailure, AttemptOptions, Provenance, SegmentChoice, attempt, carry,
 };
 pub use error::GenerateError;
+pub use figure::write_pose_figure;
 pub use run::{
     AttemptRecord, GENERATE_RECORD, GenerateConfig, GenerateOutcome, GenerateReport, POSES_FIGURE,
     SETTINGS_FILE, SubtaskOutcome, TIMES_FILE, generate, pilot,

@@ -89,7 +89,8 @@ pub struct AttemptRecord {
 }
 
 impl AttemptRecord {
-    pub(crate) fn of(a: &Attempt, seed: u64) -> Self {
+    /// The record of attempt `a` of a run with `seed`.
+    pub fn of(a: &Attempt, seed: u64) -> Self {
         Self {
             written_by: "dexjoco-data generate".into(),
             attempt: a.index,
