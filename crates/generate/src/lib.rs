@@ -14,6 +14,7 @@ mod error;
 mod figure;
 mod folder;
 pub mod run;
+mod sheet;
 pub mod source;
 
 pub use attempt::{
@@ -25,4 +26,5 @@ pub use run::{
     AttemptRecord, GENERATE_RECORD, GenerateConfig, GenerateOutcome, GenerateReport, POSES_FIGURE,
     SETTINGS_FILE, SubtaskOutcome, TIMES_FILE, generate, pilot,
 };
+pub use sheet::{SHEET_TILES, write_first_frames};
 pub use source::{ArmTarget, Segment, SourceDemo, current_targets, episode_sha256};

@@ -12,7 +12,8 @@
 //! <out>/generate_settings.json           what decides the bytes (a resume must match)
 //! <out>/generate_report.json, .md        attempts, successes, per-subtask outcomes
 //! <out>/generate_poses.png               placed objects at reset: sources, successes, failures
-//! <out>/generate_times.json              seconds per attempt (the one file that varies by machine)
+//! <out>/generate_sheet.png               the kept episodes' first frames (pixels vary by renderer)
+//! <out>/generate_times.json              seconds per attempt (varies by machine)
 //! ```
 
 use std::collections::BTreeMap;
@@ -202,6 +203,9 @@ pub struct GenerateOutcome {
 /// The pose-spread figure of a run's folder.
 pub const POSES_FIGURE: &str = "generate_poses.png";
 
+/// The first-frames sheet of a run's folder (its pixels depend on the renderer).
+pub const SHEET: &str = "generate_sheet.png";
+
 /// The file of a run's timing: the one file whose bytes depend on the machine.
 pub const TIMES_FILE: &str = "generate_times.json";
 
@@ -247,7 +251,7 @@ pub fn generate(
     folder::set_aside(out, &mut done, end)?;
     folder::remove_staging(out)?;
     let report = report(spec, config, sources, &done);
-    write_outputs(config, spec, sources, &done, &report, &work)?;
+    write_outputs(config, scene, spec, sources, &done, &report, &work)?;
     Ok(GenerateOutcome { report, ..work })
 }
 
@@ -352,9 +356,11 @@ fn attempt_line(record: &AttemptRecord) -> String {
     }
 }
 
-/// The report, the pose figure and the timing of an unsharded run.
+/// The report, the pose figure, the first-frames sheet and the timing of an unsharded
+/// run.
 fn write_outputs(
     config: &GenerateConfig,
+    scene: &Scene,
     spec: &TaskSpec,
     sources: &[SourceDemo],
     done: &BTreeMap<usize, AttemptRecord>,
@@ -365,6 +371,14 @@ fn write_outputs(
     let resets: Vec<Vec<f64>> = sources.iter().map(|s| s.reset.clone()).collect();
     let records: Vec<&AttemptRecord> = done.values().collect();
     crate::figure::write_pose_figure(&out.join(POSES_FIGURE), spec, &resets, &records)?;
+    let kept: Vec<&[f64]> = records
+        .iter()
+        .filter(|r| r.success)
+        .map(|r| r.reset.as_slice())
+        .collect();
+    if let Err(e) = crate::sheet::write_first_frames(&out.join(SHEET), scene, spec, &kept) {
+        tracing::warn!("no first-frames sheet ({e}); the episodes are not affected");
+    }
     let json = serde_json::to_vec_pretty(report).expect("serializable");
     write_atomic(&out.join("generate_report.json"), &json)?;
     write_atomic(
