@@ -169,23 +169,39 @@ impl GenerateReport {
     }
 }
 
-/// Draws resets in the seed's order, as `scripted --seed` draws them.
+/// Draws resets in the seed's order, as `scripted --seed` draws them; asked for in
+/// increasing order, it keeps none of them (a run of millions of attempts draws them
+/// one after another).
 struct Resets<'a> {
     scene: &'a Scene,
     spec: &'a TaskSpec,
     rng: rand_chacha::ChaCha8Rng,
-    drawn: Vec<Vec<f64>>,
+    /// The index of the next draw.
+    next: usize,
 }
 
-impl Resets<'_> {
+impl<'a> Resets<'a> {
+    fn new(scene: &'a Scene, spec: &'a TaskSpec, seed: u64) -> Self {
+        Self {
+            scene,
+            spec,
+            rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed),
+            next: 0,
+        }
+    }
+
+    /// Reset `k` (`k` at least every index asked for before).
     fn get(&mut self, k: usize) -> Result<Vec<f64>, GenerateError> {
-        while self.drawn.len() <= k {
+        assert!(k >= self.next, "resets are drawn in increasing order");
+        loop {
             let rng = &mut self.rng;
             let s =
                 TaskEnv::sample_initial_state(self.scene, self.spec, &mut || rng.random::<f64>())?;
-            self.drawn.push(s);
+            self.next += 1;
+            if self.next > k {
+                return Ok(s);
+            }
         }
-        Ok(self.drawn[k].clone())
     }
 }
 
@@ -282,12 +298,7 @@ fn attempt_loop(
     done: &mut BTreeMap<usize, AttemptRecord>,
 ) -> Result<GenerateOutcome, GenerateError> {
     let out = &config.out;
-    let mut resets = Resets {
-        scene,
-        spec,
-        rng: rand_chacha::ChaCha8Rng::seed_from_u64(config.seed),
-        drawn: Vec::new(),
-    };
+    let mut resets = Resets::new(scene, spec, config.seed);
     let mine = |k: &usize| config.shard.is_none_or(|s| k % s.count == s.index);
     progress.start(config.count as u64);
     progress.advance(
@@ -438,12 +449,7 @@ pub fn pilot(
     sources: &[SourceDemo],
     attempts: usize,
 ) -> Result<(usize, f64), GenerateError> {
-    let mut resets = Resets {
-        scene,
-        spec,
-        rng: rand_chacha::ChaCha8Rng::seed_from_u64(config.seed),
-        drawn: Vec::new(),
-    };
+    let mut resets = Resets::new(scene, spec, config.seed);
     let inputs = (0..attempts)
         .map(|i| Ok((i, resets.get(i)?)))
         .collect::<Result<Vec<_>, GenerateError>>()?;
