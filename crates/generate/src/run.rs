@@ -219,6 +219,10 @@ pub struct GenerateOutcome {
 /// The pose-spread figure of a run's folder.
 pub const POSES_FIGURE: &str = "generate_poses.png";
 
+/// How often a shard reads the other shards' records (a shared file system may hold
+/// many).
+const SHARD_SYNC: std::time::Duration = std::time::Duration::from_secs(10);
+
 /// The first-frames sheet of a run's folder (its pixels depend on the renderer).
 pub const SHEET: &str = "generate_sheet.png";
 
@@ -308,6 +312,7 @@ fn attempt_loop(
     let pool = worker_pool(config)?;
     let batch = (config.workers.max(1) * 2).max(2);
     let mut work = GenerateOutcome::default();
+    let mut synced = std::time::Instant::now();
     let mut k = 0;
     'run: while k < config.max_attempts && successes_before(done, k) < config.count {
         let todo: Vec<usize> = (k..config.max_attempts)
@@ -340,10 +345,12 @@ fn attempt_loop(
             progress.advance(u64::from(success), &rate);
         }
         k = last + 1;
-        if config.shard.is_some() {
+        if config.shard.is_some() && synced.elapsed() >= SHARD_SYNC {
             // The other shards' attempts count too: stop once the successes before the
-            // next attempt of this shard are enough.
+            // next attempt of this shard are enough. (How often this is read decides only
+            // how far a shard runs past the end; the finalize sets that aside.)
             *done = folder::finished(out)?;
+            synced = std::time::Instant::now();
         }
     }
     Ok(work)
