@@ -27,7 +27,8 @@ fn register_font() {
 
 /// One placed object's points: (x, y) on its two placement axes.
 struct Panel {
-    object: String,
+    /// `task: object`.
+    title: String,
     axes: [String; 2],
     range: [(f64, f64); 2],
     sources: Vec<(f64, f64)>,
@@ -52,7 +53,7 @@ fn panels(spec: &TaskSpec, sources: &[Vec<f64>], attempts: &[&AttemptRecord]) ->
                     .collect()
             };
             Some(Panel {
-                object: p.object.clone(),
+                title: format!("{}: {}", spec.id, p.object),
                 axes: p.axes.map(|x| format!("{x:?}").to_lowercase()),
                 range: [(p.low[0], p.high[0]), (p.low[1], p.high[1])],
                 sources: sources.iter().map(|s| at(s)).collect(),
@@ -77,7 +78,7 @@ fn draw_panel(area: &Area<'_>, p: &Panel) -> Result<(), String> {
     let xs = extent(p.range[0], all().map(|q| q.0));
     let ys = extent(p.range[1], all().map(|q| q.1));
     let mut chart = ChartBuilder::on(area)
-        .caption(&p.object, (FONT, 18))
+        .caption(&p.title, (FONT, 16))
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(50)
