@@ -3,7 +3,7 @@
 //! `scripted --seed 1000`'s resets), attempts from `generate --seed SEED`'s resets; prints
 //! a Markdown table (attempts, successes, where the failures stopped, time per attempt).
 //! `GEN_DEBUG=1` prints each failure; `GEN_FIGURES=DIR` writes each task's pose-spread
-//! figure (`DIR/<task>.png`, as `generate_poses.png`).
+//! figure (`DIR/<task>.png`, as `generate_poses.png`) and all of them in `DIR/all.png`.
 //!
 //! `cargo run --release -p dexjoco-generate --example generate_rates -- [ATTEMPTS] [SCRIPTED] [SCENE_DIR|-] [TASK...]`
 
@@ -101,5 +101,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             failed.join(", ")
         );
     }
+    if let Some(dir) = std::env::var_os("GEN_FIGURES") {
+        montage(std::path::Path::new(&dir), &tasks)?;
+    }
+    Ok(())
+}
+
+/// `DIR/all.png`: every task's figure, two to a row.
+fn montage(dir: &std::path::Path, tasks: &[String]) -> Result<(), Box<dyn std::error::Error>> {
+    let figures = tasks
+        .iter()
+        .filter_map(|t| image::open(dir.join(format!("{t}.png"))).ok())
+        .map(|i| i.to_rgb8())
+        .collect::<Vec<_>>();
+    let cell_w = figures
+        .iter()
+        .map(image::RgbImage::width)
+        .max()
+        .unwrap_or(1);
+    let cell_h = figures
+        .iter()
+        .map(image::RgbImage::height)
+        .max()
+        .unwrap_or(1);
+    let rows = figures.len().div_ceil(2) as u32;
+    let mut sheet = image::RgbImage::from_pixel(2 * cell_w, rows * cell_h, image::Rgb([255; 3]));
+    for (i, f) in figures.iter().enumerate() {
+        let (c, r) = (i as u32 % 2, i as u32 / 2);
+        image::imageops::replace(&mut sheet, f, i64::from(c * cell_w), i64::from(r * cell_h));
+    }
+    sheet.save(dir.join("all.png"))?;
     Ok(())
 }
