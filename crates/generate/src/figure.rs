@@ -10,7 +10,7 @@ use dexjoco_core::TaskSpec;
 use plotters::prelude::*;
 
 use crate::error::GenerateError;
-use crate::run::AttemptRecord;
+use crate::record::AttemptRecord;
 
 const FONT: &str = "sans-serif";
 const PANEL: (u32, u32) = (420, 400);

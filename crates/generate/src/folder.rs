@@ -14,7 +14,7 @@ use sha2::{Digest, Sha256};
 
 use crate::attempt::Attempt;
 use crate::error::GenerateError;
-use crate::run::{AttemptRecord, GENERATE_RECORD, GenerateConfig, SETTINGS_FILE};
+use crate::record::{AttemptRecord, GENERATE_RECORD, GenerateConfig, SETTINGS_FILE};
 use crate::source::SourceDemo;
 
 /// Records of finished attempts.
