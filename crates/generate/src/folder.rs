@@ -69,7 +69,9 @@ pub(crate) fn check_settings(
         let foreign = fs_err::read_dir(out)?
             .flatten()
             .map(|e| e.file_name().to_string_lossy().into_owned())
-            .find(|n| !n.starts_with(dexjoco_formats::lock::LOCK_FILE) && n != ATTEMPTS);
+            // Hidden entries are runs' work in progress (locks, staging, a settings file
+            // another shard is writing), never another program's output.
+            .find(|n| !n.starts_with('.') && n != SETTINGS_FILE);
         if let Some(name) = foreign {
             return Err(GenerateError::Foreign {
                 path: out.to_path_buf(),
