@@ -26,7 +26,10 @@ pub use depth::{DepthVideoWriter, decode_gray12};
 pub(crate) use read::decode_raw;
 pub use read::{VideoReader, decode_rgb};
 
-pub use probe::{VideoInfo, frame_times, keyframe_indices, probe, probe_with_ffmpeg_alone};
+pub use probe::{
+    Packet, VideoInfo, frame_times, keyframe_indices, packets_in_decoding_order, probe,
+    probe_with_ffmpeg_alone,
+};
 pub use program::{Ffmpeg, FfmpegSource, ffmpeg_program, locate_ffmpeg, locate_ffprobe, which};
 pub use versions::{EncoderVersions, encoder_versions};
 
@@ -479,7 +482,8 @@ pub(crate) fn run_output(
     Ok(out)
 }
 
-/// One input of [`concat_copy`]: a video, and how many of its leading frames to cut.
+/// One input of [`concat_copy`]: a video, how many of its leading frames to cut and how
+/// many frames to keep after them.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ConcatInput {
     /// The video.
@@ -487,13 +491,82 @@ pub struct ConcatInput {
     /// Leading frames left out; frame `skip` must be a keyframe (see [`keyframe_indices`]),
     /// where stream copy can start.
     pub skip: usize,
+    /// Frames kept after `skip`; `None`: to the end. Where the kept frames end before the
+    /// video does, the frame after them must be a keyframe that starts a closed group of
+    /// pictures (as where two episodes encoded apart were joined): the stream is cut
+    /// there in decoding order.
+    pub take: Option<usize>,
+}
+
+impl ConcatInput {
+    /// All of `path` from its first frame.
+    pub fn whole(path: impl Into<PathBuf>) -> Self {
+        Self {
+            path: path.into(),
+            skip: 0,
+            take: None,
+        }
+    }
+}
+
+/// The concat list's lines for `input` after its `file` line: `inpoint`, and with a
+/// `take`, the `outpoint` (between the decoding times of the last kept packet and the
+/// first packet after the kept frames, so that packet and all after it are left out) and
+/// the `duration` the next input is offset by.
+fn concat_points(input: &ConcatInput, fps: u32) -> Result<String, VideoError> {
+    let mut text = String::new();
+    if input.skip > 0 {
+        // In microseconds, rounded up: the demuxer seeks to the last keyframe at or
+        // before the in point, which must be frame `skip` itself, not one before.
+        let micros = (input.skip as u64 * 1_000_000).div_ceil(u64::from(fps));
+        text.push_str(&format!("inpoint {micros}us\n"));
+    }
+    let Some(take) = input.take else {
+        return Ok(text);
+    };
+    let end = input.skip + take;
+    let packets = packets_in_decoding_order(&input.path)?;
+    if end < packets.len() {
+        let cut = cut_packet(&packets, end).ok_or_else(|| VideoError::Failed {
+            program: "concat".into(),
+            path: input.path.clone(),
+            message: format!(
+                "frame {end} does not start a closed group of pictures, so the frames \
+                 before it cannot be cut out by stream copy"
+            ),
+        })?;
+        // Halfway between the last kept packet's decoding time and the cut's: the times
+        // are printed rounded to microseconds, so the cut's own is not exact.
+        let before = cut
+            .checked_sub(1)
+            .map_or(packets[cut].dts - 1.0, |b| packets[b].dts);
+        let micros = ((before + packets[cut].dts) * 0.5e6).round() as i64;
+        text.push_str(&format!("outpoint {micros}us\n"));
+    }
+    let duration = (take as f64 * 1e6 / f64::from(fps)).round() as u64;
+    text.push_str(&format!("duration {duration}us\n"));
+    Ok(text)
+}
+
+/// The index (in decoding order) of the packet of presentation frame `end`, where the
+/// stream can be cut: a keyframe, every packet before it presented before it and every
+/// packet after it presented after it. `None` where frame `end` is no such cut.
+fn cut_packet(packets: &[Packet], end: usize) -> Option<usize> {
+    let mut times: Vec<f64> = packets.iter().map(|p| p.pts).collect();
+    times.sort_by(f64::total_cmp);
+    let at = times[end];
+    let cut = packets.iter().position(|p| p.pts == at)?;
+    let closed = packets[cut].key
+        && packets[..cut].iter().all(|p| p.pts < at)
+        && packets[cut..].iter().all(|p| p.pts >= at);
+    closed.then_some(cut)
 }
 
 /// Joins videos of one codec, size and frame rate `fps` into `out` by stream copy
 /// (ffmpeg's concat demuxer): no re-encode, and the timestamps run on continuously, so
 /// kept frame k of input i is at exactly (kept frames before input i + k) / fps. An
 /// input's leading `skip` frames are cut (the demuxer's `inpoint`, at a keyframe, so the
-/// cut is exact). (The demuxer offsets each input by its container duration, rounded to
+/// cut is exact), and with a `take`, the frames after the kept ones (`outpoint`). (The demuxer offsets each input by its container duration, rounded to
 /// milliseconds; the `setts` filter snaps every timestamp back onto the frame grid.)
 /// Written to a temporary file beside `out` and renamed when complete.
 pub fn concat_copy(inputs: &[ConcatInput], out: &Path, fps: u32) -> Result<(), VideoError> {
@@ -511,12 +584,7 @@ pub fn concat_copy(inputs: &[ConcatInput], out: &Path, fps: u32) -> Result<(), V
         // The concat list quotes paths with single quotes; a quote is written as '\''.
         let quoted = abs.to_string_lossy().replace('\'', "'\\''");
         text.push_str(&format!("file '{quoted}'\n"));
-        if input.skip > 0 {
-            // In microseconds, rounded up: the demuxer seeks to the last keyframe at or
-            // before the in point, which must be frame `skip` itself, not one before.
-            let micros = (input.skip as u64 * 1_000_000).div_ceil(u64::from(fps));
-            text.push_str(&format!("inpoint {micros}us\n"));
-        }
+        text.push_str(&concat_points(input, fps)?);
     }
     fs_err::write(&list, text).map_err(|source| VideoError::Io {
         path: list.clone(),

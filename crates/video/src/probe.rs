@@ -37,11 +37,13 @@ pub struct VideoInfo {
 
 /// One packet of the first video stream.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Packet {
+pub struct Packet {
     /// Presentation time, seconds.
-    pts: f64,
+    pub pts: f64,
+    /// Decoding time, seconds (the presentation time where the file has none).
+    pub dts: f64,
     /// A keyframe (where decoding, and a stream copy cut, can start).
-    key: bool,
+    pub key: bool,
 }
 
 /// Codec, size, rate, frame count and extradata of a video.
@@ -85,6 +87,12 @@ fn keyframes_of(packets: &[Packet]) -> Vec<usize> {
 
 /// The first video stream's packets, in presentation order.
 fn packets(path: &Path) -> Result<Vec<Packet>, VideoError> {
+    Ok(in_presentation_order(packets_in_decoding_order(path)?))
+}
+
+/// The first video stream's packets in decoding order (the order they are stored),
+/// where a stream-copy cut's end is decided.
+pub fn packets_in_decoding_order(path: &Path) -> Result<Vec<Packet>, VideoError> {
     match locate_ffprobe() {
         Some(ffprobe) => {
             let ask = ["-show_entries", PACKET_ENTRIES];
@@ -92,27 +100,31 @@ fn packets(path: &Path) -> Result<Vec<Packet>, VideoError> {
             let json = parse_json(path, &out)?;
             Ok(packets_of(&json))
         }
-        None => Ok(in_presentation_order(FrameCrc::read(path)?.packets)),
+        None => Ok(FrameCrc::read(path)?.packets),
     }
 }
 
 /// What ffprobe is asked of each packet.
-const PACKET_ENTRIES: &str = "packet=pts_time,flags";
+const PACKET_ENTRIES: &str = "packet=pts_time,dts_time,flags";
 
-/// The packets of ffprobe's JSON answer, in presentation order.
+/// The packets of ffprobe's JSON answer, in the order listed (decoding order).
 fn packets_of(json: &serde_json::Value) -> Vec<Packet> {
-    let packets = json["packets"]
+    json["packets"]
         .as_array()
         .into_iter()
         .flatten()
         .filter_map(|p| {
+            let pts: f64 = p["pts_time"].as_str()?.parse().ok()?;
             Some(Packet {
-                pts: p["pts_time"].as_str()?.parse().ok()?,
+                pts,
+                dts: p["dts_time"]
+                    .as_str()
+                    .and_then(|d| d.parse().ok())
+                    .unwrap_or(pts),
                 key: p["flags"].as_str()?.contains('K'),
             })
         })
-        .collect();
-    in_presentation_order(packets)
+        .collect()
 }
 
 fn parse_json(path: &Path, out: &[u8]) -> Result<serde_json::Value, VideoError> {
@@ -287,6 +299,7 @@ impl FrameCrc {
                 extradata = fingerprint(len.trim().parse().ok()?, crc);
             } else if !line.starts_with('#') {
                 let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+                let dts: i64 = fields.get(1)?.parse().ok()?;
                 let pts: i64 = fields.get(2)?.parse().ok()?;
                 // framecrc prints `F=0x..` only for flags other than "keyframe" alone.
                 let key = fields.get(6).is_none_or(|f| {
@@ -296,6 +309,7 @@ impl FrameCrc {
                 });
                 packets.push(Packet {
                     pts: pts as f64 * time_base,
+                    dts: dts as f64 * time_base,
                     key,
                 });
             }

@@ -56,7 +56,7 @@ fn clips_join_on_the_frame_grid_without_reencoding() {
             .map(|(i, n)| {
                 let p = dir.path().join(format!("{i}.mp4"));
                 clip(&p, codec, *n, 40 * i as u8);
-                ConcatInput { path: p, skip: 0 }
+                ConcatInput::whole(p)
             })
             .collect();
         let out = dir.path().join("joined.mp4");
@@ -98,10 +98,12 @@ fn a_clip_cut_at_a_forced_keyframe_joins_without_its_leading_frames() {
         ConcatInput {
             path: first.clone(),
             skip: 0,
+            take: None,
         },
         ConcatInput {
             path: second.clone(),
             skip: 7,
+            take: None,
         },
     ];
     concat_copy(&inputs, &out, 30).unwrap();
@@ -134,5 +136,76 @@ fn ffmpeg_alone_probes_as_ffprobe_does() {
         let by_ffprobe = probe(&p).unwrap();
         let alone = probe_with_ffmpeg_alone(&p).unwrap();
         assert_eq!(alone, by_ffprobe, "{codec:?}");
+    }
+}
+
+/// Every frame of `path`, decoded by streaming.
+fn frames(path: &std::path::Path) -> Vec<Vec<u8>> {
+    let mut r = VideoReader::open(path, None).unwrap();
+    let mut buf = Vec::new();
+    let mut all = Vec::new();
+    while r.next_frame(&mut buf).unwrap() {
+        all.push(buf.clone());
+    }
+    all
+}
+
+#[test]
+fn episodes_are_cut_out_of_a_joined_file_by_stream_copy_bit_for_bit() {
+    // Long groups of pictures (x264 medium: B-frames, decoding order differs from
+    // presentation order), one keyframe per clip, as episodes joined in a LeRobot file.
+    for codec in [
+        Codec::DEXJOCO,
+        Codec::Av1 {
+            crf: 30,
+            preset: 12,
+        },
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let lens = [10usize, 7, 13];
+        let parts: Vec<_> = lens
+            .iter()
+            .enumerate()
+            .map(|(i, n)| {
+                let p = dir.path().join(format!("{i}.mp4"));
+                clip_with(&p, codec, *n, 40 * i as u8, vec![0]);
+                ConcatInput::whole(p)
+            })
+            .collect();
+        let joined = dir.path().join("joined.mp4");
+        concat_copy(&parts, &joined, 30).unwrap();
+        let all = frames(&joined);
+        assert_eq!(all.len(), 30);
+        // The second episode, then the first, then the last: out of order, ends cut.
+        let cut = |skip, take| ConcatInput {
+            path: joined.clone(),
+            skip,
+            take,
+        };
+        let out = dir.path().join("picked.mp4");
+        concat_copy(
+            &[cut(10, Some(7)), cut(0, Some(10)), cut(17, None)],
+            &out,
+            30,
+        )
+        .unwrap();
+        let picked = frames(&out);
+        let expected: Vec<_> = all[10..17]
+            .iter()
+            .chain(&all[0..10])
+            .chain(&all[17..])
+            .cloned()
+            .collect();
+        assert_eq!(picked.len(), expected.len(), "{codec:?}");
+        assert!(picked == expected, "{codec:?}: frames differ");
+        for (k, t) in frame_times(&out).unwrap().iter().enumerate() {
+            assert!(
+                (t - k as f64 / 30.0).abs() < 1e-4,
+                "{codec:?}: frame {k} at {t}"
+            );
+        }
+        // A cut inside a group of pictures is refused, naming the frame.
+        let err = concat_copy(&[cut(0, Some(5))], &out, 30).unwrap_err();
+        assert!(err.to_string().contains("frame 5"), "{err}");
     }
 }

@@ -297,6 +297,7 @@ impl V3Writer {
             v.parts.push(ConcatInput {
                 path: part.path.clone(),
                 skip: part.skip,
+                take: None,
             });
             v.extradata = Some(part.info.extradata.clone());
             if part.temporary {
