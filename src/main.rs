@@ -41,6 +41,7 @@ fn main() -> ExitCode {
         Command::Scripted(args) => settings::ScriptedSettings::resolve(&args, &cli.global)
             .and_then(commands::scripted::run),
         Command::Generate(args) => commands::generate::run(&cli.global, args),
+        Command::Dataset(cmd) => commands::dataset::run(&cli.global, cmd),
     };
     match result {
         Ok(status) => status.into(),

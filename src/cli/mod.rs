@@ -1,15 +1,17 @@
 //! Every clap definition of the `dexjoco-data` command line: this file holds the
 //! top level (global options, subcommands, shared value types); `stages` the pipeline
 //! commands (ingest, export, scripted, augment, cameras, convert, stats); `generate` the
-//! demonstration generator; `eval` the
+//! demonstration generator; `dataset` the dataset management; `eval` the
 //! policy evaluation; `tools` doctor, render and bench. Commands (`src/commands/`) turn these into settings
 //! (`src/settings/`); neither is imported here, so the modules form no circle.
 
+mod dataset;
 mod eval;
 mod generate;
 mod stages;
 mod tools;
 
+pub use dataset::*;
 pub use eval::*;
 pub use generate::*;
 pub use stages::*;
@@ -32,6 +34,8 @@ Examples:
   dexjoco-data augment --replays 10           # randomized replays of the sample demos
   dexjoco-data convert                        # augment output -> LeRobot v3.0
   dexjoco-data convert dexjoco-work/ingest --out ds/ --overwrite
+  dexjoco-data dataset filter --where 'success == true'   # keep the successful episodes
+  dexjoco-data dataset split --splits train=0.9,val=0.1   # seeded, stratified per task
   dexjoco-data stats --language-eval
   dexjoco-data eval --task click_mouse --episodes 10 --port 8000   # a policy served by openpi
 
@@ -137,6 +141,9 @@ pub enum Command {
     /// A worker process of `eval` (started by it).
     #[command(hide = true)]
     EvalWorker(EvalWorkerArgs),
+    /// Manage any LeRobot v3.0 dataset: info, filter, split (a new dataset beside it).
+    #[command(subcommand)]
+    Dataset(DatasetCommand),
 }
 
 /// Rendering quality presets.

@@ -7,6 +7,7 @@ pub mod bench_convert;
 pub mod bench_generate;
 pub mod cameras;
 pub mod convert;
+pub mod dataset;
 pub mod doctor;
 pub mod eval;
 pub mod export;

@@ -28,11 +28,13 @@ use crate::cli::{
 };
 use crate::exit::{CliError, ExitStatus};
 
+mod dataset;
 mod eval;
 mod generate;
 mod stages;
 mod tools;
 
+pub use dataset::*;
 pub use eval::*;
 pub use generate::*;
 pub use stages::*;

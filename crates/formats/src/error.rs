@@ -276,6 +276,10 @@ pub fn io_err(
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum DatasetError {
+    /// A dataset read is not what its format says (the message names the file and
+    /// the field).
+    #[error("{0}")]
+    Layout(String),
     /// An episode does not fit the dataset (layout, cameras, decoded frames).
     #[error("{at}: {message}")]
     Episode {

@@ -481,7 +481,7 @@ pub(crate) fn train_split(episodes: usize) -> BTreeMap<String, String> {
 }
 
 /// `{min, max, mean, std, count, q01..q99}`; images as 3x1x1 nested lists.
-pub(crate) fn stats_json(s: &FeatureStats, image: bool) -> Value {
+pub fn stats_json(s: &FeatureStats, image: bool) -> Value {
     let mut m = serde_json::Map::new();
     let shape = |v: &[f64]| -> Value {
         if image {
@@ -496,6 +496,7 @@ pub(crate) fn stats_json(s: &FeatureStats, image: bool) -> Value {
     m.insert("count".into(), json!([s.count]));
     Value::Object(m)
 }
+
 /// The depth camera features of a dataset whose first episode is `first` (from its depth
 /// parts' encoded videos), named `<camera>_depth`.
 pub(crate) fn depth_camera_specs(first: &PreparedEpisode) -> Vec<CameraSpec> {

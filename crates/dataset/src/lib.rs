@@ -1,0 +1,21 @@
+//! Dataset management after a dataset is made: commands that take any LeRobot v3.0
+//! dataset (ours, or one written by lerobot itself) and write a new one beside it,
+//! the source never changed. [`info`] describes a dataset; [`filter`] keeps the episodes
+//! a [`Selection`] picks; [`split`] deals them into seeded, per-task stratified splits.
+//! Every output is written whole into a staging folder and renamed into place, episodes
+//! re-indexed, every per-episode column kept, videos cut by stream copy (bit-exact) and
+//! statistics recomputed.
+
+mod error;
+mod info;
+mod select;
+mod split;
+mod stats;
+mod subset;
+mod videos;
+
+pub use error::EditError;
+pub use info::{DatasetSummary, FeatureSummary, info};
+pub use select::{Comparison, Predicate, Selection};
+pub use split::{SplitPlan, SplitSizes, plan_split, split};
+pub use subset::{SubsetReport, filter, write_subset};

@@ -1,0 +1,190 @@
+//! `dataset split`: episodes dealt into named splits by a seeded shuffle within each task
+//! (stratified: every task's episodes split in the same fractions), each split written
+//! as a dataset of its own under one output folder, with `split.json` recording which
+//! source episodes went where.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use dexjoco_core::Progress;
+use dexjoco_formats::dataset::lerobot_read::LeRobotDataset;
+use dexjoco_formats::fs::StagedDir;
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use crate::subset::check_output;
+use crate::{EditError, SubsetReport, write_subset};
+
+/// How large each split is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SplitSizes(pub Vec<(String, f64)>);
+
+impl std::str::FromStr for SplitSizes {
+    type Err = String;
+
+    /// `train=0.8,val=0.2` (fractions summing to at most 1).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let mut parts = Vec::new();
+        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let (name, f) = part
+                .split_once('=')
+                .ok_or_else(|| format!("{part:?}: expected NAME=FRACTION, as train=0.8"))?;
+            let f: f64 = f
+                .trim()
+                .parse()
+                .map_err(|_| format!("{part:?}: {f:?} is no fraction"))?;
+            let name = name.trim();
+            if !(0.0..=1.0).contains(&f) || name.is_empty() || name.contains(['/', '\\']) {
+                return Err(format!(
+                    "{part:?}: a split is NAME=FRACTION with 0 <= FRACTION <= 1"
+                ));
+            }
+            if parts.iter().any(|(n, _): &(String, f64)| n == name) {
+                return Err(format!("split {name:?} is named twice"));
+            }
+            parts.push((name.to_owned(), f));
+        }
+        let sum: f64 = parts.iter().map(|(_, f)| f).sum();
+        if parts.is_empty() || sum > 1.0 + 1e-9 {
+            return Err(format!(
+                "{s:?}: one or more NAME=FRACTION summing to at most 1"
+            ));
+        }
+        Ok(Self(parts))
+    }
+}
+
+/// Which source episodes each split gets (ascending source indices).
+#[derive(Debug, Clone, Serialize, PartialEq, Eq)]
+pub struct SplitPlan {
+    /// The seed of the shuffle.
+    pub seed: u64,
+    /// Split name and its source episode indices, in the order the splits were named.
+    pub splits: Vec<(String, Vec<usize>)>,
+}
+
+/// Deals the episodes of `ds` into `sizes`: per task (an episode's first task), a
+/// shuffle seeded by `seed`, then each split's share by largest remainder.
+pub fn plan_split(
+    ds: &LeRobotDataset,
+    sizes: &SplitSizes,
+    seed: u64,
+) -> Result<SplitPlan, EditError> {
+    let tasks = ds.episode_tasks()?;
+    let mut by_task: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+    for (i, t) in tasks.iter().enumerate() {
+        by_task
+            .entry(t.first().cloned().unwrap_or_default())
+            .or_default()
+            .push(i);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut splits: Vec<(String, Vec<usize>)> = sizes
+        .0
+        .iter()
+        .map(|(n, _)| (n.clone(), Vec::new()))
+        .collect();
+    for episodes in by_task.values_mut() {
+        episodes.shuffle(&mut rng);
+        let counts = shares(episodes.len(), &sizes.0);
+        let mut at = 0;
+        for ((_, rows), n) in splits.iter_mut().zip(counts) {
+            rows.extend_from_slice(&episodes[at..at + n]);
+            at += n;
+        }
+    }
+    for (name, rows) in &mut splits {
+        rows.sort_unstable();
+        if rows.is_empty() {
+            return Err(EditError::Selection(format!(
+                "split {name:?} gets no episode of the {} in '{}'",
+                ds.len(),
+                ds.root.display()
+            )));
+        }
+    }
+    Ok(SplitPlan { seed, splits })
+}
+
+/// Split sizes of `n` episodes by fractions: floors, then the episodes the fractions
+/// still ask for to the largest remainders (ties to the split named first).
+fn shares(n: usize, fractions: &[(String, f64)]) -> Vec<usize> {
+    let quotas: Vec<f64> = fractions.iter().map(|(_, f)| f * n as f64).collect();
+    let mut counts: Vec<usize> = quotas.iter().map(|q| q.floor() as usize).collect();
+    let wanted = (quotas.iter().sum::<f64>() + 1e-9).floor() as usize;
+    let mut order: Vec<usize> = (0..fractions.len()).collect();
+    order.sort_by(|a, b| {
+        let (ra, rb) = (
+            quotas[*a] - quotas[*a].floor(),
+            quotas[*b] - quotas[*b].floor(),
+        );
+        rb.total_cmp(&ra).then(a.cmp(b))
+    });
+    let mut left = wanted.min(n).saturating_sub(counts.iter().sum());
+    for i in order {
+        if left == 0 {
+            break;
+        }
+        counts[i] += 1;
+        left -= 1;
+    }
+    counts
+}
+
+/// Splits the dataset at `source` into datasets `out/<split>` (the whole folder staged
+/// and renamed at once), and `out/split.json`.
+pub fn split(
+    source: &Path,
+    sizes: &SplitSizes,
+    seed: u64,
+    out: &Path,
+    overwrite: bool,
+    progress: &dyn Progress,
+) -> Result<Vec<(String, SubsetReport)>, EditError> {
+    let ds = LeRobotDataset::open(source)?;
+    let plan = plan_split(&ds, sizes, seed)?;
+    check_output(source, out, overwrite)?;
+    let staged = StagedDir::begin(out)?;
+    let mut reports = Vec::new();
+    for (name, rows) in &plan.splits {
+        let dir = staged.path().join(name);
+        fs_err::create_dir_all(&dir)?;
+        let splits = BTreeMap::from([(name.clone(), format!("0:{}", rows.len()))]);
+        reports.push((
+            name.clone(),
+            write_subset(&ds, rows, &dir, Some(splits), progress)?,
+        ));
+    }
+    let record = serde_json::json!({
+        "source": source.display().to_string(),
+        "seed": plan.seed,
+        "stratified_by": "task",
+        "splits": plan.splits.iter().map(|(n, r)| (n.clone(), r.clone())).collect::<BTreeMap<_, _>>(),
+    });
+    fs_err::write(
+        staged.path().join("split.json"),
+        serde_json::to_string_pretty(&record).expect("json") + "\n",
+    )?;
+    staged.commit()?;
+    Ok(reports)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shares_add_up_by_largest_remainder() {
+        let f = |v: &[f64]| v.iter().map(|x| (String::new(), *x)).collect::<Vec<_>>();
+        assert_eq!(shares(10, &f(&[0.8, 0.2])), vec![8, 2]);
+        assert_eq!(shares(7, &f(&[0.5, 0.5])), vec![4, 3]);
+        assert_eq!(shares(3, &f(&[0.6, 0.2, 0.2])), vec![2, 1, 0]);
+        assert_eq!(shares(10, &f(&[0.5])), vec![5]);
+        let s: SplitSizes = "train=0.8, val=0.2".parse().unwrap();
+        assert_eq!(s.0.len(), 2);
+        assert!("train=0.8,val=0.3".parse::<SplitSizes>().is_err());
+        assert!("train".parse::<SplitSizes>().is_err());
+    }
+}

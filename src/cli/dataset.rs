@@ -1,0 +1,107 @@
+//! `dataset` subcommands: management of any LeRobot v3.0 dataset after it is made.
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand};
+
+/// The `dataset` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum DatasetCommand {
+    /// What a LeRobot v3.0 dataset holds: episodes, frames, tasks, features and codecs,
+    /// per-episode columns, splits, size.
+    Info(DatasetInfoArgs),
+    /// Keep (or drop) episodes by index, task, length or any per-episode column, into a
+    /// new dataset: re-indexed, every custom column kept, videos cut by stream copy,
+    /// statistics recomputed.
+    Filter(DatasetFilterArgs),
+    /// Deal episodes into train/validation/... datasets by a seeded shuffle stratified
+    /// per task.
+    Split(DatasetSplitArgs),
+}
+
+/// `dataset info` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data dataset info                          # the dataset convert wrote
+  dexjoco-data dataset info ~/.cache/huggingface/lerobot/lerobot/pusht --json")]
+pub struct DatasetInfoArgs {
+    /// The dataset folder (default: <work-dir>/convert/lerobot-v3).
+    #[arg(value_name = "DATASET")]
+    pub dataset: Option<PathBuf>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `dataset filter` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Every condition given must hold for an episode to be kept (with --drop: to be dropped).
+
+Examples:
+  dexjoco-data dataset filter --where 'success == true'          # successful rollouts only
+  dexjoco-data dataset filter ds/ --episodes 0,2,5 --drop --out ds_clean/
+  dexjoco-data dataset filter ds/ --task 'Hammer the nail.' --min-length 200
+  dexjoco-data dataset filter ds/ --where 'rand/light_intensity < 0.6' --where 'success == true'
+
+The source is never changed. The new dataset is written beside OUT and renamed into
+place whole; an existing OUT is replaced only with --overwrite.")]
+pub struct DatasetFilterArgs {
+    /// The dataset folder (default: <work-dir>/convert/lerobot-v3).
+    #[arg(value_name = "DATASET")]
+    pub dataset: Option<PathBuf>,
+    /// Output dataset folder (default: DATASET_filtered beside it).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+    /// Episode indices (comma-separated, ranges as 3-7).
+    #[arg(long, value_delimiter = ',')]
+    pub episodes: Vec<String>,
+    /// Episodes of this task (repeatable).
+    #[arg(long)]
+    pub task: Vec<String>,
+    /// Episodes of at least this many frames.
+    #[arg(long)]
+    pub min_length: Option<usize>,
+    /// Episodes of at most this many frames.
+    #[arg(long)]
+    pub max_length: Option<usize>,
+    /// A per-episode column compared with a value: 'COLUMN OP VALUE', OP one of
+    /// == != < <= > >= (repeatable; `dataset info` lists the columns).
+    #[arg(long = "where", value_name = "PREDICATE")]
+    pub predicates: Vec<String>,
+    /// Drop the episodes matching instead of keeping them.
+    #[arg(long)]
+    pub drop: bool,
+    /// Replace OUT if it exists.
+    #[arg(long)]
+    pub overwrite: bool,
+}
+
+/// `dataset split` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Each task's episodes are shuffled (seeded) and dealt in the given fractions (largest
+remainder), so every split has every task in proportion. Writes OUT/<split>/ (a dataset
+each, info.json's splits naming it) and OUT/split.json (the source episodes of each).
+
+Examples:
+  dexjoco-data dataset split --splits train=0.9,val=0.1
+  dexjoco-data dataset split ds/ --splits train=0.8,val=0.1,test=0.1 --seed 7 --out ds_splits/")]
+pub struct DatasetSplitArgs {
+    /// The dataset folder (default: <work-dir>/convert/lerobot-v3).
+    #[arg(value_name = "DATASET")]
+    pub dataset: Option<PathBuf>,
+    /// Split names and fractions: NAME=FRACTION,... summing to at most 1.
+    #[arg(long, default_value = "train=0.9,val=0.1")]
+    pub splits: String,
+    /// Seed of the shuffle.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Output folder (default: DATASET_split beside it).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+    /// Replace OUT if it exists.
+    #[arg(long)]
+    pub overwrite: bool,
+}

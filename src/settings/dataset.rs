@@ -1,0 +1,156 @@
+//! Settings of the `dataset` subcommands, resolved from their arguments.
+
+use std::path::{Path, PathBuf};
+
+use dexjoco_dataset::{Predicate, Selection, SplitSizes};
+
+use super::{must_exist, outputs_apart, usage};
+use crate::cli::{DatasetFilterArgs, DatasetSplitArgs, GlobalArgs};
+
+/// The dataset a `dataset` subcommand reads: the one given, else convert's.
+pub fn dataset_or_default(
+    dataset: Option<PathBuf>,
+    global: &GlobalArgs,
+) -> anyhow::Result<PathBuf> {
+    let dataset = dataset.unwrap_or_else(|| global.work_dir.join("convert/lerobot-v3"));
+    must_exist(
+        &dataset,
+        "give a LeRobot v3.0 dataset folder (holding meta/info.json), or run `dexjoco-data convert`",
+    )?;
+    Ok(dataset)
+}
+
+/// `DATASET<suffix>` beside the dataset.
+fn beside(dataset: &Path, suffix: &str) -> PathBuf {
+    let abs = dexjoco_formats::fs::resolve(dataset);
+    let name = abs
+        .file_name()
+        .map_or_else(|| "dataset".into(), |n| n.to_string_lossy().into_owned());
+    abs.with_file_name(format!("{name}{suffix}"))
+}
+
+/// `dataset filter`.
+pub struct DatasetFilterSettings {
+    /// The source dataset.
+    pub dataset: PathBuf,
+    /// Which episodes to keep.
+    pub selection: Selection,
+    /// The output dataset.
+    pub out: PathBuf,
+    /// Replace `out`.
+    pub overwrite: bool,
+}
+
+impl DatasetFilterSettings {
+    /// Resolves `dataset filter`'s arguments.
+    pub fn resolve(args: DatasetFilterArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let DatasetFilterArgs {
+            dataset,
+            out,
+            episodes,
+            task,
+            min_length,
+            max_length,
+            predicates,
+            drop,
+            overwrite,
+        } = args;
+        let dataset = dataset_or_default(dataset, global)?;
+        let out = out.unwrap_or_else(|| beside(&dataset, "_filtered"));
+        outputs_apart(&[&out], &[&dataset])?;
+        let predicates = predicates
+            .iter()
+            .map(|p| {
+                p.parse::<Predicate>()
+                    .map_err(|e| usage(format!("--where {e}"), "as --where 'success == true'"))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let selection = Selection {
+            episodes: episode_list(&episodes)?,
+            tasks: task,
+            min_length,
+            max_length,
+            predicates,
+            drop,
+        };
+        if selection == Selection::default() {
+            return Err(usage(
+                "dataset filter: no condition given".into(),
+                "give --episodes, --task, --min-length/--max-length or --where",
+            ));
+        }
+        Ok(Self {
+            dataset,
+            selection,
+            out,
+            overwrite,
+        })
+    }
+}
+
+/// `0,2,5-7` as indices.
+fn episode_list(items: &[String]) -> anyhow::Result<Vec<usize>> {
+    let mut out = Vec::new();
+    for item in items.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
+        let bad = || {
+            usage(
+                format!("--episodes: {item:?} is no index or range A-B"),
+                "as --episodes 0,2,5-7",
+            )
+        };
+        match item.split_once('-') {
+            Some((a, b)) => {
+                let (a, b): (usize, usize) = (
+                    a.trim().parse().map_err(|_| bad())?,
+                    b.trim().parse().map_err(|_| bad())?,
+                );
+                if a > b {
+                    return Err(bad());
+                }
+                out.extend(a..=b);
+            }
+            None => out.push(item.parse().map_err(|_| bad())?),
+        }
+    }
+    Ok(out)
+}
+
+/// `dataset split`.
+pub struct DatasetSplitSettings {
+    /// The source dataset.
+    pub dataset: PathBuf,
+    /// Split names and fractions.
+    pub sizes: SplitSizes,
+    /// Seed of the shuffle.
+    pub seed: u64,
+    /// The output folder (one dataset per split inside).
+    pub out: PathBuf,
+    /// Replace `out`.
+    pub overwrite: bool,
+}
+
+impl DatasetSplitSettings {
+    /// Resolves `dataset split`'s arguments.
+    pub fn resolve(args: DatasetSplitArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let DatasetSplitArgs {
+            dataset,
+            splits,
+            seed,
+            out,
+            overwrite,
+        } = args;
+        let dataset = dataset_or_default(dataset, global)?;
+        let out = out.unwrap_or_else(|| beside(&dataset, "_split"));
+        outputs_apart(&[&out], &[&dataset])?;
+        let sizes = splits
+            .parse::<SplitSizes>()
+            .map_err(|e| usage(format!("--splits {e}"), "as --splits train=0.9,val=0.1"))?;
+        Ok(Self {
+            dataset,
+            sizes,
+            seed,
+            out,
+            overwrite,
+        })
+    }
+}
