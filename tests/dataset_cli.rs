@@ -1,0 +1,285 @@
+//! `dataset info/filter/split` against lerobot-edit-dataset 0.6.1 on the same inputs: a
+//! dataset written by lerobot's own writer (as one from the Hub) and one of ours with
+//! its per-episode labels. Both sides are read back with lerobot's reader
+//! (tests/python/lerobot_edit_compare.py): the same episodes and frames in the same
+//! order, equal columns; ours with bit-exact video frames, exact statistics and every
+//! custom column kept; lerobot-doctor reports no FAIL on ours.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::{dexjoco, said, succeeds};
+use serde_json::Value;
+
+/// Runs a Python script of tests/python with the test venv; its last stdout line as JSON.
+fn python_json(script: &str, args: &[&str]) -> Value {
+    let out = Command::new(dexjoco_testkit::python())
+        .arg(
+            dexjoco_testkit::workspace_root()
+                .join("tests/python")
+                .join(script),
+        )
+        .args(args)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    let last = text.lines().last().unwrap_or("");
+    serde_json::from_str(last).unwrap_or_else(|e| {
+        panic!(
+            "{script} {args:?} printed no JSON ({e}):\n{text}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        )
+    })
+}
+
+/// Compares an edited dataset with its source (see the script); panics on a difference.
+fn compare(source: &Path, edited: &Path, kept: &[usize], flags: &[&str]) -> Value {
+    let kept = serde_json::to_string(kept).unwrap();
+    let mut args = vec![source.to_str().unwrap(), edited.to_str().unwrap(), &kept];
+    args.extend_from_slice(flags);
+    let report = python_json("lerobot_edit_compare.py", &args);
+    assert_eq!(report["ok"], true, "{}: {report}", edited.display());
+    report
+}
+
+/// lerobot-edit-dataset (the test venv's) on `root`, writing `new_root`.
+fn lerobot_edit(root: &Path, new_root: &Path, operation: &[&str]) {
+    let tool = dexjoco_testkit::python().with_file_name("lerobot-edit-dataset");
+    let out = Command::new(&tool)
+        .env("HF_HUB_OFFLINE", "1")
+        .args(["--repo_id", "local/source", "--root"])
+        .arg(root)
+        .args(["--new_repo_id", "local/edited", "--new_root"])
+        .arg(new_root)
+        .args(operation)
+        .output()
+        .unwrap();
+    assert!(
+        new_root.join("meta/info.json").exists() || new_root.join("train").exists(),
+        "lerobot-edit-dataset {operation:?} wrote nothing:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// The bytes of every file under `dir`, by relative path.
+fn tree(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut files = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in fs_err::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                files.push((
+                    p.strip_prefix(dir).unwrap().to_path_buf(),
+                    fs_err::read(&p).unwrap(),
+                ));
+            }
+        }
+    }
+    files.sort();
+    files
+}
+
+#[test]
+fn filter_and_split_match_lerobot_edit_dataset_on_a_dataset_lerobot_wrote() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = dir.path().join("small");
+    let made = python_json("lerobot_small_dataset.py", &[source.to_str().unwrap(), "8"]);
+    assert_eq!(made, 8);
+    let before = tree(&source);
+
+    // Delete episodes 1, 4, 6: ours and lerobot's.
+    let ours = dir.path().join("ours_filtered");
+    succeeds(
+        dexjoco()
+            .args(["-q", "dataset", "filter"])
+            .arg(&source)
+            .args(["--episodes", "1,4,6", "--drop", "--out"])
+            .arg(&ours),
+    );
+    let theirs = dir.path().join("theirs_filtered");
+    lerobot_edit(
+        &source,
+        &theirs,
+        &[
+            "--operation.type",
+            "delete_episodes",
+            "--operation.episode_indices",
+            "[1, 4, 6]",
+        ],
+    );
+    let kept = [0, 2, 3, 5, 7];
+    let a = compare(&source, &ours, &kept, &["--exact-video", "--columns"]);
+    let b = compare(&source, &theirs, &kept, &["--stats-report"]);
+    assert_eq!(a["frames"], b["frames"]);
+    assert_eq!(
+        a["video_mean_error_max"], 0.0,
+        "ours cut by stream copy: {a}"
+    );
+    dexjoco_testkit::lerobot_doctor_passes(&ours);
+
+    // A seeded split, stratified per task; lerobot's split given the same episodes.
+    let splits = dir.path().join("ours_split");
+    succeeds(
+        dexjoco()
+            .args(["-q", "dataset", "split"])
+            .arg(&source)
+            .args(["--splits", "train=0.75,val=0.25", "--seed", "3", "--out"])
+            .arg(&splits),
+    );
+    let record: Value =
+        serde_json::from_str(&fs_err::read_to_string(splits.join("split.json")).unwrap()).unwrap();
+    let episodes = |name: &str| -> Vec<usize> {
+        record["splits"][name]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap() as usize)
+            .collect()
+    };
+    let (train, val) = (episodes("train"), episodes("val"));
+    // 3 episodes of one task and 5 of the other: 2 + 4 (0.75 of each, rounded by
+    // largest remainder) and 1 + 1.
+    assert_eq!((train.len(), val.len()), (6, 2), "{record}");
+    let theirs_split = dir.path().join("theirs_split");
+    let lists = format!(r#"{{"train": {train:?}, "val": {val:?}}}"#);
+    lerobot_edit(
+        &source,
+        &theirs_split,
+        &["--operation.type", "split", "--operation.splits", &lists],
+    );
+    for (name, kept) in [("train", &train), ("val", &val)] {
+        let ours = compare(
+            &source,
+            &splits.join(name),
+            kept,
+            &["--exact-video", "--columns"],
+        );
+        let theirs = compare(&source, &theirs_split.join(name), kept, &["--stats-report"]);
+        assert_eq!(ours["frames"], theirs["frames"], "{name}");
+        dexjoco_testkit::lerobot_doctor_passes(&splits.join(name));
+        let info: Value = serde_json::from_slice(
+            &succeeds(
+                dexjoco()
+                    .args(["dataset", "info", "--json"])
+                    .arg(splits.join(name)),
+            )
+            .stdout,
+        )
+        .unwrap();
+        assert_eq!(info["episodes"], kept.len());
+        assert_eq!(info["splits"][name], format!("0:{}", kept.len()));
+    }
+    assert!(before == tree(&source), "the source changed");
+}
+
+#[test]
+fn our_labels_survive_a_filter_by_outcome_and_reruns_are_byte_identical() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = common::sample_lerobot_dataset(&dir.path().join("work"), "click_mouse", 2, 32);
+    let info: Value = serde_json::from_slice(
+        &succeeds(dexjoco().args(["dataset", "info", "--json"]).arg(&source)).stdout,
+    )
+    .unwrap();
+    let n = info["episodes"].as_u64().unwrap() as usize;
+    assert!(n >= 3, "{info}");
+    let custom: Vec<&str> = info["custom_columns"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    assert!(custom.contains(&"outcome/success"), "{custom:?}");
+
+    // Successful episodes but the second: every custom column kept.
+    let out = dir.path().join("filtered");
+    let filter = |out: &Path| {
+        succeeds(
+            dexjoco()
+                .args(["-q", "dataset", "filter"])
+                .arg(&source)
+                .args([
+                    "--where",
+                    "outcome/success == true",
+                    "--episodes",
+                    "1",
+                    "--drop",
+                    "--out",
+                ])
+                .arg(out),
+        )
+    };
+    filter(&out);
+    let kept: Vec<usize> = (0..n).filter(|i| *i != 1).collect();
+    compare(&source, &out, &kept, &["--exact-video", "--columns"]);
+    dexjoco_testkit::lerobot_doctor_passes(&out);
+
+    // The same command again gives the same bytes.
+    let again = dir.path().join("again");
+    filter(&again);
+    assert!(tree(&out) == tree(&again), "a rerun wrote other bytes");
+
+    // Refusals name what to do.
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(&source)
+        .args(["--episodes", "0", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && said(&o).contains("--overwrite"),
+        "{}",
+        said(&o)
+    );
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(&source)
+        .args(["--where", "outcome/sucess == true"])
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && said(&o).contains("outcome/success"),
+        "an unknown column lists the columns: {}",
+        said(&o)
+    );
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(&source)
+        .args(["--episodes", &n.to_string()])
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && said(&o).contains("out of range"),
+        "{}",
+        said(&o)
+    );
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(&source)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "no condition is a usage error: {}",
+        said(&o)
+    );
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(&source)
+        .args(["--episodes", "0", "--out"])
+        .arg(source.join("inner"))
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "an output inside the source: {}",
+        said(&o)
+    );
+}

@@ -1,0 +1,117 @@
+"""Compares an edited LeRobot v3.0 dataset with its source, with lerobot's own reader:
+every kept episode's frames (all numeric columns and the task text) equal the source's,
+in order; each camera frame decodes to the source's (bit for bit with --exact-video,
+else within a mean error of 3 levels, for re-encoded files); statistics equal a numpy
+computation from every frame (min, max, mean, std) and lerobot's get_feature_stats
+(quantiles).
+Prints a JSON report; exits 1 on the first difference, naming it.
+
+usage: lerobot_edit_compare.py SOURCE EDITED KEPT [--exact-video] [--columns] [--stats-report]
+  KEPT: the source episode indices the edited dataset holds, in its order (JSON list)
+  --columns: also compare every per-episode column but the placement ones
+  --stats-report: report the statistics' differences without failing on them
+"""
+import json
+import os
+import sys
+
+os.environ["HF_HUB_OFFLINE"] = "1"
+os.environ.setdefault("HF_DATASETS_OFFLINE", "1")
+
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from lerobot.datasets.compute_stats import get_feature_stats  # noqa: E402
+from lerobot.datasets.lerobot_dataset import LeRobotDataset  # noqa: E402
+
+source, edited, kept = sys.argv[1], sys.argv[2], json.loads(sys.argv[3])
+exact_video = "--exact-video" in sys.argv
+columns = "--columns" in sys.argv
+stats_report = "--stats-report" in sys.argv  # report statistics differences, never fail on them
+src = LeRobotDataset("local/src", root=source, video_backend="pyav")
+out = LeRobotDataset("local/out", root=edited, video_backend="pyav")
+
+
+def fail(msg):
+    print(json.dumps({"ok": False, "error": msg}))
+    sys.exit(1)
+
+
+if out.num_episodes != len(kept):
+    fail(f"{out.num_episodes} episodes, expected {len(kept)}")
+
+
+def episode_range(ds, e):
+    ep = ds.meta.episodes[e]
+    return int(ep["dataset_from_index"]), int(ep["dataset_to_index"])
+
+
+numeric = [k for k, f in src.meta.features.items() if f["dtype"] in ("float32", "float64")]
+video_diffs = []
+frames = 0
+for new, old in enumerate(kept):
+    a0, a1 = episode_range(src, old)
+    b0, b1 = episode_range(out, new)
+    if a1 - a0 != b1 - b0:
+        fail(f"episode {new} (source {old}): {b1 - b0} frames, source {a1 - a0}")
+    for k in range(a1 - a0):
+        x, y = src[a0 + k], out[b0 + k]
+        frames += 1
+        if int(y["episode_index"]) != new or int(y["index"]) != b0 + k:
+            fail(f"episode {new} frame {k}: episode_index/index {int(y['episode_index'])}/{int(y['index'])}")
+        if int(y["frame_index"]) != int(x["frame_index"]) or y["task"] != x["task"]:
+            fail(f"episode {new} frame {k}: frame_index or task differs")
+        for key in numeric + ["timestamp"]:
+            if not np.array_equal(np.asarray(x[key]), np.asarray(y[key])):
+                fail(f"episode {new} frame {k}: {key} differs")
+        for key in src.meta.camera_keys:
+            d = np.abs(np.asarray(x[key], dtype=np.float64) - np.asarray(y[key], dtype=np.float64)) * 255.0
+            video_diffs.append(float(d.mean()))
+            if exact_video and d.max() > 0:
+                fail(f"episode {new} frame {k}: {key} decodes differently (max {d.max():.1f} levels)")
+if video_diffs and max(video_diffs) > 3.0:
+    fail(f"video frames differ by up to {max(video_diffs):.2f} levels on average")
+
+# Statistics against every frame's values.
+hf = out.hf_dataset.with_format("numpy")
+stats_check = {}
+for key in numeric:
+    v = np.stack(hf[key]).astype(np.float64)
+    s = out.meta.stats[key]
+    for name, want in [("min", v.min(0)), ("max", v.max(0)), ("mean", v.mean(0)), ("std", v.std(0))]:
+        got = np.asarray(s[name], dtype=np.float64).reshape(want.shape)
+        err = float(np.abs(got - want).max())
+        stats_check[f"{key}/{name}"] = err
+        if err > 1e-5 * max(1.0, float(np.abs(want).max())) and not stats_report:
+            fail(f"stats {key} {name}: off by {err}")
+    # Quantiles as lerobot's own get_feature_stats computes them from these frames.
+    theirs = get_feature_stats(v, axis=0, keepdims=False)
+    for q in ("q01", "q10", "q50", "q90", "q99"):
+        if q in s and q in theirs:
+            got = np.asarray(s[q], dtype=np.float64).reshape(theirs[q].shape)
+            err = float(np.abs(got - theirs[q]).max())
+            stats_check[f"{key}/{q}"] = err
+            if err > 1e-5 * max(1.0, float(np.abs(v).max())) and not stats_report:
+                fail(f"stats {key} {q}: off by {err} from lerobot's get_feature_stats")
+
+if columns:
+    def rows(root):
+        files = sorted(p for p in __import__("pathlib").Path(root, "meta/episodes").rglob("*.parquet"))
+        return pd.concat([pd.read_parquet(f) for f in files]).sort_values("episode_index").reset_index(drop=True)
+    placement = ("episode_index", "data/", "dataset_from_index", "dataset_to_index", "meta/episodes/", "videos/")
+    a, b = rows(source), rows(edited)
+    for c in a.columns:
+        if c.startswith(placement):
+            continue
+        if c not in b.columns:
+            fail(f"per-episode column {c} is gone")
+        for new, old in enumerate(kept):
+            if str(a[c][old]) != str(b[c][new]):
+                fail(f"per-episode column {c}, episode {new}: {b[c][new]!r} != source {a[c][old]!r}")
+
+print(json.dumps({
+    "ok": True,
+    "episodes": out.num_episodes,
+    "frames": frames,
+    "video_mean_error_max": max(video_diffs) if video_diffs else None,
+    "stats": stats_check,
+}))
