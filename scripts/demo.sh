@@ -31,6 +31,11 @@ BIN="$ROOT/target/release/dexjoco-data"
 "$BIN" augment dexjoco-work/ingest --replays 4 --size 224 --quality fast
 "$BIN" convert --overwrite --merge-bimanual
 "$BIN" convert --format diffusion-policy --norm-stats --overwrite --merge-bimanual
+# The LeRobot dataset managed: its successful replays kept (augment keeps successes, so
+# all of them here; --where takes any per-episode column), then a seeded train/val split
+# stratified per task, each a new dataset beside the source.
+"$BIN" dataset filter --where 'outcome/success == true' --out dexjoco-work/dataset/successful --overwrite
+"$BIN" dataset split dexjoco-work/dataset/successful --splits train=0.9,val=0.1 --out dexjoco-work/dataset/splits --overwrite
 "$BIN" stats --dataset dexjoco-work/augment
 # A camera pose pool for click_mouse, built the paper's way (least occluded of 2000
 # poses sampled on a sphere), with a preview sheet.
@@ -41,4 +46,4 @@ BIN="$ROOT/target/release/dexjoco-data"
 # The language-generalization analysis and success tables on the shipped EXAMPLE
 # evaluation outputs (made up by a script, not results).
 "$BIN" stats --language-eval --success-table
-echo "done: see dexjoco-work/augment/ (augment_report.md, contact_sheet.png), dexjoco-work/convert/, dexjoco-work/stats/, dexjoco-work/cameras/ and dexjoco-work/render/" >&2
+echo "done: see dexjoco-work/augment/ (augment_report.md, contact_sheet.png), dexjoco-work/convert/, dexjoco-work/dataset/, dexjoco-work/stats/, dexjoco-work/cameras/ and dexjoco-work/render/" >&2

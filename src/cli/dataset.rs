@@ -40,10 +40,10 @@ pub struct DatasetInfoArgs {
 Every condition given must hold for an episode to be kept (with --drop: to be dropped).
 
 Examples:
-  dexjoco-data dataset filter --where 'success == true'          # successful rollouts only
-  dexjoco-data dataset filter ds/ --episodes 0,2,5 --drop --out ds_clean/
-  dexjoco-data dataset filter ds/ --task 'Hammer the nail.' --min-length 200
-  dexjoco-data dataset filter ds/ --where 'rand/light_intensity < 0.6' --where 'success == true'
+  dexjoco-data dataset filter --where 'outcome/success == true'   # successful replays only
+  dexjoco-data dataset filter ds/ --episodes 0,2,5-7 --drop --out ds_clean/
+  dexjoco-data dataset filter ds/ --task 'Click the mouse.' --min-length 200
+  dexjoco-data dataset filter ds/ --where 'randomization/camera_azimuth < 0.5' --where 'outcome/flagged == false'
 
 The source is never changed. The new dataset is written beside OUT and renamed into
 place whole; an existing OUT is replaced only with --overwrite.")]

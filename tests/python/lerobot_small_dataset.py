@@ -1,9 +1,9 @@
 """Writes a small LeRobot v3.0 dataset with lerobot's own writer (LeRobotDataset.create /
 add_frame / save_episode / finalize), as a dataset downloaded from the Hub is made:
-EPISODES episodes of two tasks, lengths 20 + 7 * (i % 4), a 6-wide action, a 4-wide
-state and one 32x32 camera whose frames encode (episode, frame) as colours.
+EPISODES episodes of two tasks, lengths LENGTH + 7 * (i % 4), a 6-wide action, a 4-wide
+state and one SIZExSIZE camera whose frames encode (episode, frame) as colours.
 
-usage: lerobot_small_dataset.py OUT_ROOT EPISODES
+usage: lerobot_small_dataset.py OUT_ROOT EPISODES [SIZE (32)] [LENGTH (20)]
 """
 import os
 import sys
@@ -15,25 +15,27 @@ import numpy as np  # noqa: E402
 from lerobot.datasets.lerobot_dataset import LeRobotDataset  # noqa: E402
 
 out, episodes = sys.argv[1], int(sys.argv[2])
+size = int(sys.argv[3]) if len(sys.argv) > 3 else 32
+length = int(sys.argv[4]) if len(sys.argv) > 4 else 20
 features = {
     "action": {"dtype": "float32", "shape": (6,), "names": None},
     "observation.state": {"dtype": "float32", "shape": (4,), "names": None},
     "observation.images.top": {
         "dtype": "video",
-        "shape": (32, 32, 3),
+        "shape": (size, size, 3),
         "names": ["height", "width", "channels"],
     },
 }
 ds = LeRobotDataset.create("local/small", 30, root=out, features=features, use_videos=True)
 rng = np.random.default_rng(0)
 for e in range(episodes):
-    n = 20 + 7 * (e % 4)
+    n = length + 7 * (e % 4)
     task = "Pick the red cube." if e % 3 else "Open the drawer."
     for k in range(n):
-        img = np.zeros((32, 32, 3), dtype=np.uint8)
+        img = np.zeros((size, size, 3), dtype=np.uint8)
         img[:, :, 0] = (e * 37) % 256
         img[:, :, 1] = (k * 9) % 256
-        img[:16, :, 2] = 200
+        img[: size // 2, :, 2] = 200
         ds.add_frame({
             "action": rng.normal(size=6).astype(np.float32),
             "observation.state": rng.normal(size=4).astype(np.float32),

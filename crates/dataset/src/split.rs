@@ -66,7 +66,8 @@ pub struct SplitPlan {
 }
 
 /// Deals the episodes of `ds` into `sizes`: per task (an episode's first task), a
-/// shuffle seeded by `seed`, then each split's share by largest remainder.
+/// shuffle seeded by `seed`; each split gets its share of the whole dataset exactly
+/// (largest remainder), spread over the tasks in proportion ([`allocate`]).
 pub fn plan_split(
     ds: &LeRobotDataset,
     sizes: &SplitSizes,
@@ -81,17 +82,21 @@ pub fn plan_split(
             .push(i);
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut groups: Vec<Vec<usize>> = by_task.into_values().collect();
+    for g in &mut groups {
+        g.shuffle(&mut rng);
+    }
+    let sizes_of: Vec<usize> = groups.iter().map(Vec::len).collect();
+    let counts = allocate(&sizes_of, &sizes.0);
     let mut splits: Vec<(String, Vec<usize>)> = sizes
         .0
         .iter()
         .map(|(n, _)| (n.clone(), Vec::new()))
         .collect();
-    for episodes in by_task.values_mut() {
-        episodes.shuffle(&mut rng);
-        let counts = shares(episodes.len(), &sizes.0);
+    for (g, row) in groups.iter().zip(&counts) {
         let mut at = 0;
-        for ((_, rows), n) in splits.iter_mut().zip(counts) {
-            rows.extend_from_slice(&episodes[at..at + n]);
+        for ((_, rows), n) in splits.iter_mut().zip(row) {
+            rows.extend_from_slice(&g[at..at + n]);
             at += n;
         }
     }
@@ -99,13 +104,46 @@ pub fn plan_split(
         rows.sort_unstable();
         if rows.is_empty() {
             return Err(EditError::Selection(format!(
-                "split {name:?} gets no episode of the {} in '{}'",
+                "split {name:?} gets no episode of the {} in '{}': give it a larger fraction",
                 ds.len(),
                 ds.root.display()
             )));
         }
     }
     Ok(SplitPlan { seed, splits })
+}
+
+/// How many episodes of each group (task) each split gets: every split's total is its
+/// share of all episodes by largest remainder ([`shares`]); within that, each group
+/// gets the floor of its proportional quota, and the episodes left go to the largest
+/// fractional quotas among groups with episodes to spare.
+fn allocate(groups: &[usize], fractions: &[(String, f64)]) -> Vec<Vec<usize>> {
+    let total: usize = groups.iter().sum();
+    let targets = shares(total, fractions);
+    let quota = |g: usize, s: usize| groups[g] as f64 * fractions[s].1;
+    let mut counts: Vec<Vec<usize>> = (0..groups.len())
+        .map(|g| {
+            (0..fractions.len())
+                .map(|s| quota(g, s).floor() as usize)
+                .collect()
+        })
+        .collect();
+    let mut cells: Vec<(usize, usize)> = (0..groups.len())
+        .flat_map(|g| (0..fractions.len()).map(move |s| (g, s)))
+        .collect();
+    let frac = |&(g, s): &(usize, usize)| quota(g, s) - quota(g, s).floor();
+    cells.sort_by(|a, b| frac(b).total_cmp(&frac(a)).then(a.cmp(b)));
+    // Largest remainders first, then any group with room, until every split has its total.
+    for pass in 0..2 {
+        for &(g, s) in &cells {
+            let given: usize = counts.iter().map(|row| row[s]).sum();
+            let room = groups[g] - counts[g].iter().sum::<usize>();
+            if given < targets[s] && room > 0 && (pass == 1 || frac(&(g, s)) > 0.0) {
+                counts[g][s] += 1;
+            }
+        }
+    }
+    counts
 }
 
 /// Split sizes of `n` episodes by fractions: floors, then the episodes the fractions
@@ -186,5 +224,20 @@ mod tests {
         assert_eq!(s.0.len(), 2);
         assert!("train=0.8,val=0.3".parse::<SplitSizes>().is_err());
         assert!("train".parse::<SplitSizes>().is_err());
+    }
+
+    #[test]
+    fn small_tasks_still_fill_every_split() {
+        let f = |v: &[f64]| v.iter().map(|x| (String::new(), *x)).collect::<Vec<_>>();
+        // 11 tasks of 4 episodes, 0.9 / 0.1: 40 and 4 overall, each task 3 or 4 in train.
+        let counts = allocate(&[4; 11], &f(&[0.9, 0.1]));
+        let totals: Vec<usize> = (0..2).map(|s| counts.iter().map(|r| r[s]).sum()).collect();
+        assert_eq!(totals, vec![40, 4]);
+        assert!(counts.iter().all(|r| r[0] + r[1] == 4 && r[0] >= 3));
+        // 3 + 5 episodes, 0.75 / 0.25: 6 and 2, one of each task in val.
+        assert_eq!(
+            allocate(&[3, 5], &f(&[0.75, 0.25])),
+            vec![vec![2, 1], vec![4, 1]]
+        );
     }
 }

@@ -513,7 +513,11 @@ impl ConcatInput {
 /// `take`, the `outpoint` (between the decoding times of the last kept packet and the
 /// first packet after the kept frames, so that packet and all after it are left out) and
 /// the `duration` the next input is offset by.
-fn concat_points(input: &ConcatInput, fps: u32) -> Result<String, VideoError> {
+fn concat_points(
+    input: &ConcatInput,
+    fps: u32,
+    probed: &mut std::collections::HashMap<PathBuf, Probed>,
+) -> Result<String, VideoError> {
     let mut text = String::new();
     if input.skip > 0 {
         // In microseconds, rounded up: the demuxer seeks to the last keyframe at or
@@ -525,9 +529,16 @@ fn concat_points(input: &ConcatInput, fps: u32) -> Result<String, VideoError> {
         return Ok(text);
     };
     let end = input.skip + take;
-    let packets = packets_in_decoding_order(&input.path)?;
+    // Probed once per file: many cuts of one file are usual (episodes kept from it).
+    if !probed.contains_key(&input.path) {
+        let packets = packets_in_decoding_order(&input.path)?;
+        let mut times: Vec<f64> = packets.iter().map(|p| p.pts).collect();
+        times.sort_by(f64::total_cmp);
+        probed.insert(input.path.clone(), Probed { packets, times });
+    }
+    let Probed { packets, times } = &probed[&input.path];
     if end < packets.len() {
-        let cut = cut_packet(&packets, end).ok_or_else(|| VideoError::Failed {
+        let cut = cut_packet(packets, times[end]).ok_or_else(|| VideoError::Failed {
             program: "concat".into(),
             path: input.path.clone(),
             message: format!(
@@ -548,13 +559,16 @@ fn concat_points(input: &ConcatInput, fps: u32) -> Result<String, VideoError> {
     Ok(text)
 }
 
-/// The index (in decoding order) of the packet of presentation frame `end`, where the
-/// stream can be cut: a keyframe, every packet before it presented before it and every
-/// packet after it presented after it. `None` where frame `end` is no such cut.
-fn cut_packet(packets: &[Packet], end: usize) -> Option<usize> {
-    let mut times: Vec<f64> = packets.iter().map(|p| p.pts).collect();
-    times.sort_by(f64::total_cmp);
-    let at = times[end];
+/// A file's packets in decoding order and their presentation times sorted.
+struct Probed {
+    packets: Vec<Packet>,
+    times: Vec<f64>,
+}
+
+/// The index (in decoding order) of the packet presented at `at`, where the stream can
+/// be cut: a keyframe, every packet before it presented before it and every packet
+/// after it presented after it. `None` where that frame is no such cut.
+fn cut_packet(packets: &[Packet], at: f64) -> Option<usize> {
     let cut = packets.iter().position(|p| p.pts == at)?;
     let closed = packets[cut].key
         && packets[..cut].iter().all(|p| p.pts < at)
@@ -576,6 +590,7 @@ pub fn concat_copy(inputs: &[ConcatInput], out: &Path, fps: u32) -> Result<(), V
     let list = out.with_file_name(format!(".{name}.concat.txt"));
     let tmp = out.with_file_name(format!(".{name}.partial.mp4"));
     let mut text = String::from("ffconcat version 1.0\n");
+    let mut probed = std::collections::HashMap::new();
     for input in inputs {
         let abs = std::path::absolute(&input.path).map_err(|source| VideoError::Io {
             path: input.path.clone(),
@@ -584,7 +599,7 @@ pub fn concat_copy(inputs: &[ConcatInput], out: &Path, fps: u32) -> Result<(), V
         // The concat list quotes paths with single quotes; a quote is written as '\''.
         let quoted = abs.to_string_lossy().replace('\'', "'\\''");
         text.push_str(&format!("file '{quoted}'\n"));
-        text.push_str(&concat_points(input, fps)?);
+        text.push_str(&concat_points(input, fps, &mut probed)?);
     }
     fs_err::write(&list, text).map_err(|source| VideoError::Io {
         path: list.clone(),
