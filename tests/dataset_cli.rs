@@ -283,3 +283,104 @@ fn our_labels_survive_a_filter_by_outcome_and_reruns_are_byte_identical() {
         said(&o)
     );
 }
+
+/// A dataset of `episodes` episodes made by lerobot's own writer under `dir/name`
+/// (further arguments of tests/python/lerobot_small_dataset.py after EPISODES).
+fn lerobot_written(dir: &Path, name: &str, episodes: &str, more: &[&str]) -> PathBuf {
+    let root = dir.join(name);
+    let mut all = vec![root.to_str().unwrap(), episodes];
+    all.extend_from_slice(more);
+    python_json("lerobot_small_dataset.py", &all);
+    root
+}
+
+#[test]
+fn merge_matches_lerobots_merge() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = lerobot_written(dir.path(), "a", "5", &[]);
+    let b = lerobot_written(dir.path(), "b", "3", &[]);
+    let ours = dir.path().join("ours_merged");
+    succeeds(
+        dexjoco()
+            .args(["-q", "dataset", "merge"])
+            .arg(&a)
+            .arg(&b)
+            .arg("--out")
+            .arg(&ours),
+    );
+    let theirs = dir.path().join("theirs_merged");
+    let tool = dexjoco_testkit::python().with_file_name("lerobot-edit-dataset");
+    let roots = format!("['{}', '{}']", a.display(), b.display());
+    let out = Command::new(&tool)
+        .env("HF_HUB_OFFLINE", "1")
+        .args(["--new_repo_id", "local/merged", "--new_root"])
+        .arg(&theirs)
+        .args(["--operation.type", "merge"])
+        .args(["--operation.repo_ids", "['local/a', 'local/b']"])
+        .args(["--operation.roots", &roots])
+        .output()
+        .unwrap();
+    assert!(
+        theirs.join("meta/info.json").exists(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The same frames, videos and per-episode columns as lerobot's merge; ours with exact
+    // statistics, and each source found again in ours.
+    let all: Vec<usize> = (0..8).collect();
+    compare(&theirs, &ours, &all, &["--exact-video", "--columns"]);
+    let flags = |offset| ["--exact-video", "--columns", "--offset", offset];
+    compare(&a, &ours, &[0, 1, 2, 3, 4], &flags("0"));
+    compare(&b, &ours, &[0, 1, 2], &flags("5"));
+    dexjoco_testkit::lerobot_doctor_passes(&ours);
+}
+
+#[test]
+fn merge_names_what_differs_then_reconciles_camera_names_and_widths() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = lerobot_written(dir.path(), "a", "5", &[]);
+    // Its camera is named otherwise and its action is wider.
+    let c = lerobot_written(dir.path(), "c", "3", &["32", "20", "front", "8"]);
+    let merged = dir.path().join("reconciled");
+    let merge = |extra: &[&str]| {
+        dexjoco()
+            .args(["dataset", "merge"])
+            .arg(&a)
+            .arg(&c)
+            .arg("--out")
+            .arg(&merged)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = merge(&[]);
+    assert!(
+        !o.status.success() && said(&o).contains("--rename"),
+        "{}",
+        said(&o)
+    );
+    let rename = "observation.images.front=observation.images.top";
+    let o = merge(&["--rename", rename]);
+    assert!(
+        !o.status.success() && said(&o).contains("--pad"),
+        "{}",
+        said(&o)
+    );
+    assert!(!merged.exists(), "a refused merge wrote something");
+    let o = merge(&["--rename", rename, "--pad", "-q"]);
+    assert!(o.status.success(), "{}", said(&o));
+    let flags = ["--exact-video", "--columns", "--offset"];
+    compare(
+        &a,
+        &merged,
+        &[0, 1, 2, 3, 4],
+        &[&flags[..], &["0"]].concat(),
+    );
+    compare(
+        &c,
+        &merged,
+        &[0, 1, 2],
+        &[&flags[..], &["5", "--rename", rename]].concat(),
+    );
+    dexjoco_testkit::lerobot_doctor_passes(&merged);
+}

@@ -17,6 +17,9 @@ pub enum DatasetCommand {
     /// Deal episodes into train/validation/... datasets by a seeded shuffle stratified
     /// per task.
     Split(DatasetSplitArgs),
+    /// Join several datasets into one: features renamed by a mapping, 1-D float widths
+    /// zero-padded, tasks and per-episode columns unioned, videos copied whole.
+    Merge(DatasetMergeArgs),
 }
 
 /// `dataset info` options.
@@ -101,6 +104,36 @@ pub struct DatasetSplitArgs {
     /// Output folder (default: DATASET_split beside it).
     #[arg(short, long)]
     pub out: Option<PathBuf>,
+    /// Replace OUT if it exists.
+    #[arg(long)]
+    pub overwrite: bool,
+}
+
+/// `dataset merge` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Episodes in the order of the datasets given. Every dataset must have the same features
+(after --rename) with the same dtype and shape (1-D float features of different widths
+with --pad), the same fps and the same video codec; what differs is named. A per-episode
+column some datasets lack is null for their episodes.
+
+Examples:
+  dexjoco-data dataset merge run1/convert/lerobot-v3 run2/convert/lerobot-v3 --out both/
+  dexjoco-data dataset merge sim/ real/ --rename observation.images.cam_high=observation.images.third_person --out all/
+  dexjoco-data dataset merge click_mouse/ hanoi_bimanual/ --pad --out all/   # 23- and 46-wide actions")]
+pub struct DatasetMergeArgs {
+    /// The dataset folders, in order (two or more).
+    #[arg(value_name = "DATASET", required = true, num_args = 2..)]
+    pub datasets: Vec<PathBuf>,
+    /// Output dataset folder.
+    #[arg(short, long)]
+    pub out: PathBuf,
+    /// Rename a feature in every dataset before merging: OLD=NEW (repeatable).
+    #[arg(long, value_name = "OLD=NEW")]
+    pub rename: Vec<String>,
+    /// Zero-pad 1-D float features of different widths to the widest.
+    #[arg(long)]
+    pub pad: bool,
     /// Replace OUT if it exists.
     #[arg(long)]
     pub overwrite: bool,

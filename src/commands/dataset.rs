@@ -1,4 +1,4 @@
-//! `dexjoco-data dataset info|filter|split`: management of any LeRobot v3.0 dataset,
+//! `dexjoco-data dataset info|filter|split|merge`: management of any LeRobot v3.0 dataset,
 //! each writing a new dataset beside the source (never changed).
 
 use dexjoco_dataset::SubsetReport;
@@ -6,7 +6,9 @@ use dexjoco_dataset::SubsetReport;
 use crate::cli::{DatasetCommand, GlobalArgs};
 use crate::exit::ExitStatus;
 use crate::progress::Bar;
-use crate::settings::{DatasetFilterSettings, DatasetSplitSettings, dataset_or_default};
+use crate::settings::{
+    DatasetFilterSettings, DatasetMergeSettings, DatasetSplitSettings, dataset_or_default,
+};
 
 /// Runs a `dataset` subcommand.
 pub fn run(global: &GlobalArgs, cmd: DatasetCommand) -> anyhow::Result<ExitStatus> {
@@ -49,6 +51,19 @@ pub fn run(global: &GlobalArgs, cmd: DatasetCommand) -> anyhow::Result<ExitStatu
                 errln!("{}", describe(report, &at.display().to_string()));
                 outln!("{}", at.display());
             }
+        }
+        DatasetCommand::Merge(args) => {
+            let DatasetMergeSettings {
+                datasets,
+                options,
+                out,
+                overwrite,
+            } = DatasetMergeSettings::resolve(args)?;
+            let bar = Bar::new("merge", global.quiet);
+            let report = dexjoco_dataset::merge(&datasets, &options, &out, overwrite, &bar)?;
+            bar.finish();
+            errln!("{}", describe(&report, &out.display().to_string()));
+            outln!("{}", out.display());
         }
     }
     Ok(ExitStatus::Success)

@@ -2,10 +2,10 @@
 
 use std::path::{Path, PathBuf};
 
-use dexjoco_dataset::{Predicate, Selection, SplitSizes};
+use dexjoco_dataset::{MergeOptions, Predicate, Selection, SplitSizes};
 
 use super::{must_exist, outputs_apart, usage};
-use crate::cli::{DatasetFilterArgs, DatasetSplitArgs, GlobalArgs};
+use crate::cli::{DatasetFilterArgs, DatasetMergeArgs, DatasetSplitArgs, GlobalArgs};
 
 /// The dataset a `dataset` subcommand reads: the one given, else convert's.
 pub fn dataset_or_default(
@@ -149,6 +149,59 @@ impl DatasetSplitSettings {
             dataset,
             sizes,
             seed,
+            out,
+            overwrite,
+        })
+    }
+}
+
+/// `dataset merge`.
+pub struct DatasetMergeSettings {
+    /// The source datasets, in order.
+    pub datasets: Vec<PathBuf>,
+    /// How they are reconciled.
+    pub options: MergeOptions,
+    /// The output dataset.
+    pub out: PathBuf,
+    /// Replace `out`.
+    pub overwrite: bool,
+}
+
+impl DatasetMergeSettings {
+    /// Resolves `dataset merge`'s arguments.
+    pub fn resolve(args: DatasetMergeArgs) -> anyhow::Result<Self> {
+        let DatasetMergeArgs {
+            datasets,
+            out,
+            rename,
+            pad,
+            overwrite,
+        } = args;
+        for d in &datasets {
+            must_exist(
+                d,
+                "give LeRobot v3.0 dataset folders (holding meta/info.json)",
+            )?;
+        }
+        let inputs: Vec<&Path> = datasets.iter().map(PathBuf::as_path).collect();
+        outputs_apart(&[&out], &inputs)?;
+        let rename = rename
+            .iter()
+            .map(|r| {
+                r.split_once('=')
+                    .filter(|(a, b)| !a.trim().is_empty() && !b.trim().is_empty())
+                    .map(|(a, b)| (a.trim().to_owned(), b.trim().to_owned()))
+                    .ok_or_else(|| {
+                        usage(
+                            format!("--rename {r:?}: expected OLD=NEW"),
+                            "as --rename observation.images.cam_high=observation.images.top",
+                        )
+                    })
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        Ok(Self {
+            datasets,
+            options: MergeOptions { rename, pad },
             out,
             overwrite,
         })

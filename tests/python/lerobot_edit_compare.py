@@ -7,9 +7,14 @@ computation from every frame (min, max, mean, std) and lerobot's get_feature_sta
 Prints a JSON report; exits 1 on the first difference, naming it.
 
 usage: lerobot_edit_compare.py SOURCE EDITED KEPT [--exact-video] [--columns] [--stats-report]
+                               [--offset N] [--rename OLD=NEW]
   KEPT: the source episode indices the edited dataset holds, in its order (JSON list)
   --columns: also compare every per-episode column but the placement ones
   --stats-report: report the statistics' differences without failing on them
+  --offset N: the kept episodes start at episode N of EDITED (a merge's later source)
+  --rename OLD=NEW: the source's feature OLD is NEW in EDITED
+A numeric column wider in EDITED than in SOURCE must hold the source's values then zeros
+(a merge's padding). Statistics are checked without --offset only.
 """
 import json
 import os
@@ -27,6 +32,12 @@ source, edited, kept = sys.argv[1], sys.argv[2], json.loads(sys.argv[3])
 exact_video = "--exact-video" in sys.argv
 columns = "--columns" in sys.argv
 stats_report = "--stats-report" in sys.argv  # report statistics differences, never fail on them
+def flag(name, default):
+    return sys.argv[sys.argv.index(name) + 1] if name in sys.argv else default
+
+
+offset = int(flag("--offset", "0"))
+rename = dict([flag("--rename", "=").split("=", 1)]) if "--rename" in sys.argv else {}
 src = LeRobotDataset("local/src", root=source, video_backend="pyav")
 out = LeRobotDataset("local/out", root=edited, video_backend="pyav")
 
@@ -36,7 +47,7 @@ def fail(msg):
     sys.exit(1)
 
 
-if out.num_episodes != len(kept):
+if out.num_episodes < offset + len(kept) or (offset == 0 and out.num_episodes != len(kept) and "--offset" not in sys.argv):
     fail(f"{out.num_episodes} episodes, expected {len(kept)}")
 
 
@@ -49,6 +60,7 @@ numeric = [k for k, f in src.meta.features.items() if f["dtype"] in ("float32", 
 video_diffs = []
 frames = 0
 for new, old in enumerate(kept):
+    new += offset
     a0, a1 = episode_range(src, old)
     b0, b1 = episode_range(out, new)
     if a1 - a0 != b1 - b0:
@@ -61,10 +73,13 @@ for new, old in enumerate(kept):
         if int(y["frame_index"]) != int(x["frame_index"]) or y["task"] != x["task"]:
             fail(f"episode {new} frame {k}: frame_index or task differs")
         for key in numeric + ["timestamp"]:
-            if not np.array_equal(np.asarray(x[key]), np.asarray(y[key])):
+            xa, ya = np.atleast_1d(np.asarray(x[key])), np.atleast_1d(np.asarray(y[rename.get(key, key)]))
+            if ya.shape[0] > xa.shape[0] and not ya[xa.shape[0]:].any():
+                ya = ya[: xa.shape[0]]  # zero-padded by a merge
+            if not np.array_equal(xa, ya):
                 fail(f"episode {new} frame {k}: {key} differs")
         for key in src.meta.camera_keys:
-            d = np.abs(np.asarray(x[key], dtype=np.float64) - np.asarray(y[key], dtype=np.float64)) * 255.0
+            d = np.abs(np.asarray(x[key], dtype=np.float64) - np.asarray(y[rename.get(key, key)], dtype=np.float64)) * 255.0
             video_diffs.append(float(d.mean()))
             if exact_video and d.max() > 0:
                 fail(f"episode {new} frame {k}: {key} decodes differently (max {d.max():.1f} levels)")
@@ -74,7 +89,7 @@ if video_diffs and max(video_diffs) > 3.0:
 # Statistics against every frame's values.
 hf = out.hf_dataset.with_format("numpy")
 stats_check = {}
-for key in numeric:
+for key in (numeric if offset == 0 and not rename else []):
     v = np.stack(hf[key]).astype(np.float64)
     s = out.meta.stats[key]
     for name, want in [("min", v.min(0)), ("max", v.max(0)), ("mean", v.mean(0)), ("std", v.std(0))]:
@@ -93,20 +108,45 @@ for key in numeric:
             if err > 1e-5 * max(1.0, float(np.abs(v).max())) and not stats_report:
                 fail(f"stats {key} {q}: off by {err} from lerobot's get_feature_stats")
 
+
+
+def same_value(x, y):
+    """Equal values; numbers (and arrays of them) to 1e-9, as recomputed statistics."""
+    try:
+        fx = np.asarray(x, dtype=np.float64)
+        fy = np.asarray(y, dtype=np.float64)
+        return fx.shape == fy.shape and np.allclose(fx, fy, rtol=1e-9, atol=1e-9, equal_nan=True)
+    except (TypeError, ValueError):
+        return str(x) == str(y)
+
+
 if columns:
     def rows(root):
         files = sorted(p for p in __import__("pathlib").Path(root, "meta/episodes").rglob("*.parquet"))
         return pd.concat([pd.read_parquet(f) for f in files]).sort_values("episode_index").reset_index(drop=True)
     placement = ("episode_index", "data/", "dataset_from_index", "dataset_to_index", "meta/episodes/", "videos/")
+    # Renumbered by the edit: their per-episode statistics must describe the new numbers.
+    renumbered = ("stats/episode_index/", "stats/index/", "stats/task_index/")
     a, b = rows(source), rows(edited)
+    for new, old in enumerate(kept):
+        new += offset
+        b0, b1 = episode_range(out, new)
+        for c, want in [("stats/episode_index/min", new), ("stats/episode_index/max", new),
+                        ("stats/index/min", b0), ("stats/index/max", b1 - 1)]:
+            if c in b.columns and not same_value(b[c][new], [want]):
+                fail(f"per-episode column {c}, episode {new}: {b[c][new]!r}, expected [{want}]")
     for c in a.columns:
-        if c.startswith(placement):
+        if c.startswith(placement) or c.startswith(renumbered):
             continue
-        if c not in b.columns:
+        bc = c
+        for was, now in rename.items():
+            bc = bc.replace(f"/{was}/", f"/{now}/")
+        if bc not in b.columns:
             fail(f"per-episode column {c} is gone")
         for new, old in enumerate(kept):
-            if str(a[c][old]) != str(b[c][new]):
-                fail(f"per-episode column {c}, episode {new}: {b[c][new]!r} != source {a[c][old]!r}")
+            new += offset
+            if not same_value(a[c][old], b[bc][new]):
+                fail(f"per-episode column {c}, episode {new}: {b[bc][new]!r} != source {a[c][old]!r}")
 
 print(json.dumps({
     "ok": True,

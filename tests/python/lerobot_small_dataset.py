@@ -3,7 +3,7 @@ add_frame / save_episode / finalize), as a dataset downloaded from the Hub is ma
 EPISODES episodes of two tasks, lengths LENGTH + 7 * (i % 4), a 6-wide action, a 4-wide
 state and one SIZExSIZE camera whose frames encode (episode, frame) as colours.
 
-usage: lerobot_small_dataset.py OUT_ROOT EPISODES [SIZE (32)] [LENGTH (20)]
+usage: lerobot_small_dataset.py OUT_ROOT EPISODES [SIZE (32)] [LENGTH (20)] [CAMERA (top)] [ACTION_WIDTH (6)]
 """
 import os
 import sys
@@ -17,10 +17,12 @@ from lerobot.datasets.lerobot_dataset import LeRobotDataset  # noqa: E402
 out, episodes = sys.argv[1], int(sys.argv[2])
 size = int(sys.argv[3]) if len(sys.argv) > 3 else 32
 length = int(sys.argv[4]) if len(sys.argv) > 4 else 20
+camera = "observation.images." + (sys.argv[5] if len(sys.argv) > 5 else "top")
+width = int(sys.argv[6]) if len(sys.argv) > 6 else 6
 features = {
-    "action": {"dtype": "float32", "shape": (6,), "names": None},
+    "action": {"dtype": "float32", "shape": (width,), "names": None},
     "observation.state": {"dtype": "float32", "shape": (4,), "names": None},
-    "observation.images.top": {
+    camera: {
         "dtype": "video",
         "shape": (size, size, 3),
         "names": ["height", "width", "channels"],
@@ -37,9 +39,9 @@ for e in range(episodes):
         img[:, :, 1] = (k * 9) % 256
         img[: size // 2, :, 2] = 200
         ds.add_frame({
-            "action": rng.normal(size=6).astype(np.float32),
+            "action": rng.normal(size=width).astype(np.float32),
             "observation.state": rng.normal(size=4).astype(np.float32),
-            "observation.images.top": img,
+            camera: img,
             "task": task,
         })
     ds.save_episode()

@@ -152,3 +152,96 @@ fn per_episode(episodes: &RecordBatch, key: &str) -> Result<Option<FeatureStats>
         .collect();
     Ok(aggregate(&each.iter().collect::<Vec<_>>()))
 }
+
+/// The per-episode columns whose values an edit renumbers.
+const RENUMBERED: [&str; 3] = ["episode_index", "index", "task_index"];
+
+/// `episodes` with the per-episode statistics of the renumbered columns
+/// (`stats/episode_index/...`, `stats/index/...`, `stats/task_index/...`) recomputed
+/// from the written data files `data`, where those columns exist.
+pub(crate) fn restat_renumbered(
+    episodes: &RecordBatch,
+    data: &[PathBuf],
+) -> Result<RecordBatch, EditError> {
+    let present: Vec<&str> = RENUMBERED
+        .into_iter()
+        .filter(|c| episodes.column_by_name(&format!("stats/{c}/min")).is_some())
+        .collect();
+    if present.is_empty() {
+        return Ok(episodes.clone());
+    }
+    // Each renumbered column's values, per episode.
+    let n = episodes.num_rows();
+    let mut values: BTreeMap<&str, Vec<Vec<f64>>> =
+        present.iter().map(|c| (*c, vec![Vec::new(); n])).collect();
+    for file in data {
+        let reader =
+            ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(file)?.into_parts().0)
+                .and_then(|b| b.build())
+                .map_err(|e| {
+                    EditError::Selection(format!("data file '{}': {e}", file.display()))
+                })?;
+        for batch in reader {
+            let batch = batch.map_err(|e| {
+                EditError::Selection(format!("data file '{}': {e}", file.display()))
+            })?;
+            let Some(episode) = batch.column_by_name("episode_index").and_then(flat_f64) else {
+                continue;
+            };
+            for c in &present {
+                let Some(v) = batch.column_by_name(c).and_then(flat_f64) else {
+                    continue;
+                };
+                let per = values.get_mut(c).expect("present");
+                for (e, x) in episode.iter().zip(v) {
+                    if let Some(slot) = per.get_mut(*e as usize) {
+                        slot.push(x);
+                    }
+                }
+            }
+        }
+    }
+    let schema = episodes.schema();
+    let mut columns = episodes.columns().to_vec();
+    for c in present {
+        let stats: Vec<Option<FeatureStats>> = values[c]
+            .iter()
+            .map(|v| (!v.is_empty()).then(|| column_stats(v, 1)))
+            .collect();
+        for (i, field) in schema.fields().iter().enumerate() {
+            let Some(stat) = field.name().strip_prefix(&format!("stats/{c}/")) else {
+                continue;
+            };
+            let pick = |s: &FeatureStats| -> Option<f64> {
+                match stat {
+                    "min" => Some(s.min[0]),
+                    "max" => Some(s.max[0]),
+                    "mean" => Some(s.mean[0]),
+                    "std" => Some(s.std[0]),
+                    "count" => Some(s.count as f64),
+                    q => QUANTILES
+                        .iter()
+                        .position(|(_, name)| *name == q)
+                        .map(|k| s.quantiles[k][0]),
+                }
+            };
+            let rows: Option<Vec<Vec<f64>>> = stats
+                .iter()
+                .map(|s| s.as_ref().and_then(pick).map(|x| vec![x]))
+                .collect();
+            let Some(rows) = rows else { continue };
+            let mut b =
+                arrow_array::builder::ListBuilder::new(arrow_array::builder::Float64Builder::new());
+            for r in rows {
+                b.values().append_slice(&r);
+                b.append(true);
+            }
+            let new: ArrayRef = std::sync::Arc::new(b.finish());
+            if let Ok(cast) = arrow_cast::cast(&new, field.data_type()) {
+                columns[i] = cast;
+            }
+        }
+    }
+    RecordBatch::try_new(schema, columns)
+        .map_err(|e| EditError::Selection(format!("episode rows: {e}")))
+}

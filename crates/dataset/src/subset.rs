@@ -113,6 +113,7 @@ pub fn write_subset(
         video_places.insert(key, places);
     }
     let episodes = episode_rows(ds, rows, &data.places, &video_places)?;
+    let episodes = stats::restat_renumbered(&episodes, &data.files)?;
     let meta = dir.join("meta");
     fs_err::create_dir_all(meta.join("episodes/chunk-000"))?;
     write_parquet(&meta.join("episodes/chunk-000/file-000.parquet"), &episodes)?;
@@ -152,11 +153,11 @@ fn used_tasks(
 
 /// Where a kept episode's frames are in the output.
 #[derive(Debug, Clone, Copy)]
-struct DataPlace {
-    chunk: i64,
-    file: i64,
-    from: i64,
-    to: i64,
+pub(crate) struct DataPlace {
+    pub chunk: i64,
+    pub file: i64,
+    pub from: i64,
+    pub to: i64,
 }
 
 struct WrittenData {
@@ -295,7 +296,17 @@ fn episode_rows(
     let take = UInt32Array::from(rows.iter().map(|r| *r as u32).collect::<Vec<_>>());
     let kept = arrow_select::take::take_record_batch(&ds.episodes, &take)
         .map_err(|e| EditError::Selection(format!("episode rows: {e}")))?;
-    let n = rows.len() as i64;
+    placed(&kept, data, videos)
+}
+
+/// Episode rows `kept` (in output order) with their placement columns rewritten to
+/// `data` and `videos`, every other column as it is.
+pub(crate) fn placed(
+    kept: &RecordBatch,
+    data: &[DataPlace],
+    videos: &BTreeMap<String, Vec<VideoPlace>>,
+) -> Result<RecordBatch, EditError> {
+    let n = kept.num_rows() as i64;
     let mut ints: Vec<(String, Vec<i64>)> = vec![
         ("episode_index".into(), (0..n).collect()),
         (
@@ -314,8 +325,8 @@ fn episode_rows(
             "dataset_to_index".into(),
             data.iter().map(|p| p.to).collect(),
         ),
-        ("meta/episodes/chunk_index".into(), vec![0; rows.len()]),
-        ("meta/episodes/file_index".into(), vec![0; rows.len()]),
+        ("meta/episodes/chunk_index".into(), vec![0; n as usize]),
+        ("meta/episodes/file_index".into(), vec![0; n as usize]),
     ];
     let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
     for (key, places) in videos {
@@ -380,7 +391,7 @@ fn write_tasks(ds: &LeRobotDataset, names: &[String], meta: &Path) -> Result<(),
 
 /// `batch` with the integer columns named in `replace` swapped for new values (in each
 /// column's own type).
-fn with_columns(
+pub(crate) fn with_columns(
     batch: &RecordBatch,
     schema: &SchemaRef,
     replace: &[(&str, Vec<i64>)],
@@ -396,20 +407,20 @@ fn with_columns(
 }
 
 /// An integer column of `batch` as i64.
-fn ints(batch: &RecordBatch, name: &str) -> Option<Vec<i64>> {
+pub(crate) fn ints(batch: &RecordBatch, name: &str) -> Option<Vec<i64>> {
     let col = batch.column_by_name(name)?;
     let col = arrow_cast::cast(col, &DataType::Int64).ok()?;
     let col = col.as_any().downcast_ref::<Int64Array>()?;
     Some((0..col.len()).map(|i| col.value(i)).collect())
 }
 
-fn props() -> WriterProperties {
+pub(crate) fn props() -> WriterProperties {
     WriterProperties::builder()
         .set_compression(Compression::SNAPPY)
         .build()
 }
 
-fn write_parquet(path: &Path, batch: &RecordBatch) -> Result<(), EditError> {
+pub(crate) fn write_parquet(path: &Path, batch: &RecordBatch) -> Result<(), EditError> {
     let err = |e: parquet::errors::ParquetError| {
         EditError::Selection(format!("file '{}': {e}", path.display()))
     };
