@@ -223,65 +223,8 @@ fn our_labels_survive_a_filter_by_outcome_and_reruns_are_byte_identical() {
     filter(&again);
     assert!(tree(&out) == tree(&again), "a rerun wrote other bytes");
 
-    // Refusals name what to do.
-    let o = dexjoco()
-        .args(["dataset", "filter"])
-        .arg(&source)
-        .args(["--episodes", "0", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        !o.status.success() && said(&o).contains("--overwrite"),
-        "{}",
-        said(&o)
-    );
-    let o = dexjoco()
-        .args(["dataset", "filter"])
-        .arg(&source)
-        .args(["--where", "outcome/sucess == true"])
-        .output()
-        .unwrap();
-    assert!(
-        !o.status.success() && said(&o).contains("outcome/success"),
-        "an unknown column lists the columns: {}",
-        said(&o)
-    );
-    let o = dexjoco()
-        .args(["dataset", "filter"])
-        .arg(&source)
-        .args(["--episodes", &n.to_string()])
-        .output()
-        .unwrap();
-    assert!(
-        !o.status.success() && said(&o).contains("out of range"),
-        "{}",
-        said(&o)
-    );
-    let o = dexjoco()
-        .args(["dataset", "filter"])
-        .arg(&source)
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(2),
-        "no condition is a usage error: {}",
-        said(&o)
-    );
-    let o = dexjoco()
-        .args(["dataset", "filter"])
-        .arg(&source)
-        .args(["--episodes", "0", "--out"])
-        .arg(source.join("inner"))
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(2),
-        "an output inside the source: {}",
-        said(&o)
-    );
+    one_camera_matches_lerobots_remove_feature(dir.path(), &source, n);
+    refusals_name_what_to_do(&source, &out, n);
 }
 
 /// A dataset of `episodes` episodes made by lerobot's own writer under `dir/name`
@@ -383,4 +326,114 @@ fn merge_names_what_differs_then_reconciles_camera_names_and_widths() {
         &[&flags[..], &["5", "--rename", rename]].concat(),
     );
     dexjoco_testkit::lerobot_doctor_passes(&merged);
+}
+
+/// `dataset features` removing the wrist camera of `source` (our `n` episodes) and
+/// renaming the other, against lerobot's remove_feature.
+fn one_camera_matches_lerobots_remove_feature(dir: &Path, source: &Path, n: usize) {
+    // A camera removed, the other renamed; lerobot's remove_feature on the same input.
+    let (wrist, base) = (
+        "observation.images.handcam_rgb",
+        "observation.images.third_person",
+    );
+    let edited = dir.join("one_camera");
+    let rename = format!("{base}=observation.images.base");
+    succeeds(
+        dexjoco()
+            .args(["-q", "dataset", "features"])
+            .arg(source)
+            .args(["--remove", wrist, "--rename", &rename, "--out"])
+            .arg(&edited),
+    );
+    let theirs = dir.join("theirs_one_camera");
+    let feature_names = format!("['{wrist}']");
+    lerobot_edit(
+        source,
+        &theirs,
+        &[
+            "--operation.type",
+            "remove_feature",
+            "--operation.feature_names",
+            &feature_names,
+        ],
+    );
+    let all: Vec<usize> = (0..n).collect();
+    let flags = [
+        "--exact-video",
+        "--columns",
+        "--offset",
+        "0",
+        "--rename",
+        &rename,
+    ];
+    compare(
+        &theirs,
+        &edited,
+        &all,
+        &[&flags[..], &["--removed", wrist]].concat(),
+    );
+    dexjoco_testkit::lerobot_doctor_passes(&edited);
+}
+
+/// Refusals of `dataset filter` on `source` (`n` episodes), `out` existing.
+fn refusals_name_what_to_do(source: &Path, out: &Path, n: usize) {
+    // Refusals name what to do.
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(source)
+        .args(["--episodes", "0", "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && said(&o).contains("--overwrite"),
+        "{}",
+        said(&o)
+    );
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(source)
+        .args(["--where", "outcome/sucess == true"])
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && said(&o).contains("outcome/success"),
+        "an unknown column lists the columns: {}",
+        said(&o)
+    );
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(source)
+        .args(["--episodes", &n.to_string()])
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && said(&o).contains("out of range"),
+        "{}",
+        said(&o)
+    );
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(source)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "no condition is a usage error: {}",
+        said(&o)
+    );
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(source)
+        .args(["--episodes", "0", "--out"])
+        .arg(source.join("inner"))
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "an output inside the source: {}",
+        said(&o)
+    );
 }

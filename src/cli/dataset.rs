@@ -20,6 +20,8 @@ pub enum DatasetCommand {
     /// Join several datasets into one: features renamed by a mapping, 1-D float widths
     /// zero-padded, tasks and per-episode columns unioned, videos copied whole.
     Merge(DatasetMergeArgs),
+    /// Remove or rename features (a camera, the state) into a new dataset.
+    Features(DatasetFeaturesArgs),
 }
 
 /// `dataset info` options.
@@ -134,6 +136,34 @@ pub struct DatasetMergeArgs {
     /// Zero-pad 1-D float features of different widths to the widest.
     #[arg(long)]
     pub pad: bool,
+    /// Replace OUT if it exists.
+    #[arg(long)]
+    pub overwrite: bool,
+}
+
+/// `dataset features` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+A removed feature's data column, videos and per-episode columns are left out; a renamed
+one keeps its values under the new key (data column, video folder, per-episode columns).
+timestamp, frame_index, episode_index, index and task_index stay.
+
+Examples:
+  dexjoco-data dataset features ds/ --remove observation.images.handcam_rgb --out ds_one_camera/
+  dexjoco-data dataset features ds/ --rename observation.images.third_person=observation.images.base --out ds_renamed/")]
+pub struct DatasetFeaturesArgs {
+    /// The dataset folder (default: <work-dir>/convert/lerobot-v3).
+    #[arg(value_name = "DATASET")]
+    pub dataset: Option<PathBuf>,
+    /// Output dataset folder.
+    #[arg(short, long)]
+    pub out: PathBuf,
+    /// Leave out this feature (repeatable).
+    #[arg(long, value_name = "KEY")]
+    pub remove: Vec<String>,
+    /// Rename a feature: OLD=NEW (repeatable).
+    #[arg(long, value_name = "OLD=NEW")]
+    pub rename: Vec<String>,
     /// Replace OUT if it exists.
     #[arg(long)]
     pub overwrite: bool,

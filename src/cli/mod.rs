@@ -141,7 +141,8 @@ pub enum Command {
     /// A worker process of `eval` (started by it).
     #[command(hide = true)]
     EvalWorker(EvalWorkerArgs),
-    /// Manage any LeRobot v3.0 dataset: info, filter, split (a new dataset beside it).
+    /// Manage any LeRobot v3.0 dataset: info, filter, split, merge, remove or rename
+    /// features (each a new dataset; the source never changed).
     #[command(subcommand)]
     Dataset(DatasetCommand),
 }

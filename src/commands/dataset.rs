@@ -1,4 +1,4 @@
-//! `dexjoco-data dataset info|filter|split|merge`: management of any LeRobot v3.0 dataset,
+//! `dexjoco-data dataset info|filter|split|merge|features`: management of any LeRobot v3.0 dataset,
 //! each writing a new dataset beside the source (never changed).
 
 use dexjoco_dataset::SubsetReport;
@@ -7,7 +7,8 @@ use crate::cli::{DatasetCommand, GlobalArgs};
 use crate::exit::ExitStatus;
 use crate::progress::Bar;
 use crate::settings::{
-    DatasetFilterSettings, DatasetMergeSettings, DatasetSplitSettings, dataset_or_default,
+    DatasetFeaturesSettings, DatasetFilterSettings, DatasetMergeSettings, DatasetSplitSettings,
+    dataset_or_default,
 };
 
 /// Runs a `dataset` subcommand.
@@ -61,6 +62,19 @@ pub fn run(global: &GlobalArgs, cmd: DatasetCommand) -> anyhow::Result<ExitStatu
             } = DatasetMergeSettings::resolve(args)?;
             let bar = Bar::new("merge", global.quiet);
             let report = dexjoco_dataset::merge(&datasets, &options, &out, overwrite, &bar)?;
+            bar.finish();
+            errln!("{}", describe(&report, &out.display().to_string()));
+            outln!("{}", out.display());
+        }
+        DatasetCommand::Features(args) => {
+            let DatasetFeaturesSettings {
+                dataset,
+                options,
+                out,
+                overwrite,
+            } = DatasetFeaturesSettings::resolve(args, global)?;
+            let bar = Bar::new("features", global.quiet);
+            let report = dexjoco_dataset::edit_features(&dataset, &options, &out, overwrite, &bar)?;
             bar.finish();
             errln!("{}", describe(&report, &out.display().to_string()));
             outln!("{}", out.display());

@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 use dexjoco_dataset::{MergeOptions, Predicate, Selection, SplitSizes};
 
 use super::{must_exist, outputs_apart, usage};
-use crate::cli::{DatasetFilterArgs, DatasetMergeArgs, DatasetSplitArgs, GlobalArgs};
+use crate::cli::{
+    DatasetFeaturesArgs, DatasetFilterArgs, DatasetMergeArgs, DatasetSplitArgs, GlobalArgs,
+};
 
 /// The dataset a `dataset` subcommand reads: the one given, else convert's.
 pub fn dataset_or_default(
@@ -185,23 +187,76 @@ impl DatasetMergeSettings {
         }
         let inputs: Vec<&Path> = datasets.iter().map(PathBuf::as_path).collect();
         outputs_apart(&[&out], &inputs)?;
-        let rename = rename
-            .iter()
-            .map(|r| {
-                r.split_once('=')
-                    .filter(|(a, b)| !a.trim().is_empty() && !b.trim().is_empty())
-                    .map(|(a, b)| (a.trim().to_owned(), b.trim().to_owned()))
-                    .ok_or_else(|| {
-                        usage(
-                            format!("--rename {r:?}: expected OLD=NEW"),
-                            "as --rename observation.images.cam_high=observation.images.top",
-                        )
-                    })
-            })
-            .collect::<anyhow::Result<Vec<_>>>()?;
+        let rename = renames(&rename)?;
         Ok(Self {
             datasets,
-            options: MergeOptions { rename, pad },
+            options: MergeOptions {
+                rename,
+                pad,
+                ..MergeOptions::default()
+            },
+            out,
+            overwrite,
+        })
+    }
+}
+
+/// `OLD=NEW` pairs.
+fn renames(items: &[String]) -> anyhow::Result<Vec<(String, String)>> {
+    items
+        .iter()
+        .map(|r| {
+            r.split_once('=')
+                .filter(|(a, b)| !a.trim().is_empty() && !b.trim().is_empty())
+                .map(|(a, b)| (a.trim().to_owned(), b.trim().to_owned()))
+                .ok_or_else(|| {
+                    usage(
+                        format!("--rename {r:?}: expected OLD=NEW"),
+                        "as --rename observation.images.cam_high=observation.images.top",
+                    )
+                })
+        })
+        .collect()
+}
+
+/// `dataset features`.
+pub struct DatasetFeaturesSettings {
+    /// The source dataset.
+    pub dataset: PathBuf,
+    /// Renames and removals.
+    pub options: MergeOptions,
+    /// The output dataset.
+    pub out: PathBuf,
+    /// Replace `out`.
+    pub overwrite: bool,
+}
+
+impl DatasetFeaturesSettings {
+    /// Resolves `dataset features`' arguments.
+    pub fn resolve(args: DatasetFeaturesArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let DatasetFeaturesArgs {
+            dataset,
+            out,
+            remove,
+            rename,
+            overwrite,
+        } = args;
+        let dataset = dataset_or_default(dataset, global)?;
+        outputs_apart(&[&out], &[&dataset])?;
+        let rename = renames(&rename)?;
+        if remove.is_empty() && rename.is_empty() {
+            return Err(usage(
+                "dataset features: nothing to do".into(),
+                "give --remove KEY or --rename OLD=NEW",
+            ));
+        }
+        Ok(Self {
+            dataset,
+            options: MergeOptions {
+                rename,
+                pad: false,
+                remove,
+            },
             out,
             overwrite,
         })

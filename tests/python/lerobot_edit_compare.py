@@ -7,12 +7,13 @@ computation from every frame (min, max, mean, std) and lerobot's get_feature_sta
 Prints a JSON report; exits 1 on the first difference, naming it.
 
 usage: lerobot_edit_compare.py SOURCE EDITED KEPT [--exact-video] [--columns] [--stats-report]
-                               [--offset N] [--rename OLD=NEW]
+                               [--offset N] [--rename OLD=NEW] [--removed KEY]
   KEPT: the source episode indices the edited dataset holds, in its order (JSON list)
   --columns: also compare every per-episode column but the placement ones
   --stats-report: report the statistics' differences without failing on them
   --offset N: the kept episodes start at episode N of EDITED (a merge's later source)
   --rename OLD=NEW: the source's feature OLD is NEW in EDITED
+  --removed KEY: EDITED has left out feature KEY (its per-episode columns too)
 A numeric column wider in EDITED than in SOURCE must hold the source's values then zeros
 (a merge's padding). Statistics are checked without --offset only.
 """
@@ -38,6 +39,7 @@ def flag(name, default):
 
 offset = int(flag("--offset", "0"))
 rename = dict([flag("--rename", "=").split("=", 1)]) if "--rename" in sys.argv else {}
+removed = flag("--removed", None)
 src = LeRobotDataset("local/src", root=source, video_backend="pyav")
 out = LeRobotDataset("local/out", root=edited, video_backend="pyav")
 
@@ -137,6 +139,10 @@ if columns:
                 fail(f"per-episode column {c}, episode {new}: {b[c][new]!r}, expected [{want}]")
     for c in a.columns:
         if c.startswith(placement) or c.startswith(renumbered):
+            continue
+        if removed and (c.startswith(f"stats/{removed}/") or c.startswith(f"videos/{removed}/")):
+            if c in b.columns:
+                fail(f"per-episode column {c} of the removed feature is still there")
             continue
         bc = c
         for was, now in rename.items():

@@ -2,7 +2,8 @@
 //! dataset (ours, or one written by lerobot itself) and write a new one beside it,
 //! the source never changed. [`info`] describes a dataset; [`filter`] keeps the episodes
 //! a [`Selection`] picks; [`split`] deals them into seeded, per-task stratified splits;
-//! [`merge`] joins several datasets, reconciling feature names and widths.
+//! [`merge`] joins several datasets, reconciling feature names and widths;
+//! [`edit_features`] renames and removes features.
 //! Every output is written whole into a staging folder and renamed into place, episodes
 //! re-indexed, every per-episode column kept, videos cut by stream copy (bit-exact) and
 //! statistics recomputed.
@@ -18,7 +19,7 @@ mod videos;
 
 pub use error::EditError;
 pub use info::{DatasetSummary, FeatureSummary, info};
-pub use merge::{MergeOptions, merge};
+pub use merge::{MergeOptions, edit_features, merge};
 pub use select::{Comparison, Predicate, Selection};
 pub use split::{SplitPlan, SplitSizes, plan_split, split};
 pub use subset::{SubsetReport, filter, write_subset};

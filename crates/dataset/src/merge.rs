@@ -30,16 +30,65 @@ pub struct MergeOptions {
     pub rename: Vec<(String, String)>,
     /// Zero-pad 1-D float features of different widths to the widest.
     pub pad: bool,
+    /// Features left out (by their name after `rename`): data columns, videos and their
+    /// per-episode columns.
+    pub remove: Vec<String>,
 }
+
+/// Columns every LeRobot dataset needs, never removed.
+const REQUIRED: [&str; 5] = [
+    "timestamp",
+    "frame_index",
+    "episode_index",
+    "index",
+    "task_index",
+];
 
 /// A source prepared for merging: its features under their merged names.
 struct Part {
     ds: LeRobotDataset,
     /// Merged name of each source feature key.
     names: BTreeMap<String, String>,
+    /// Merged names of the features left out.
+    removed: Vec<String>,
 }
 
 impl Part {
+    /// Opens `source` with `options`' renames and removals.
+    fn open(source: &Path, options: &MergeOptions) -> Result<Self, EditError> {
+        let ds = LeRobotDataset::open(source)?;
+        let names = ds
+            .features()
+            .keys()
+            .map(|k| {
+                let new = options
+                    .rename
+                    .iter()
+                    .find(|(o, _)| o == k)
+                    .map_or(k, |(_, n)| n);
+                (k.clone(), new.clone())
+            })
+            .collect();
+        Ok(Self {
+            ds,
+            names,
+            removed: options.remove.clone(),
+        })
+    }
+
+    /// Whether the source feature (or data column) `key` is kept.
+    fn keeps(&self, key: &str) -> bool {
+        !self.removed.iter().any(|r| r == self.name(key))
+    }
+
+    /// Whether the per-episode column `column` (merged name) belongs to a removed feature.
+    fn drops_column(&self, column: &str) -> bool {
+        self.removed.iter().any(|r| {
+            column.starts_with(&format!("videos/{r}/"))
+                || column.starts_with(&format!("stats/{r}/"))
+        })
+    }
+
     fn name<'a>(&'a self, key: &'a str) -> &'a str {
         self.names.get(key).map_or(key, String::as_str)
     }
@@ -77,24 +126,51 @@ pub fn merge(
     let mut parts = Vec::new();
     for s in sources {
         check_output(s, out, overwrite)?;
-        let ds = LeRobotDataset::open(s)?;
-        let names = ds
-            .features()
-            .keys()
-            .map(|k| {
-                let new = options
-                    .rename
-                    .iter()
-                    .find(|(o, _)| o == k)
-                    .map_or(k, |(_, n)| n);
-                (k.clone(), new.clone())
-            })
-            .collect();
-        parts.push(Part { ds, names });
+        parts.push(Part::open(s, options)?);
     }
     let features = merged_features(&parts, options.pad)?;
     let staged = StagedDir::begin(out)?;
     let report = write_merged(&parts, &features, staged.path(), progress)?;
+    staged.commit()?;
+    Ok(report)
+}
+
+/// Writes `source` with features renamed and removed (`options.rename`,
+/// `options.remove`) as a new dataset at `out`; everything else as `merge` writes it.
+pub fn edit_features(
+    source: &Path,
+    options: &MergeOptions,
+    out: &Path,
+    overwrite: bool,
+    progress: &dyn Progress,
+) -> Result<SubsetReport, EditError> {
+    check_output(source, out, overwrite)?;
+    let part = Part::open(source, options)?;
+    let features = part.ds.features();
+    for key in options.rename.iter().map(|(o, _)| o).chain(&options.remove) {
+        let known = features.contains_key(key) || part.names.values().any(|n| n == key);
+        if !known {
+            return Err(EditError::Selection(format!(
+                "no feature {key:?} in '{}' (its features: {})",
+                source.display(),
+                features.keys().cloned().collect::<Vec<_>>().join(", ")
+            )));
+        }
+    }
+    if let Some(r) = options
+        .remove
+        .iter()
+        .find(|r| REQUIRED.contains(&r.as_str()))
+    {
+        return Err(EditError::Selection(format!(
+            "{r} cannot be removed: every LeRobot dataset has {}",
+            REQUIRED.join(", ")
+        )));
+    }
+    let parts = [part];
+    let merged = merged_features(&parts, false)?;
+    let staged = StagedDir::begin(out)?;
+    let report = write_merged(&parts, &merged, staged.path(), progress)?;
     staged.commit()?;
     Ok(report)
 }
@@ -106,7 +182,9 @@ fn merged_features(parts: &[Part], pad: bool) -> Result<Map<String, Value>, Edit
     let first = &parts[0];
     let mut merged = Map::new();
     for (k, f) in first.ds.features() {
-        merged.insert(first.name(&k).to_owned(), f);
+        if first.keeps(&k) {
+            merged.insert(first.name(&k).to_owned(), f);
+        }
     }
     for p in &parts[1..] {
         if (p.ds.fps - first.ds.fps).abs() > 1e-9 {
@@ -396,6 +474,10 @@ fn conform(
     let mut fields = Vec::new();
     let mut columns = Vec::new();
     for (field, col) in batch.schema().fields().iter().zip(batch.columns()) {
+        if !p.keeps(field.name()) {
+            changed = true;
+            continue;
+        }
         let name = p.name(field.name()).to_owned();
         changed |= name != *field.name();
         let width = features.get(&name).and_then(|f| f["shape"][0].as_u64());
@@ -546,6 +628,7 @@ fn merged_episode_rows(parts: &[Part]) -> Result<RecordBatch, EditError> {
             .iter()
             .zip(p.ds.episodes.columns())
             .map(|(f, c)| (p.column_name(f.name()), c.clone()))
+            .filter(|(name, _)| !p.drops_column(name))
             .collect();
         for (name, col) in &named {
             if !fields.iter().any(|f| f.name() == name) {
