@@ -174,7 +174,25 @@ fn filter_and_split_match_lerobot_edit_dataset_on_a_dataset_lerobot_wrote() {
         assert_eq!(info["episodes"], kept.len());
         assert_eq!(info["splits"][name], format!("0:{}", kept.len()));
     }
+    restat_matches_lerobots_recompute_stats(dir.path(), &source);
     assert!(before == tree(&source), "the source changed");
+}
+
+/// `dataset stats` on a copy of `source` against lerobot's recompute_stats: the same
+/// frames; ours exact from every frame, lerobot's combined per episode.
+fn restat_matches_lerobots_recompute_stats(dir: &Path, source: &Path) {
+    let ours = dir.join("restat");
+    dexjoco_formats::fs::copy_tree(source, &ours).unwrap();
+    succeeds(dexjoco().args(["-q", "dataset", "stats"]).arg(&ours));
+    assert!(
+        ours.join("meta/stats.json.bak").exists(),
+        "lerobot's own stats were not exact"
+    );
+    let theirs = dir.join("theirs_restat");
+    lerobot_edit(source, &theirs, &["--operation.type", "recompute_stats"]);
+    let all: Vec<usize> = (0..8).collect();
+    compare(source, &theirs, &all, &["--stats-report"]);
+    compare(&ours, &ours, &[], &["--stats-only"]);
 }
 
 #[test]
@@ -224,6 +242,7 @@ fn our_labels_survive_a_filter_by_outcome_and_reruns_are_byte_identical() {
     assert!(tree(&out) == tree(&again), "a rerun wrote other bytes");
 
     one_camera_matches_lerobots_remove_feature(dir.path(), &source, n);
+    stats_in_place_equal_converts(dir.path(), &source);
     refusals_name_what_to_do(&source, &out, n);
 }
 
@@ -436,4 +455,61 @@ fn refusals_name_what_to_do(source: &Path, out: &Path, n: usize) {
         "an output inside the source: {}",
         said(&o)
     );
+}
+
+/// `dataset stats --norm-stats` on a copy of `source` (converted from `dir/work`'s augment
+/// output) writes the norm_stats.json `convert --norm-stats` writes for the same
+/// episodes, byte for byte, and exact statistics (the previous file kept); an edit of a
+/// dataset that has norm_stats.json writes it again for its own frames.
+fn stats_in_place_equal_converts(dir: &Path, source: &Path) {
+    let work = dir.join("work");
+    let with_norm = dir.join("with_norm");
+    succeeds(
+        dexjoco()
+            .args([
+                "-q",
+                "--work-dir",
+                work.to_str().unwrap(),
+                "convert",
+                "--norm-stats",
+                "--out",
+            ])
+            .arg(&with_norm),
+    );
+    let copy = dir.join("restat");
+    dexjoco_formats::fs::copy_tree(source, &copy).unwrap();
+    let o = succeeds(
+        dexjoco()
+            .args(["dataset", "stats", "--norm-stats"])
+            .arg(&copy),
+    );
+    assert!(said(&o).contains("stats.json"), "{}", said(&o));
+    let norm = |d: &Path| fs_err::read_to_string(d.join("norm_stats.json")).unwrap();
+    assert_eq!(norm(&copy), norm(&with_norm));
+    let n = python_json(
+        "lerobot_edit_compare.py",
+        &[
+            copy.to_str().unwrap(),
+            copy.to_str().unwrap(),
+            "[]",
+            "--stats-only",
+        ],
+    );
+    assert_eq!(n["ok"], true, "{n}");
+    // Filtered: its norm_stats.json is the one `dataset stats` computes for it.
+    let filtered = dir.join("with_norm_filtered");
+    succeeds(
+        dexjoco()
+            .args(["-q", "dataset", "filter"])
+            .arg(&with_norm)
+            .args(["--episodes", "0", "--drop", "--out"])
+            .arg(&filtered),
+    );
+    let carried = norm(&filtered);
+    succeeds(
+        dexjoco()
+            .args(["-q", "dataset", "stats", "--norm-stats"])
+            .arg(&filtered),
+    );
+    assert_eq!(carried, norm(&filtered));
 }

@@ -22,6 +22,9 @@ pub enum DatasetCommand {
     Merge(DatasetMergeArgs),
     /// Remove or rename features (a camera, the state) into a new dataset.
     Features(DatasetFeaturesArgs),
+    /// Recompute meta/stats.json exactly from all frames, in place (the previous one kept
+    /// as stats.json.bak), and openpi's norm_stats.json on request.
+    Stats(DatasetStatsArgs),
 }
 
 /// `dataset info` options.
@@ -167,4 +170,25 @@ pub struct DatasetFeaturesArgs {
     /// Replace OUT if it exists.
     #[arg(long)]
     pub overwrite: bool,
+}
+
+/// `dataset stats` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Numeric features from every frame (min, max, mean, std, quantiles: as lerobot's
+get_feature_stats on all frames, not merged per-episode estimates); video features
+combined from the episodes' own statistics. The new stats.json is written atomically; the
+previous one, where it differed, is kept as meta/stats.json.bak, and the largest change per
+feature is printed. Edits (filter, split, merge, features) recompute both files already.
+
+Examples:
+  dexjoco-data dataset stats ~/.cache/huggingface/lerobot/lerobot/pusht
+  dexjoco-data dataset stats ds/ --norm-stats --norm-stats-horizon 10   # pi0.5 on DexJoCo")]
+pub struct DatasetStatsArgs {
+    /// The dataset folder (default: <work-dir>/convert/lerobot-v3).
+    #[arg(value_name = "DATASET")]
+    pub dataset: Option<PathBuf>,
+    /// openpi's statistics.
+    #[command(flatten)]
+    pub norm_stats: super::NormStatsArgs,
 }

@@ -1,4 +1,4 @@
-//! `dexjoco-data dataset info|filter|split|merge|features`: management of any LeRobot v3.0 dataset,
+//! `dexjoco-data dataset info|filter|split|merge|features|stats`: management of any LeRobot v3.0 dataset,
 //! each writing a new dataset beside the source (never changed).
 
 use dexjoco_dataset::SubsetReport;
@@ -78,6 +78,27 @@ pub fn run(global: &GlobalArgs, cmd: DatasetCommand) -> anyhow::Result<ExitStatu
             bar.finish();
             errln!("{}", describe(&report, &out.display().to_string()));
             outln!("{}", out.display());
+        }
+        DatasetCommand::Stats(args) => {
+            let dataset = dataset_or_default(args.dataset, global)?;
+            let norm = crate::settings::norm_stats_options(&args.norm_stats);
+            let report = dexjoco_dataset::restat(&dataset, norm)?;
+            for (feature, off) in &report.previous_off_by {
+                errln!("  {feature:<40} previous statistics off by up to {off:.6}");
+            }
+            errln!(
+                "wrote {} ({} features){}{}",
+                dataset.join("meta/stats.json").display(),
+                report.features,
+                report.backup.as_ref().map_or(String::new(), |b| format!(
+                    "; the previous one kept as {}",
+                    b.display()
+                )),
+                report
+                    .norm_stats
+                    .as_ref()
+                    .map_or(String::new(), |n| format!("; and {}", n.display()))
+            );
         }
     }
     Ok(ExitStatus::Success)

@@ -404,7 +404,7 @@ impl ConvertSettings {
 }
 
 /// openpi's normalization statistics options, when `--norm-stats` asks for them.
-fn norm_stats_options(args: &NormStatsArgs) -> Option<NormStatsOptions> {
+pub(crate) fn norm_stats_options(args: &NormStatsArgs) -> Option<NormStatsOptions> {
     args.norm_stats.then_some(NormStatsOptions {
         action_horizon: args.norm_stats_horizon,
         batch_size: args.norm_stats_batch,

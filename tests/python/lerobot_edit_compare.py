@@ -7,13 +7,14 @@ computation from every frame (min, max, mean, std) and lerobot's get_feature_sta
 Prints a JSON report; exits 1 on the first difference, naming it.
 
 usage: lerobot_edit_compare.py SOURCE EDITED KEPT [--exact-video] [--columns] [--stats-report]
-                               [--offset N] [--rename OLD=NEW] [--removed KEY]
+                               [--offset N] [--rename OLD=NEW] [--removed KEY] [--stats-only]
   KEPT: the source episode indices the edited dataset holds, in its order (JSON list)
   --columns: also compare every per-episode column but the placement ones
   --stats-report: report the statistics' differences without failing on them
   --offset N: the kept episodes start at episode N of EDITED (a merge's later source)
   --rename OLD=NEW: the source's feature OLD is NEW in EDITED
   --removed KEY: EDITED has left out feature KEY (its per-episode columns too)
+  --stats-only: only EDITED's statistics against its own frames (KEPT unused)
 A numeric column wider in EDITED than in SOURCE must hold the source's values then zeros
 (a merge's padding). Statistics are checked without --offset only.
 """
@@ -49,7 +50,10 @@ def fail(msg):
     sys.exit(1)
 
 
-if out.num_episodes < offset + len(kept) or (offset == 0 and out.num_episodes != len(kept) and "--offset" not in sys.argv):
+stats_only = "--stats-only" in sys.argv
+if stats_only:
+    kept = []
+elif out.num_episodes < offset + len(kept) or (offset == 0 and out.num_episodes != len(kept) and "--offset" not in sys.argv):
     fail(f"{out.num_episodes} episodes, expected {len(kept)}")
 
 

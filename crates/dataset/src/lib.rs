@@ -3,7 +3,7 @@
 //! the source never changed. [`info`] describes a dataset; [`filter`] keeps the episodes
 //! a [`Selection`] picks; [`split`] deals them into seeded, per-task stratified splits;
 //! [`merge`] joins several datasets, reconciling feature names and widths;
-//! [`edit_features`] renames and removes features.
+//! [`edit_features`] renames and removes features; [`restat`] recomputes statistics.
 //! Every output is written whole into a staging folder and renamed into place, episodes
 //! re-indexed, every per-episode column kept, videos cut by stream copy (bit-exact) and
 //! statistics recomputed.
@@ -11,6 +11,7 @@
 mod error;
 mod info;
 mod merge;
+mod restat;
 mod select;
 mod split;
 mod stats;
@@ -20,6 +21,7 @@ mod videos;
 pub use error::EditError;
 pub use info::{DatasetSummary, FeatureSummary, info};
 pub use merge::{MergeOptions, edit_features, merge};
+pub use restat::{RestatReport, restat};
 pub use select::{Comparison, Predicate, Selection};
 pub use split::{SplitPlan, SplitSizes, plan_split, split};
 pub use subset::{SubsetReport, filter, write_subset};

@@ -314,6 +314,10 @@ fn write_merged(
     let mut merged = first.clone();
     merged.info = info.clone();
     stats::write_stats(&merged, &files, &episodes, dir)?;
+    let had = parts
+        .iter()
+        .any(|p| p.ds.root.join(dexjoco_formats::openpi::NORM_STATS).exists());
+    crate::restat::carry_norm_stats(had, &files, dir)?;
     let text = serde_json::to_string_pretty(&Value::Object(info)).expect("json");
     fs_err::write(meta.join("info.json"), text + "\n")?;
     Ok(report)

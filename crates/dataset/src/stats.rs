@@ -11,6 +11,7 @@ use arrow_schema::DataType;
 use dexjoco_formats::dataset::lerobot_info::stats_json;
 use dexjoco_formats::dataset::lerobot_read::LeRobotDataset;
 use dexjoco_formats::dataset::stats::{FeatureStats, QUANTILES, aggregate, column_stats};
+use dexjoco_formats::openpi::{NormStats, NormStatsOptions};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use serde_json::{Map, Value};
 
@@ -30,6 +31,19 @@ pub(crate) fn write_stats(
     episodes: &RecordBatch,
     dir: &Path,
 ) -> Result<(), EditError> {
+    let doc = stats_document(ds, data, episodes)?;
+    let text = serde_json::to_string_pretty(&doc).expect("json");
+    fs_err::write(dir.join("meta/stats.json"), text)?;
+    Ok(())
+}
+
+/// The `meta/stats.json` document of a dataset described by `ds` (its features) whose
+/// data files are `data` and episode rows `episodes`.
+pub(crate) fn stats_document(
+    ds: &LeRobotDataset,
+    data: &[PathBuf],
+    episodes: &RecordBatch,
+) -> Result<Value, EditError> {
     let features = ds.features();
     let mut numeric: BTreeMap<String, Column> = features
         .iter()
@@ -64,10 +78,63 @@ pub(crate) fn write_stats(
             out.insert(key.clone(), stats_json(&s, image));
         }
     }
-    let path = dir.join("meta/stats.json");
-    let text = serde_json::to_string_pretty(&Value::Object(out)).expect("json");
-    fs_err::write(&path, text)?;
-    Ok(())
+    Ok(Value::Object(out))
+}
+
+/// openpi's `norm_stats.json` statistics of the data files `data` (their
+/// `observation.state` and `action`, episode by episode, fed as `options` say).
+pub(crate) fn norm_stats_of(
+    data: &[PathBuf],
+    options: NormStatsOptions,
+) -> Result<NormStats, EditError> {
+    let mut norm = NormStats::new(options);
+    // The episode being gathered: its index, state rows and action rows.
+    let mut current: Option<(f64, Vec<f64>, Vec<f64>)> = None;
+    let mut widths = (0, 0);
+    let mut flush = |ep: Option<(f64, Vec<f64>, Vec<f64>)>, widths: (usize, usize)| {
+        if let Some((_, state, action)) = ep
+            && !action.is_empty()
+        {
+            norm.add_episode(&state, widths.0, &action, widths.1);
+        }
+    };
+    for file in data {
+        let err = |e: &dyn std::fmt::Display| {
+            EditError::Selection(format!("data file '{}': {e}", file.display()))
+        };
+        let reader =
+            ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(file)?.into_parts().0)
+                .and_then(|b| b.build())
+                .map_err(|e| err(&e))?;
+        for batch in reader {
+            let batch = batch.map_err(|e| err(&e))?;
+            let column = |name: &str| -> Result<(Vec<f64>, usize), EditError> {
+                let col = batch.column_by_name(name).ok_or_else(|| {
+                    err(&format!(
+                        "no {name} column: openpi's statistics need observation.state and action"
+                    ))
+                })?;
+                let values = flat_f64(col).ok_or_else(|| err(&format!("{name} is not numeric")))?;
+                let width = values.len() / batch.num_rows().max(1);
+                Ok((values, width))
+            };
+            let (episode, _) = column("episode_index")?;
+            let (state, sw) = column("observation.state")?;
+            let (action, aw) = column("action")?;
+            widths = (sw, aw);
+            for (row, e) in episode.iter().enumerate() {
+                if current.as_ref().is_none_or(|c| c.0 != *e) {
+                    flush(current.take(), widths);
+                    current = Some((*e, Vec::new(), Vec::new()));
+                }
+                let c = current.as_mut().expect("set");
+                c.1.extend_from_slice(&state[row * sw..(row + 1) * sw]);
+                c.2.extend_from_slice(&action[row * aw..(row + 1) * aw]);
+            }
+        }
+    }
+    flush(current.take(), widths);
+    Ok(norm)
 }
 
 /// Appends every numeric feature's values of the data file `file`.

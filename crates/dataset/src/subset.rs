@@ -119,6 +119,8 @@ pub fn write_subset(
     write_parquet(&meta.join("episodes/chunk-000/file-000.parquet"), &episodes)?;
     write_tasks(ds, &task_names, &meta)?;
     stats::write_stats(ds, &data.files, &episodes, dir)?;
+    let had = ds.root.join(dexjoco_formats::openpi::NORM_STATS).exists();
+    crate::restat::carry_norm_stats(had, &data.files, dir)?;
     let mut info = ds.info.clone();
     info.insert("total_episodes".into(), json!(rows.len()));
     info.insert("total_frames".into(), json!(report.frames));

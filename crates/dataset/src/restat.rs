@@ -1,0 +1,137 @@
+//! `dataset stats`: a dataset's `meta/stats.json` recomputed exactly from all its frames
+//! (numeric features; video features combined from the episodes' own statistics), in
+//! place: the new file written atomically, the previous one kept as
+//! `meta/stats.json.bak`; with openpi's `norm_stats.json` beside it on request. Says how
+//! far the previous statistics were from the exact ones.
+
+use std::path::{Path, PathBuf};
+
+use dexjoco_formats::dataset::lerobot_read::LeRobotDataset;
+use dexjoco_formats::openpi::{NORM_STATS, NormStatsOptions};
+use serde::Serialize;
+use serde_json::Value;
+
+use crate::{EditError, stats};
+
+/// What `dataset stats` did.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct RestatReport {
+    /// Features with statistics.
+    pub features: usize,
+    /// Per feature, the largest absolute difference of any statistic between the
+    /// previous `stats.json` and the exact one (absent: the feature was not there).
+    pub previous_off_by: Vec<(String, f64)>,
+    /// Where the previous `stats.json` was kept (none when it was the same or absent).
+    pub backup: Option<PathBuf>,
+    /// openpi's `norm_stats.json`, when written.
+    pub norm_stats: Option<PathBuf>,
+}
+
+/// Recomputes the statistics of the dataset at `root` in place (and openpi's
+/// `norm_stats.json` with `norm`).
+pub fn restat(root: &Path, norm: Option<NormStatsOptions>) -> Result<RestatReport, EditError> {
+    let ds = LeRobotDataset::open(root)?;
+    let data = data_files(&ds)?;
+    let doc = stats::stats_document(&ds, &data, &ds.episodes)?;
+    let path = root.join("meta/stats.json");
+    let previous: Option<Value> = fs_err::read_to_string(&path)
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok());
+    let previous_off_by = doc
+        .as_object()
+        .into_iter()
+        .flatten()
+        .filter_map(|(k, new)| {
+            let old = previous.as_ref()?.get(k)?;
+            Some((k.clone(), largest_difference(old, new)))
+        })
+        .collect();
+    let text = serde_json::to_string_pretty(&doc).expect("json");
+    let backup = match &previous {
+        Some(old) if *old != doc => {
+            let bak = root.join("meta/stats.json.bak");
+            fs_err::copy(&path, &bak)?;
+            Some(bak)
+        }
+        _ => None,
+    };
+    dexjoco_formats::fs::write_atomic(&path, text.as_bytes())?;
+    let norm_stats = match norm {
+        Some(options) => {
+            stats::norm_stats_of(&data, options)?.write(root)?;
+            Some(root.join(NORM_STATS))
+        }
+        None => None,
+    };
+    Ok(RestatReport {
+        features: doc.as_object().map_or(0, |m| m.len()),
+        previous_off_by,
+        backup,
+        norm_stats,
+    })
+}
+
+/// The dataset's data files, in the order of its episodes.
+pub(crate) fn data_files(ds: &LeRobotDataset) -> Result<Vec<PathBuf>, EditError> {
+    let chunk = ds.int_column("data/chunk_index")?;
+    let file = ds.int_column("data/file_index")?;
+    let mut out: Vec<PathBuf> = Vec::new();
+    for (c, f) in chunk.into_iter().zip(file) {
+        let p = ds.data_file(c, f);
+        if !out.contains(&p) {
+            out.push(p);
+        }
+    }
+    Ok(out)
+}
+
+/// The largest absolute difference between the numbers of two statistics documents of
+/// one feature, position by position (infinite where their shapes differ).
+fn largest_difference(old: &Value, new: &Value) -> f64 {
+    fn numbers(v: &Value, out: &mut Vec<f64>) {
+        match v {
+            Value::Number(n) => out.extend(n.as_f64()),
+            Value::Array(a) => a.iter().for_each(|x| numbers(x, out)),
+            _ => {}
+        }
+    }
+    let mut worst: f64 = 0.0;
+    for (k, n) in new.as_object().into_iter().flatten() {
+        if k == "count" {
+            continue;
+        }
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        numbers(&old[k], &mut a);
+        numbers(n, &mut b);
+        if a.len() != b.len() {
+            return f64::INFINITY;
+        }
+        for (x, y) in a.iter().zip(&b) {
+            worst = worst.max((x - y).abs());
+        }
+    }
+    worst
+}
+
+/// Writes openpi's `norm_stats.json` (openpi's defaults) into the edited dataset `dir`
+/// whose data files are `data`, when the source had one: an edit keeps it true.
+pub(crate) fn carry_norm_stats(
+    source_had: bool,
+    data: &[PathBuf],
+    dir: &Path,
+) -> Result<(), EditError> {
+    if !source_had {
+        return Ok(());
+    }
+    let norm = stats::norm_stats_of(data, NormStatsOptions::default())?;
+    if norm.document().is_some() {
+        norm.write(dir)?;
+    } else {
+        tracing::warn!(
+            "'{}': too few frames for openpi's norm_stats.json (batches of {}): not written",
+            dir.display(),
+            NormStatsOptions::default().batch_size
+        );
+    }
+    Ok(())
+}
