@@ -175,6 +175,7 @@ fn filter_and_split_match_lerobot_edit_dataset_on_a_dataset_lerobot_wrote() {
         assert_eq!(info["splits"][name], format!("0:{}", kept.len()));
     }
     restat_matches_lerobots_recompute_stats(dir.path(), &source);
+    to_v21_round_trips_through_lerobots_converter(dir.path(), &source, 8);
     assert!(before == tree(&source), "the source changed");
 }
 
@@ -243,6 +244,9 @@ fn our_labels_survive_a_filter_by_outcome_and_reruns_are_byte_identical() {
 
     one_camera_matches_lerobots_remove_feature(dir.path(), &source, n);
     stats_in_place_equal_converts(dir.path(), &source);
+    let v21 = to_v21_round_trips_through_lerobots_converter(dir.path(), &source, n);
+    let lines = fs_err::read_to_string(v21.join("meta/episodes.jsonl")).unwrap();
+    assert!(lines.contains("\"outcome/success\":true"), "{lines}");
     refusals_name_what_to_do(&source, &out, n);
 }
 
@@ -512,4 +516,28 @@ fn stats_in_place_equal_converts(dir: &Path, source: &Path) {
             .arg(&filtered),
     );
     assert_eq!(carried, norm(&filtered));
+}
+
+/// `dataset to-v21` of `source` (`n` episodes), then lerobot's own v2.1 to v3.0
+/// converter on a copy: the same frames, bit-exact videos and per-episode columns as the
+/// source. Returns the v2.1 dataset.
+fn to_v21_round_trips_through_lerobots_converter(dir: &Path, source: &Path, n: usize) -> PathBuf {
+    let v21 = dir.join("v21");
+    succeeds(
+        dexjoco()
+            .args(["-q", "dataset", "to-v21"])
+            .arg(source)
+            .arg("--out")
+            .arg(&v21),
+    );
+    let info: Value =
+        serde_json::from_str(&fs_err::read_to_string(v21.join("meta/info.json")).unwrap()).unwrap();
+    assert_eq!(info["codebase_version"], "v2.1");
+    assert!(v21.join("data/chunk-000/episode_000000.parquet").is_file());
+    let back = dir.join("v21_back_to_v30");
+    dexjoco_formats::fs::copy_tree(&v21, &back).unwrap();
+    python_json("lerobot_v21_to_v30.py", &[back.to_str().unwrap()]);
+    let all: Vec<usize> = (0..n).collect();
+    compare(source, &back, &all, &["--exact-video", "--stats-report"]);
+    v21
 }

@@ -25,6 +25,10 @@ pub enum DatasetCommand {
     /// Recompute meta/stats.json exactly from all frames, in place (the previous one kept
     /// as stats.json.bak), and openpi's norm_stats.json on request.
     Stats(DatasetStatsArgs),
+    /// Write the dataset as LeRobot v2.1 (what openpi's pinned lerobot reads): one parquet
+    /// and one mp4 per camera for each episode, cut by stream copy.
+    #[command(name = "to-v21")]
+    ToV21(DatasetToV21Args),
 }
 
 /// `dataset info` options.
@@ -191,4 +195,27 @@ pub struct DatasetStatsArgs {
     /// openpi's statistics.
     #[command(flatten)]
     pub norm_stats: super::NormStatsArgs,
+}
+
+/// `dataset to-v21` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Frames and videos bit-exact (each episode's video cut out by stream copy); per-episode
+columns with a JSON form go into meta/episodes.jsonl, per-episode statistics into
+meta/episodes_stats.jsonl; lerobot 0.6's language features have no v2.1 form and are
+left out (named). openpi's norm_stats.json is computed from the same frames either way.
+
+Examples:
+  dexjoco-data dataset to-v21 --out ds_v21/          # the dataset convert wrote
+  dexjoco-data dataset to-v21 ds/ --out ~/.cache/huggingface/lerobot/me/ds_v21")]
+pub struct DatasetToV21Args {
+    /// The v3.0 dataset folder (default: <work-dir>/convert/lerobot-v3).
+    #[arg(value_name = "DATASET")]
+    pub dataset: Option<PathBuf>,
+    /// Output dataset folder.
+    #[arg(short, long)]
+    pub out: PathBuf,
+    /// Replace OUT if it exists.
+    #[arg(long)]
+    pub overwrite: bool,
 }

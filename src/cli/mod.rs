@@ -142,7 +142,7 @@ pub enum Command {
     #[command(hide = true)]
     EvalWorker(EvalWorkerArgs),
     /// Manage any LeRobot v3.0 dataset: info, filter, split, merge, remove or rename
-    /// features (each a new dataset; the source never changed), exact statistics.
+    /// features (each a new dataset; the source never changed), exact statistics, v2.1.
     #[command(subcommand)]
     Dataset(DatasetCommand),
 }

@@ -3,7 +3,8 @@
 //! the source never changed. [`info`] describes a dataset; [`filter`] keeps the episodes
 //! a [`Selection`] picks; [`split`] deals them into seeded, per-task stratified splits;
 //! [`merge`] joins several datasets, reconciling feature names and widths;
-//! [`edit_features`] renames and removes features; [`restat`] recomputes statistics.
+//! [`edit_features`] renames and removes features; [`restat`] recomputes statistics;
+//! [`to_v21`] writes LeRobot v2.1 for openpi.
 //! Every output is written whole into a staging folder and renamed into place, episodes
 //! re-indexed, every per-episode column kept, videos cut by stream copy (bit-exact) and
 //! statistics recomputed.
@@ -16,6 +17,7 @@ mod select;
 mod split;
 mod stats;
 mod subset;
+mod to_v21;
 mod videos;
 
 pub use error::EditError;
@@ -25,3 +27,4 @@ pub use restat::{RestatReport, restat};
 pub use select::{Comparison, Predicate, Selection};
 pub use split::{SplitPlan, SplitSizes, plan_split, split};
 pub use subset::{SubsetReport, filter, write_subset};
+pub use to_v21::to_v21;
