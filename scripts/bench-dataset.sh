@@ -2,8 +2,9 @@
 # `dataset filter` / `dataset split` against lerobot-edit-dataset (the test venv's
 # lerobot) on the same dataset, written by lerobot's own writer: EPISODES episodes of
 # LENGTH..LENGTH+21 frames, one SIZExSIZE AV1 camera (lerobot's default encoding).
-# Operations: delete every 10th episode (ours: `filter --episodes ... --drop`), and a
-# 0.8/0.2 split (ours seeded and stratified; lerobot's given the same episode lists).
+# Operations: delete every 10th episode (ours: `filter --episodes ... --drop`), a 0.8/0.2
+# split (ours seeded and stratified; lerobot's given the same episode lists), and a merge
+# of the source with lerobot's filtered copy (both written by lerobot).
 # Wall time and peak memory (GNU time's maximum resident set) of each, side by side, in
 # OUT/results.md. Reported, not asserted.
 #
@@ -52,6 +53,12 @@ lists="$("$PY" -c 'import json,sys; s=json.load(open(sys.argv[1]))["splits"]; pr
 theirs_s="$(measure "$EDIT" --repo_id local/source --root "$src" --new_repo_id local/edited \
   --new_root "$OUT/theirs_split" --operation.type split --operation.splits "$lists")"
 
+log "merge the source and lerobot's filtered copy"
+ours_m="$(measure "$BIN" -q dataset merge "$src" "$OUT/theirs_filter" --out "$OUT/ours_merge")"
+theirs_m="$(measure "$EDIT" --new_repo_id local/merged --new_root "$OUT/theirs_merge" \
+  --operation.type merge --operation.repo_ids "['local/a', 'local/b']" \
+  --operation.roots "['$src', '$OUT/theirs_filter']")"
+
 row() {
   local op=$1 ours=$2 theirs=$3
   read -r os om <<<"$ours"
@@ -64,5 +71,6 @@ row() {
   echo "|---|---:|---:|---:|---:|---:|"
   row "delete every 10th episode" "$ours_f" "$theirs_f"
   row "split 0.8 / 0.2" "$ours_s" "$theirs_s"
+  row "merge (300 + 270 episodes)" "$ours_m" "$theirs_m"
 } >"$OUT/results.md"
 cat "$OUT/results.md"
