@@ -200,8 +200,20 @@ fn write_episode_videos(
         let chunk = ds.int_column(&col("chunk_index"))?;
         let file = ds.int_column(&col("file_index"))?;
         let from = ds.float_column(&col("from_timestamp"))?;
+        let to = ds.float_column(&col("to_timestamp"))?;
         for e in 0..ds.len() {
             let src = ds.video_file(&key, chunk[e], file[e]);
+            let frames = ((to[e] - from[e]) * ds.fps).round();
+            if !(from[e] >= 0.0 && frames >= 1.0 && frames as i64 == lengths[e]) {
+                return Err(EditError::Selection(format!(
+                    "video '{}' of episode {e} ({key}): its timestamps {}..{} s hold {frames} \
+                     frames but the episode has {}",
+                    src.display(),
+                    from[e],
+                    to[e],
+                    lengths[e]
+                )));
+            }
             let out = dir.join(format!(
                 "videos/chunk-{:03}/{key}/episode_{e:06}.mp4",
                 chunk_of(e, chunks_size)

@@ -140,7 +140,7 @@ fn cut_inputs(
     for &r in group {
         let skip = (place.from[r] * fps).round() as i64;
         let frames = ((place.to[r] - place.from[r]) * fps).round() as i64;
-        if frames != place.lengths[r] || skip < 0 {
+        if frames != place.lengths[r] || skip < 0 || frames < 1 || !place.from[r].is_finite() {
             return Err(EditError::Selection(format!(
                 "{}: its timestamps {}..{} s hold {frames} frames but the episode has {}",
                 context(r),

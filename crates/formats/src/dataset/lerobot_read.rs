@@ -63,6 +63,7 @@ impl LeRobotDataset {
             .get("fps")
             .and_then(Value::as_f64)
             .ok_or_else(|| bad(&info_path, "no fps"))?;
+        check_paths(&info, &info_path)?;
         let episodes = read_episodes(root)?;
         let tasks = read_all(&root.join("meta/tasks.parquet"))?;
         let ds = Self {
@@ -269,6 +270,44 @@ impl LeRobotDataset {
     }
 }
 
+/// Refuses a dataset whose path templates or video keys would place files outside its
+/// folder (an absolute path, a `..`, a key with a path separator): the files of a
+/// downloaded dataset are untrusted, and edits write the same layout.
+fn check_paths(info: &Map<String, Value>, info_path: &Path) -> Result<(), DatasetError> {
+    let escapes = |p: &str| {
+        let path = Path::new(p);
+        path.is_absolute()
+            || p.starts_with(['/', '\\'])
+            || path
+                .components()
+                .any(|c| !matches!(c, std::path::Component::Normal(_)))
+    };
+    for key in ["data_path", "video_path"] {
+        if let Some(t) = info.get(key).and_then(Value::as_str)
+            && escapes(t)
+        {
+            return Err(bad(
+                info_path,
+                &format!("{key} {t:?} leaves the dataset folder (absolute, or with ..)"),
+            ));
+        }
+    }
+    let features = info.get("features").and_then(Value::as_object);
+    for (k, f) in features.into_iter().flatten() {
+        if f["dtype"] == "video"
+            && (k.contains(['/', '\\']) || k == "." || k == ".." || k.is_empty())
+        {
+            return Err(bad(
+                info_path,
+                &format!(
+                    "video feature {k:?} is no folder name (it names the feature's video folder)"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Fills a Python format template's `{name}` and `{name:0Nd}` fields: a field with a
 /// non-empty text takes the text, else the number (zero-padded to N where asked).
 pub fn fill_template(template: &str, fields: &[(&str, &str, i64)]) -> String {
@@ -398,6 +437,32 @@ fn bad(path: &Path, message: &str) -> DatasetError {
 #[cfg(test)]
 mod tests {
     use super::fill_template;
+
+    #[test]
+    fn templates_leaving_the_folder_are_refused() {
+        let info = |data: &str, key: &str| -> serde_json::Map<String, serde_json::Value> {
+            serde_json::from_value(serde_json::json!({
+                "data_path": data,
+                "video_path": "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4",
+                "features": {key: {"dtype": "video"}}
+            }))
+            .unwrap()
+        };
+        let p = std::path::Path::new("meta/info.json");
+        let ok = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet";
+        assert!(super::check_paths(&info(ok, "observation.images.top"), p).is_ok());
+        for bad in [
+            "../x/{file_index}.parquet",
+            "/etc/{file_index}",
+            "data/../../x",
+        ] {
+            let e = super::check_paths(&info(bad, "top"), p).unwrap_err();
+            assert!(e.to_string().contains("leaves the dataset folder"), "{e}");
+        }
+        for key in ["../top", "a/b", ".."] {
+            assert!(super::check_paths(&info(ok, key), p).is_err(), "{key}");
+        }
+    }
 
     #[test]
     fn templates_fill_like_python_format() {
