@@ -176,6 +176,7 @@ fn filter_and_split_match_lerobot_edit_dataset_on_a_dataset_lerobot_wrote() {
     }
     restat_matches_lerobots_recompute_stats(dir.path(), &source);
     to_v21_round_trips_through_lerobots_converter(dir.path(), &source, 8);
+    hostile_copies_are_refused(dir.path(), &source);
     assert!(before == tree(&source), "the source changed");
 }
 
@@ -540,4 +541,46 @@ fn to_v21_round_trips_through_lerobots_converter(dir: &Path, source: &Path, n: u
     let all: Vec<usize> = (0..n).collect();
     compare(source, &back, &all, &["--exact-video", "--stats-report"]);
     v21
+}
+
+/// Copies of `source` with a path template leaving the folder, and with a truncated
+/// episode metadata file: each refused with the file named, nothing written.
+fn hostile_copies_are_refused(dir: &Path, source: &Path) {
+    let escaping = dir.join("escaping");
+    dexjoco_formats::fs::copy_tree(source, &escaping).unwrap();
+    let info_path = escaping.join("meta/info.json");
+    let mut info: Value =
+        serde_json::from_str(&fs_err::read_to_string(&info_path).unwrap()).unwrap();
+    info["data_path"] = "../../outside/{chunk_index}-{file_index}.parquet".into();
+    fs_err::write(&info_path, info.to_string()).unwrap();
+    let out = dir.join("escaping_filtered");
+    let o = dexjoco()
+        .args(["dataset", "filter"])
+        .arg(&escaping)
+        .args(["--episodes", "0", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && said(&o).contains("leaves the dataset folder"),
+        "{}",
+        said(&o)
+    );
+    assert!(!out.exists() && !dir.join("outside").exists());
+
+    let truncated = dir.join("truncated");
+    dexjoco_formats::fs::copy_tree(source, &truncated).unwrap();
+    let episodes = truncated.join("meta/episodes/chunk-000/file-000.parquet");
+    let bytes = fs_err::read(&episodes).unwrap();
+    fs_err::write(&episodes, &bytes[..bytes.len() / 2]).unwrap();
+    let o = dexjoco()
+        .args(["dataset", "info"])
+        .arg(&truncated)
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success() && said(&o).contains("file-000.parquet"),
+        "{}",
+        said(&o)
+    );
 }
