@@ -19,9 +19,10 @@ use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use serde_json::{Map, Value, json};
 
-use crate::subset::{DataPlace, check_output, ints, placed, props, with_columns, write_parquet};
+use crate::subset::{DataPlace, check_output, ints, placed, with_columns};
 use crate::videos::VideoPlace;
 use crate::{EditError, SubsetReport, stats};
+use dexjoco_formats::dataset::parquet::{props, write_file};
 
 /// How datasets are reconciled when merged.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -300,7 +301,7 @@ fn write_merged(
     let episodes = stats::restat_renumbered(&episodes, &files)?;
     let meta = dir.join("meta");
     fs_err::create_dir_all(meta.join("episodes/chunk-000"))?;
-    write_parquet(&meta.join("episodes/chunk-000/file-000.parquet"), &episodes)?;
+    write_file(&meta.join("episodes/chunk-000/file-000.parquet"), &episodes)?;
     write_tasks(first, &tasks, &meta)?;
     let mut info = first.info.clone();
     info.insert("features".into(), Value::Object(features.clone()));
@@ -360,14 +361,14 @@ fn write_data(
         .to_owned();
     let total: usize = parts
         .iter()
-        .map(|p| source_files(&p.ds).map_or(0, |f| f.len()))
+        .map(|p| p.ds.data_files().map_or(0, |f| f.len()))
         .sum();
     progress.phase("data", total as u64);
     let (mut places, mut files) = (Vec::new(), Vec::new());
     let (mut schema, mut next_index, mut episode_offset) = (None::<SchemaRef>, 0i64, 0i64);
     for (p, task_map) in parts.iter().zip(task_maps) {
         let lengths = p.ds.lengths()?;
-        for (chunk, file) in source_files(&p.ds)? {
+        for src in p.ds.data_files()? {
             let k = files.len() as i64;
             let out = dir.join(fill_template(
                 &template,
@@ -377,7 +378,6 @@ fn write_data(
                 ],
             ));
             fs_err::create_dir_all(out.parent().unwrap_or(dir))?;
-            let src = p.ds.data_file(chunk, file);
             let err = |e: &dyn std::fmt::Display| {
                 EditError::Selection(format!("data file '{}': {e}", src.display()))
             };
@@ -452,19 +452,6 @@ fn write_data(
         episode_offset += p.ds.len() as i64;
     }
     Ok((places, files))
-}
-
-/// A source's data files (chunk, file) in the order of its episodes.
-fn source_files(ds: &LeRobotDataset) -> Result<Vec<(i64, i64)>, EditError> {
-    let chunk = ds.int_column("data/chunk_index")?;
-    let file = ds.int_column("data/file_index")?;
-    let mut out: Vec<(i64, i64)> = Vec::new();
-    for pair in chunk.into_iter().zip(file) {
-        if !out.contains(&pair) {
-            out.push(pair);
-        }
-    }
-    Ok(out)
 }
 
 /// A data batch of `p` with its columns renamed and padded to the merged `features`;
@@ -681,5 +668,5 @@ fn write_tasks(first: &LeRobotDataset, names: &[String], meta: &Path) -> Result<
         .map_err(|e| EditError::Selection(format!("tasks: {e}")))?;
     let batch = RecordBatch::try_new(schema, columns)
         .map_err(|e| EditError::Selection(format!("tasks: {e}")))?;
-    write_parquet(&meta.join("tasks.parquet"), &batch)
+    Ok(write_file(&meta.join("tasks.parquet"), &batch)?)
 }

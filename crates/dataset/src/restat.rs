@@ -31,7 +31,7 @@ pub struct RestatReport {
 /// `norm_stats.json` with `norm`).
 pub fn restat(root: &Path, norm: Option<NormStatsOptions>) -> Result<RestatReport, EditError> {
     let ds = LeRobotDataset::open(root)?;
-    let data = data_files(&ds)?;
+    let data = ds.data_files()?;
     let doc = stats::stats_document(&ds, &data, &ds.episodes)?;
     let path = root.join("meta/stats.json");
     let previous: Option<Value> = fs_err::read_to_string(&path)
@@ -69,20 +69,6 @@ pub fn restat(root: &Path, norm: Option<NormStatsOptions>) -> Result<RestatRepor
         backup,
         norm_stats,
     })
-}
-
-/// The dataset's data files, in the order of its episodes.
-pub(crate) fn data_files(ds: &LeRobotDataset) -> Result<Vec<PathBuf>, EditError> {
-    let chunk = ds.int_column("data/chunk_index")?;
-    let file = ds.int_column("data/file_index")?;
-    let mut out: Vec<PathBuf> = Vec::new();
-    for (c, f) in chunk.into_iter().zip(file) {
-        let p = ds.data_file(c, f);
-        if !out.contains(&p) {
-            out.push(p);
-        }
-    }
-    Ok(out)
 }
 
 /// The largest absolute difference between the numbers of two statistics documents of

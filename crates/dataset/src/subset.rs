@@ -12,11 +12,10 @@ use arrow_array::{Array, ArrayRef, Float64Array, Int64Array, RecordBatch, UInt32
 use arrow_schema::{DataType, SchemaRef};
 use dexjoco_core::Progress;
 use dexjoco_formats::dataset::lerobot_read::{LeRobotDataset, fill_template};
+use dexjoco_formats::dataset::parquet::{props, write_file};
 use dexjoco_formats::fs::StagedDir;
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-use parquet::basic::Compression;
-use parquet::file::properties::WriterProperties;
 use serde::Serialize;
 use serde_json::{Value, json};
 
@@ -116,7 +115,7 @@ pub fn write_subset(
     let episodes = stats::restat_renumbered(&episodes, &data.files)?;
     let meta = dir.join("meta");
     fs_err::create_dir_all(meta.join("episodes/chunk-000"))?;
-    write_parquet(&meta.join("episodes/chunk-000/file-000.parquet"), &episodes)?;
+    write_file(&meta.join("episodes/chunk-000/file-000.parquet"), &episodes)?;
     write_tasks(ds, &task_names, &meta)?;
     stats::write_stats(ds, &data.files, &episodes, dir)?;
     let had = ds.root.join(dexjoco_formats::openpi::NORM_STATS).exists();
@@ -388,7 +387,7 @@ fn write_tasks(ds: &LeRobotDataset, names: &[String], meta: &Path) -> Result<(),
     let replace = [("task_index", (0..names.len() as i64).collect::<Vec<_>>())];
     let kept = with_columns(&kept, &ds.tasks.schema(), &replace)
         .map_err(|e| EditError::Selection(format!("tasks: {e}")))?;
-    write_parquet(&meta.join("tasks.parquet"), &kept)
+    Ok(write_file(&meta.join("tasks.parquet"), &kept)?)
 }
 
 /// `batch` with the integer columns named in `replace` swapped for new values (in each
@@ -414,25 +413,4 @@ pub(crate) fn ints(batch: &RecordBatch, name: &str) -> Option<Vec<i64>> {
     let col = arrow_cast::cast(col, &DataType::Int64).ok()?;
     let col = col.as_any().downcast_ref::<Int64Array>()?;
     Some((0..col.len()).map(|i| col.value(i)).collect())
-}
-
-pub(crate) fn props() -> WriterProperties {
-    WriterProperties::builder()
-        .set_compression(Compression::SNAPPY)
-        .build()
-}
-
-pub(crate) fn write_parquet(path: &Path, batch: &RecordBatch) -> Result<(), EditError> {
-    let err = |e: parquet::errors::ParquetError| {
-        EditError::Selection(format!("file '{}': {e}", path.display()))
-    };
-    let mut w = ArrowWriter::try_new(
-        fs_err::File::create(path)?.into_parts().0,
-        batch.schema(),
-        Some(props()),
-    )
-    .map_err(err)?;
-    w.write(batch).map_err(err)?;
-    w.close().map_err(err)?;
-    Ok(())
 }

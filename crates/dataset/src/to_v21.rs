@@ -25,8 +25,9 @@ use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use serde_json::{Map, Value, json};
 
 use crate::info::is_format_column;
-use crate::subset::{check_output, props};
+use crate::subset::check_output;
 use crate::{EditError, SubsetReport};
+use dexjoco_formats::dataset::parquet::props;
 
 /// v2.1's file layout.
 const DATA_PATH: &str = "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet";
@@ -87,7 +88,7 @@ fn write_episode_data(
 ) -> Result<u64, EditError> {
     let mut open: Option<(i64, ArrowWriter<std::fs::File>)> = None;
     let mut frames = 0u64;
-    for file in crate::restat::data_files(ds)? {
+    for file in ds.data_files()? {
         let err = |e: &dyn std::fmt::Display| {
             EditError::Selection(format!("data file '{}': {e}", file.display()))
         };

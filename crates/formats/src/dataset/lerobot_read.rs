@@ -210,6 +210,20 @@ impl LeRobotDataset {
         )
     }
 
+    /// The data files of the episodes, in the order of the episodes (each once).
+    pub fn data_files(&self) -> Result<Vec<PathBuf>, DatasetError> {
+        let chunk = self.int_column("data/chunk_index")?;
+        let file = self.int_column("data/file_index")?;
+        let mut out: Vec<PathBuf> = Vec::new();
+        for (c, f) in chunk.into_iter().zip(file) {
+            let p = self.data_file(c, f);
+            if !out.contains(&p) {
+                out.push(p);
+            }
+        }
+        Ok(out)
+    }
+
     /// The video file of `key` at chunk/file indices.
     pub fn video_file(&self, key: &str, chunk: i64, file: i64) -> PathBuf {
         let t = self

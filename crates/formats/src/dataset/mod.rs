@@ -22,7 +22,7 @@ pub mod lerobot_info;
 pub mod lerobot_read;
 pub mod lerobot_v21;
 pub mod lerobot_v3;
-mod parquet;
+pub mod parquet;
 pub mod stats;
 
 use std::collections::BTreeMap;

@@ -26,7 +26,7 @@ pub(crate) fn parquet_err(path: &Path) -> impl Fn(ParquetError) -> DatasetError 
 }
 
 /// Snappy compression, as lerobot writes its files.
-pub(crate) fn props() -> WriterProperties {
+pub fn props() -> WriterProperties {
     WriterProperties::builder()
         .set_compression(Compression::SNAPPY)
         .build()
@@ -118,7 +118,7 @@ pub(crate) fn batch(
 }
 
 /// Writes one record batch as a whole parquet file (one row group).
-pub(crate) fn write_file(path: &Path, batch: &RecordBatch) -> Result<(), DatasetError> {
+pub fn write_file(path: &Path, batch: &RecordBatch) -> Result<(), DatasetError> {
     let file = fs_err::File::create(path)?;
     let err = parquet_err(path);
     let mut w = ArrowWriter::try_new(file, batch.schema(), Some(props())).map_err(&err)?;
