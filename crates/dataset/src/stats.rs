@@ -230,71 +230,42 @@ pub(crate) fn restat_renumbered(
     episodes: &RecordBatch,
     data: &[PathBuf],
 ) -> Result<RecordBatch, EditError> {
-    let present: Vec<&str> = RENUMBERED
-        .into_iter()
+    restat_episode_columns(episodes, data, &RENUMBERED)
+}
+
+/// `episodes` with the per-episode statistics (`stats/<column>/...`) of each of
+/// `columns` that has them recomputed from the written data files `data` (rows found
+/// by their `episode_index`, the row number in `episodes`).
+pub(crate) fn restat_episode_columns(
+    episodes: &RecordBatch,
+    data: &[PathBuf],
+    columns: &[&str],
+) -> Result<RecordBatch, EditError> {
+    let present: Vec<&str> = columns
+        .iter()
+        .copied()
         .filter(|c| episodes.column_by_name(&format!("stats/{c}/min")).is_some())
         .collect();
     if present.is_empty() {
         return Ok(episodes.clone());
     }
-    // Each renumbered column's values, per episode.
-    let n = episodes.num_rows();
-    let mut values: BTreeMap<&str, Vec<Vec<f64>>> =
-        present.iter().map(|c| (*c, vec![Vec::new(); n])).collect();
-    for file in data {
-        let reader =
-            ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(file)?.into_parts().0)
-                .and_then(|b| b.build())
-                .map_err(|e| {
-                    EditError::Selection(format!("data file '{}': {e}", file.display()))
-                })?;
-        for batch in reader {
-            let batch = batch.map_err(|e| {
-                EditError::Selection(format!("data file '{}': {e}", file.display()))
-            })?;
-            let Some(episode) = batch.column_by_name("episode_index").and_then(flat_f64) else {
-                continue;
-            };
-            for c in &present {
-                let Some(v) = batch.column_by_name(c).and_then(flat_f64) else {
-                    continue;
-                };
-                let per = values.get_mut(c).expect("present");
-                for (e, x) in episode.iter().zip(v) {
-                    if let Some(slot) = per.get_mut(*e as usize) {
-                        slot.push(x);
-                    }
-                }
-            }
-        }
-    }
+    let values = per_episode_values(episodes.num_rows(), data, &present)?;
     let schema = episodes.schema();
-    let mut columns = episodes.columns().to_vec();
+    let mut out = episodes.columns().to_vec();
     for c in present {
-        let stats: Vec<Option<FeatureStats>> = values[c]
+        let (values, rows) = &values[c];
+        let stats: Vec<Option<FeatureStats>> = values
             .iter()
-            .map(|v| (!v.is_empty()).then(|| column_stats(v, 1)))
+            .zip(rows)
+            .map(|(v, n)| (*n > 0).then(|| column_stats(v, v.len() / n)))
             .collect();
         for (i, field) in schema.fields().iter().enumerate() {
             let Some(stat) = field.name().strip_prefix(&format!("stats/{c}/")) else {
                 continue;
             };
-            let pick = |s: &FeatureStats| -> Option<f64> {
-                match stat {
-                    "min" => Some(s.min[0]),
-                    "max" => Some(s.max[0]),
-                    "mean" => Some(s.mean[0]),
-                    "std" => Some(s.std[0]),
-                    "count" => Some(s.count as f64),
-                    q => QUANTILES
-                        .iter()
-                        .position(|(_, name)| *name == q)
-                        .map(|k| s.quantiles[k][0]),
-                }
-            };
             let rows: Option<Vec<Vec<f64>>> = stats
                 .iter()
-                .map(|s| s.as_ref().and_then(pick).map(|x| vec![x]))
+                .map(|s| s.as_ref().and_then(|s| pick(s, stat)))
                 .collect();
             let Some(rows) = rows else { continue };
             let mut b =
@@ -305,10 +276,69 @@ pub(crate) fn restat_renumbered(
             }
             let new: ArrayRef = std::sync::Arc::new(b.finish());
             if let Ok(cast) = arrow_cast::cast(&new, field.data_type()) {
-                columns[i] = cast;
+                out[i] = cast;
             }
         }
     }
-    RecordBatch::try_new(schema, columns)
+    RecordBatch::try_new(schema, out)
         .map_err(|e| EditError::Selection(format!("episode rows: {e}")))
+}
+
+/// One statistic (`min`, `count`, `q01`, ...) of `s`, as its per-episode column holds it.
+fn pick(s: &FeatureStats, stat: &str) -> Option<Vec<f64>> {
+    match stat {
+        "min" => Some(s.min.clone()),
+        "max" => Some(s.max.clone()),
+        "mean" => Some(s.mean.clone()),
+        "std" => Some(s.std.clone()),
+        "count" => Some(vec![s.count as f64]),
+        q => QUANTILES
+            .iter()
+            .position(|(_, name)| *name == q)
+            .map(|k| s.quantiles[k].clone()),
+    }
+}
+
+/// Per column of `columns`: each episode's values (flattened rows) and row count, read
+/// from the data files `data`.
+type EpisodeValues<'a> = BTreeMap<&'a str, (Vec<Vec<f64>>, Vec<usize>)>;
+
+fn per_episode_values<'a>(
+    n: usize,
+    data: &[PathBuf],
+    columns: &[&'a str],
+) -> Result<EpisodeValues<'a>, EditError> {
+    let mut values: EpisodeValues = columns
+        .iter()
+        .map(|c| (*c, (vec![Vec::new(); n], vec![0; n])))
+        .collect();
+    for file in data {
+        let err = |e: &dyn std::fmt::Display| {
+            EditError::Selection(format!("data file '{}': {e}", file.display()))
+        };
+        let reader =
+            ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(file)?.into_parts().0)
+                .and_then(|b| b.build())
+                .map_err(|e| err(&e))?;
+        for batch in reader {
+            let batch = batch.map_err(|e| err(&e))?;
+            let Some(episode) = batch.column_by_name("episode_index").and_then(flat_f64) else {
+                continue;
+            };
+            for c in columns {
+                let Some(v) = batch.column_by_name(c).and_then(flat_f64) else {
+                    continue;
+                };
+                let width = v.len() / episode.len().max(1);
+                let (per, rows) = values.get_mut(c).expect("present");
+                for (row, e) in episode.iter().enumerate() {
+                    if let Some(slot) = per.get_mut(*e as usize) {
+                        slot.extend_from_slice(&v[row * width..(row + 1) * width]);
+                        rows[*e as usize] += 1;
+                    }
+                }
+            }
+        }
+    }
+    Ok(values)
 }

@@ -21,10 +21,12 @@ mod depth;
 mod probe;
 mod program;
 mod read;
+mod transcode;
 mod versions;
 pub use depth::{DepthVideoWriter, decode_gray12};
 pub(crate) use read::decode_raw;
 pub use read::{VideoReader, decode_rgb};
+pub use transcode::{CutPoints, Encoding, SmartCut, smart_cut, transcode};
 
 pub use probe::{
     Packet, VideoInfo, frame_times, keyframe_indices, packets_in_decoding_order, probe,
@@ -272,51 +274,31 @@ impl VideoWriter {
         spec: VideoSpec,
         keyframes: &Keyframes,
     ) -> Result<Self, VideoError> {
-        let mut cmd = Command::new(ffmpeg_program());
-        let mut pix_fmt = "yuv420p";
-        match spec.codec {
-            Codec::H264 { crf: 0, preset } => {
-                // Lossless RGB: the frames as rendered.
-                cmd.args(["-c:v", "libx264rgb", "-threads", "1", "-qp", "0"]);
-                cmd.args(["-preset", preset.name()]);
-                pix_fmt = "rgb24";
-            }
-            Codec::H264 { crf, preset } => {
-                cmd.args([
-                    "-c:v",
-                    "libx264",
-                    // Bytes independent of the machine's core count (see the crate doc);
-                    // parallelism comes from the workers, one encoder each.
-                    "-threads",
-                    "1",
-                    "-profile:v",
-                    "high",
-                    "-crf",
-                    &crf.to_string(),
-                    "-preset",
-                    preset.name(),
-                ]);
-            }
-            Codec::Av1 { crf, preset } => {
-                cmd.args([
-                    "-c:v",
-                    "libsvtav1",
-                    "-crf",
-                    &crf.to_string(),
-                    "-preset",
-                    &preset.to_string(),
-                ]);
-            }
-        }
-        if let Some(g) = keyframes.interval {
-            cmd.args(["-g", &g.max(1).to_string()]);
-        }
-        if let Some(expr) = keyframes.force_expression() {
-            cmd.args(["-force_key_frames", &expr]);
-        }
-        cmd.args(["-pix_fmt", pix_fmt]);
         let frame_bytes = spec.width as usize * spec.height as usize * 3;
-        Self::start(path.into(), spec, "rgb24", frame_bytes, cmd)
+        Self::start(
+            path.into(),
+            spec,
+            "rgb24",
+            frame_bytes,
+            encoder(spec, keyframes),
+        )
+    }
+
+    /// As [`VideoWriter::create_with`], fed decoded yuv420p frames (`width * height * 3 / 2`
+    /// bytes each, as [`transcode`] passes them on): no colour conversion on the way in.
+    pub fn create_yuv420p(
+        path: impl Into<PathBuf>,
+        spec: VideoSpec,
+        keyframes: &Keyframes,
+    ) -> Result<Self, VideoError> {
+        let frame_bytes = spec.width as usize * spec.height as usize * 3 / 2;
+        Self::start(
+            path.into(),
+            spec,
+            "yuv420p",
+            frame_bytes,
+            encoder(spec, keyframes),
+        )
     }
 
     /// Starts `cmd` (ffmpeg with its encoder and output pixel format set) reading raw
@@ -371,7 +353,8 @@ impl VideoWriter {
         self.frames
     }
 
-    /// Appends one RGB8 frame (rows top to bottom).
+    /// Appends one frame: RGB8, rows top to bottom (yuv420p planes for a writer made by
+    /// [`VideoWriter::create_yuv420p`]).
     pub fn write_frame(&mut self, rgb: &[u8]) -> Result<(), VideoError> {
         let expected = self.frame_bytes;
         if rgb.len() != expected {
@@ -438,6 +421,54 @@ impl VideoWriter {
         })?;
         Ok(self.frames)
     }
+}
+
+/// ffmpeg's encoder arguments for `spec` and `keyframes`, with the output pixel format.
+fn encoder(spec: VideoSpec, keyframes: &Keyframes) -> Command {
+    let mut cmd = Command::new(ffmpeg_program());
+    let mut pix_fmt = "yuv420p";
+    match spec.codec {
+        Codec::H264 { crf: 0, preset } => {
+            // Lossless RGB: the frames as rendered.
+            cmd.args(["-c:v", "libx264rgb", "-threads", "1", "-qp", "0"]);
+            cmd.args(["-preset", preset.name()]);
+            pix_fmt = "rgb24";
+        }
+        Codec::H264 { crf, preset } => {
+            cmd.args([
+                "-c:v",
+                "libx264",
+                // Bytes independent of the machine's core count (see the crate doc);
+                // parallelism comes from the workers, one encoder each.
+                "-threads",
+                "1",
+                "-profile:v",
+                "high",
+                "-crf",
+                &crf.to_string(),
+                "-preset",
+                preset.name(),
+            ]);
+        }
+        Codec::Av1 { crf, preset } => {
+            cmd.args([
+                "-c:v",
+                "libsvtav1",
+                "-crf",
+                &crf.to_string(),
+                "-preset",
+                &preset.to_string(),
+            ]);
+        }
+    }
+    if let Some(g) = keyframes.interval {
+        cmd.args(["-g", &g.max(1).to_string()]);
+    }
+    if let Some(expr) = keyframes.force_expression() {
+        cmd.args(["-force_key_frames", &expr]);
+    }
+    cmd.args(["-pix_fmt", pix_fmt]);
+    cmd
 }
 
 impl Drop for VideoWriter {
@@ -538,12 +569,12 @@ fn concat_points(
     }
     let Probed { packets, times } = &probed[&input.path];
     if end < packets.len() {
-        let cut = cut_packet(packets, times[end]).ok_or_else(|| VideoError::Failed {
+        let cut = cut_packet(packets, times, end).ok_or_else(|| VideoError::Failed {
             program: "concat".into(),
             path: input.path.clone(),
             message: format!(
-                "frame {end} does not start a closed group of pictures, so the frames \
-                 before it cannot be cut out by stream copy"
+                "frames before {end} refer to frames after it (B-frames), so the stream \
+                 cannot end there by stream copy"
             ),
         })?;
         // Halfway between the last kept packet's decoding time and the cut's: the times
@@ -565,15 +596,16 @@ struct Probed {
     times: Vec<f64>,
 }
 
-/// The index (in decoding order) of the packet presented at `at`, where the stream can
-/// be cut: a keyframe, every packet before it presented before it and every packet
-/// after it presented after it. `None` where that frame is no such cut.
-fn cut_packet(packets: &[Packet], at: f64) -> Option<usize> {
-    let cut = packets.iter().position(|p| p.pts == at)?;
-    let closed = packets[cut].key
-        && packets[..cut].iter().all(|p| p.pts < at)
-        && packets[cut..].iter().all(|p| p.pts >= at);
-    closed.then_some(cut)
+/// `end` when the stream can end after its first `end` packets in decoding order: those
+/// are exactly the first `end` frames in presentation order (so no kept frame refers to
+/// a dropped one). `None` where it cannot (B-frames decoded after the cut are presented
+/// before it).
+fn cut_packet(packets: &[Packet], times: &[f64], end: usize) -> Option<usize> {
+    let last = packets[..end]
+        .iter()
+        .map(|p| p.pts)
+        .fold(f64::NEG_INFINITY, f64::max);
+    (last < times[end]).then_some(end)
 }
 
 /// Joins videos of one codec, size and frame rate `fps` into `out` by stream copy

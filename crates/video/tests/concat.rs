@@ -1,8 +1,8 @@
 //! Real ffmpeg: join clips by stream copy onto a continuous frame grid; stream frames.
 
 use dexjoco_video::{
-    Codec, ConcatInput, Keyframes, VideoReader, VideoSpec, VideoWriter, concat_copy, frame_times,
-    keyframe_indices, probe, probe_with_ffmpeg_alone,
+    Codec, ConcatInput, CutPoints, Encoding, Keyframes, VideoReader, VideoSpec, VideoWriter,
+    concat_copy, frame_times, keyframe_indices, probe, probe_with_ffmpeg_alone, smart_cut,
 };
 
 fn clip(path: &std::path::Path, codec: Codec, n: usize, shade: u8) {
@@ -204,8 +204,112 @@ fn episodes_are_cut_out_of_a_joined_file_by_stream_copy_bit_for_bit() {
                 "{codec:?}: frame {k} at {t}"
             );
         }
-        // A cut inside a group of pictures is refused, naming the frame.
-        let err = concat_copy(&[cut(0, Some(5))], &out, 30).unwrap_err();
-        assert!(err.to_string().contains("frame 5"), "{err}");
+        // An end inside a group of pictures: bit-exact where the packets decoded before
+        // it are exactly the frames before it, else refused naming the frame.
+        let cuts = CutPoints::of(&joined).unwrap();
+        for end in 1..10 {
+            match concat_copy(&[cut(0, Some(end))], &out, 30) {
+                Ok(()) => {
+                    assert!(cuts.can_end(end), "{codec:?}: ended at {end}");
+                    assert!(frames(&out) == all[..end], "{codec:?}: end {end}");
+                }
+                Err(e) => {
+                    assert!(!cuts.can_end(end), "{codec:?}: {e}");
+                    assert!(e.to_string().contains(&format!("before {end} ")), "{e}");
+                }
+            }
+        }
+    }
+}
+
+/// A moving gradient, `n` frames, with `keyframes`.
+fn textured(path: &std::path::Path, codec: Codec, n: usize, keyframes: &Keyframes) {
+    let spec = VideoSpec {
+        width: 64,
+        height: 64,
+        fps: 30,
+        codec,
+    };
+    let mut w = VideoWriter::create_with(path, spec, keyframes).unwrap();
+    for k in 0..n {
+        let frame: Vec<u8> = (0..64 * 64 * 3)
+            .map(|i| {
+                let (x, y, c) = ((i / 3) % 64, i / 192, i % 3);
+                let wave = ((x as f64 + 2.0 * k as f64) / 7.0).sin() * 60.0
+                    + (y as f64 / 9.0).cos() * 40.0;
+                (128.0 + wave) as u8 / (c as u8 + 1)
+            })
+            .collect();
+        w.write_frame(&frame).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn a_cut_off_a_keyframe_reencodes_only_the_frames_before_the_next_keyframe() {
+    let av1 = Codec::Av1 {
+        crf: 30,
+        preset: 12,
+    };
+    for (codec, interval) in [(Codec::DEXJOCO, None), (av1, Some(8))] {
+        let dir = tempfile::tempdir().unwrap();
+        let src = dir.path().join("src.mp4");
+        let keyframes = Keyframes {
+            interval,
+            at: vec![0, 20],
+        };
+        textured(&src, codec, 40, &keyframes);
+        let keys = keyframe_indices(&src).unwrap();
+        let cuts = CutPoints::of(&src).unwrap();
+        let next = *keys.iter().find(|k| **k > 5).unwrap();
+        // Frame 35 is inside a group of pictures: the copy ends at the last frame it can.
+        let last = (next..=35).rev().find(|f| cuts.can_end(*f)).unwrap();
+        // The first candidate's headers differ from the source's (another preset or
+        // codec); the second is how the source was encoded.
+        let other = Encoding {
+            codec: Codec::H264 {
+                crf: 21,
+                preset: dexjoco_video::X264Preset::Ultrafast,
+            },
+            interval,
+        };
+        let candidates = [other, Encoding { codec, interval }];
+        let cut = smart_cut(&src, 5, 30, &cuts, &candidates, dir.path())
+            .unwrap()
+            .expect("the source's own settings match");
+        let reencoded = next - 5 + 35 - last;
+        assert_eq!(
+            (cut.candidate, cut.reencoded),
+            (Some(1), reencoded),
+            "{codec:?}"
+        );
+        assert!(reencoded < 30, "{codec:?}: keyframes {keys:?}");
+        let out = dir.path().join("cut.mp4");
+        concat_copy(&cut.inputs, &out, 30).unwrap();
+        let (all, got) = (frames(&src), frames(&out));
+        assert_eq!(got.len(), 30, "{codec:?}");
+        assert!(
+            got[next - 5..last - 5] == all[next..last],
+            "{codec:?}: copied frames differ"
+        );
+        let head = got[..next - 5].iter().zip(&all[5..next]);
+        let tail = got[last - 5..].iter().zip(&all[last..35]);
+        for (k, (a, b)) in head.chain(tail).enumerate() {
+            let err = a
+                .iter()
+                .zip(b)
+                .map(|(x, y)| f64::from(x.abs_diff(*y)))
+                .sum::<f64>()
+                / a.len() as f64;
+            assert!(
+                err < 3.0,
+                "{codec:?}: re-encoded frame {k} off by {err:.2} levels"
+            );
+        }
+        // No candidate: none is made.
+        assert_eq!(
+            smart_cut(&src, 5, 30, &cuts, &[other], dir.path()).unwrap(),
+            None
+        );
     }
 }
