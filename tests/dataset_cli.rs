@@ -15,7 +15,13 @@ use serde_json::Value;
 
 /// Runs a Python script of tests/python with the test venv; its last stdout line as JSON.
 fn python_json(script: &str, args: &[&str]) -> Value {
+    python_json_env(script, args, &[])
+}
+
+/// As [`python_json`], with environment variables `env`.
+fn python_json_env(script: &str, args: &[&str], env: &[(&str, &str)]) -> Value {
     let out = Command::new(dexjoco_testkit::python())
+        .envs(env.iter().copied())
         .arg(
             dexjoco_testkit::workspace_root()
                 .join("tests/python")
@@ -249,6 +255,162 @@ fn our_labels_survive_a_filter_by_outcome_and_reruns_are_byte_identical() {
     let lines = fs_err::read_to_string(v21.join("meta/episodes.jsonl")).unwrap();
     assert!(lines.contains("\"outcome/success\":true"), "{lines}");
     refusals_name_what_to_do(&source, &out, n);
+    trimmed_episodes_keep_our_labels(dir.path(), &source, n);
+}
+
+/// `dataset trim --frames` on our dataset: the kept frames as stored, every custom column
+/// kept, almost every video frame bit-exact.
+fn trimmed_episodes_keep_our_labels(dir: &Path, source: &Path, n: usize) {
+    let out = dir.join("trimmed");
+    let run = succeeds(
+        dexjoco()
+            .args(["dataset", "trim"])
+            .arg(source)
+            .args([
+                "--frames",
+                "0=3..20",
+                "--frames",
+                &format!("{}=0..15", n - 1),
+            ])
+            .arg("--out")
+            .arg(&out),
+    );
+    let kept: Vec<usize> = (0..n).collect();
+    let frames = format!(r#"{{"0": [3, 20], "{}": [0, 15]}}"#, n - 1);
+    let report = compare(source, &out, &kept, &["--columns", "--frames", &frames]);
+    assert_smart_cut(&report, &String::from_utf8_lossy(&run.stderr));
+    dexjoco_testkit::lerobot_doctor_passes(&out);
+}
+
+/// Every video frame of a trim's output is bit-exact but those its report says were
+/// re-encoded by smart cuts (and those few within the script's error bound).
+fn assert_smart_cut(report: &Value, stderr: &str) {
+    let reencoded: u64 = stderr
+        .split(" frames re-encoded by smart cuts")
+        .next()
+        .and_then(|s| s.rsplit('(').next())
+        .and_then(|s| s.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no smart cut count in: {stderr}"));
+    assert!(stderr.contains(", 0 re-encoded whole"), "{stderr}");
+    let (all, exact) = (
+        report["video_frames"].as_u64().unwrap(),
+        report["video_frames_exact"].as_u64().unwrap(),
+    );
+    assert!(
+        exact + reencoded >= all,
+        "{exact} of {all} frames exact, {reencoded} re-encoded: {report}"
+    );
+    assert!(
+        reencoded * 10 < all,
+        "{reencoded} of {all} frames re-encoded"
+    );
+}
+
+#[test]
+fn trim_and_reencode_match_lerobots_tools() {
+    let dir = tempfile::tempdir().unwrap();
+    // 6 episodes holding still at both ends; 64 px (what SVT-AV1 1.4 encodes at least).
+    let source = dir.path().join("idle");
+    let made = python_json_env(
+        "lerobot_small_dataset.py",
+        &[source.to_str().unwrap(), "6", "64"],
+        &[("IDLE", "4")],
+    );
+    assert_eq!(made, 6);
+    let before = tree(&source);
+
+    // Idle frames.
+    let ours = dir.path().join("ours_trimmed");
+    let run = succeeds(
+        dexjoco()
+            .args(["dataset", "trim"])
+            .arg(&source)
+            .args(["--idle", "--threshold", "0.01", "--out"])
+            .arg(&ours),
+    );
+    // Episode e: 20 + 7 (e % 4) frames, still for 4 + e % 3 at the start (dropped) and
+    // 4 at the end (the first of them moves: it differs from the frame before).
+    let ranges: Vec<(usize, usize)> = (0..6).map(|e| (4 + e % 3, 20 + 7 * (e % 4) - 3)).collect();
+    let frames: Value = ranges
+        .iter()
+        .enumerate()
+        .map(|(e, r)| (e.to_string(), serde_json::json!([r.0, r.1])))
+        .collect::<serde_json::Map<_, _>>()
+        .into();
+    let all: Vec<usize> = (0..6).collect();
+    let report = compare(
+        &source,
+        &ours,
+        &all,
+        &["--columns", "--frames", &frames.to_string()],
+    );
+    assert_smart_cut(&report, &String::from_utf8_lossy(&run.stderr));
+    dexjoco_testkit::lerobot_doctor_passes(&ours);
+    // The data files hold exactly those frames (lerobot-doctor 0.2's trim, the one
+    // other tool, reads only scalar action columns and keeps every frame here).
+    let a = python_json("episode_lengths.py", &[ours.to_str().unwrap()]);
+    let want: Vec<usize> = ranges.iter().map(|(f, t)| t - f).collect();
+    assert_eq!(a["lengths"], serde_json::json!(want));
+
+    reencode_matches_lerobots_reencode_videos(dir.path(), &source);
+    assert!(before == tree(&source), "the source changed");
+}
+
+/// `dataset reencode` to H.264 against lerobot-edit-dataset's reencode_videos: the same
+/// frames within the script's error bound, H.264 in info.json, a keyframe at every
+/// episode start in ours; the same bytes with 1 or 2 workers.
+fn reencode_matches_lerobots_reencode_videos(dir: &Path, source: &Path) {
+    let ours = dir.join("ours_h264");
+    let reencode = |out: &Path, jobs: &str| {
+        succeeds(
+            dexjoco()
+                .args(["-q", "-j", jobs, "dataset", "reencode"])
+                .arg(source)
+                .args(["--codec", "h264", "--crf", "23", "--gop", "2", "--out"])
+                .arg(out),
+        )
+    };
+    reencode(&ours, "2");
+    let theirs = dir.join("theirs_h264");
+    lerobot_edit(
+        source,
+        &theirs,
+        &[
+            "--operation.type",
+            "reencode_videos",
+            "--operation.rgb_encoder.vcodec",
+            "h264",
+            "--operation.rgb_encoder.crf",
+            "23",
+            "--operation.rgb_encoder.g",
+            "2",
+        ],
+    );
+    let all: Vec<usize> = (0..6).collect();
+    let a = compare(source, &ours, &all, &["--columns", "--stats-report"]);
+    let b = compare(source, &theirs, &all, &["--stats-report"]);
+    assert_eq!(a["frames"], b["frames"]);
+    for root in [&ours, &theirs] {
+        let info: Value =
+            serde_json::from_str(&fs_err::read_to_string(root.join("meta/info.json")).unwrap())
+                .unwrap();
+        let video = &info["features"]["observation.images.top"]["info"];
+        assert_eq!(video["video.codec"], "h264", "{}: {video}", root.display());
+    }
+    let file = ours.join("videos/observation.images.top/chunk-000/file-000.mp4");
+    let keyframes = dexjoco_video::keyframe_indices(&file).unwrap();
+    let mut start = 0;
+    for e in 0..6 {
+        assert!(
+            keyframes.contains(&start),
+            "episode {e} starts at {start}: {keyframes:?}"
+        );
+        start += 20 + 7 * (e % 4);
+    }
+    dexjoco_testkit::lerobot_doctor_passes(&ours);
+    let again = dir.join("ours_h264_j1");
+    reencode(&again, "1");
+    assert!(tree(&ours) == tree(&again), "-j1 and -j2 wrote other bytes");
 }
 
 /// A dataset of `episodes` episodes made by lerobot's own writer under `dir/name`

@@ -22,6 +22,12 @@ pub enum DatasetCommand {
     Merge(DatasetMergeArgs),
     /// Remove or rename features (a camera, the state) into a new dataset.
     Features(DatasetFeaturesArgs),
+    /// Cut idle frames at the start and end of each episode (or keep given frame
+    /// ranges), videos by smart cut: only the frames before the next keyframe re-encoded.
+    Trim(DatasetTrimArgs),
+    /// Encode the videos again (codec, CRF, keyframe interval) into a new dataset, a
+    /// keyframe at every episode start.
+    Reencode(DatasetReencodeArgs),
     /// Recompute meta/stats.json exactly from all frames, in place (the previous one kept
     /// as stats.json.bak), and openpi's norm_stats.json on request.
     Stats(DatasetStatsArgs),
@@ -215,6 +221,104 @@ pub struct DatasetToV21Args {
     /// Output dataset folder.
     #[arg(short, long)]
     pub out: PathBuf,
+    /// Replace OUT if it exists.
+    #[arg(long)]
+    pub overwrite: bool,
+}
+
+/// `dataset trim` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Every episode is kept, with fewer frames: frame_index and timestamp start at 0 again,
+per-episode statistics and stats.json are recomputed. A frame moves when some element of
+--column differs from the frame before by more than --threshold (LIBERO's no-op rule, for
+absolute actions); the idle frames before the first moving frame and after the last go,
+but --margin of them. An episode that never moves is kept whole (named).
+
+Videos: the kept frames are cut by stream copy; where an episode's first (or last) kept
+frame is no place a stream copy can start (or end), only the frames up to the next
+keyframe (or after the last place it can end) are re-encoded, with the source's own stream
+headers (a smart cut), so almost every frame stays bit-exact. Where no encoder setting
+reproduces the headers, that video file is re-encoded whole (counted).
+
+Examples:
+  dexjoco-data dataset trim --idle                              # the dataset convert wrote
+  dexjoco-data dataset trim ds/ --idle --threshold 1e-3 --margin 2 --out ds_trimmed/
+  dexjoco-data dataset trim ds/ --frames 0=10..250 --frames 3=0..180 --out ds_cut/")]
+pub struct DatasetTrimArgs {
+    /// The dataset folder (default: <work-dir>/convert/lerobot-v3).
+    #[arg(value_name = "DATASET")]
+    pub dataset: Option<PathBuf>,
+    /// Output dataset folder (default: DATASET_trimmed beside it).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+    /// Remove idle frames at the start and end of every episode.
+    #[arg(long, conflicts_with = "frames")]
+    pub idle: bool,
+    /// The per-frame feature whose changes count as movement.
+    #[arg(long, default_value = "action")]
+    pub column: String,
+    /// Largest change of any element between consecutive frames still counted as idle.
+    #[arg(long, default_value_t = 1e-4)]
+    pub threshold: f64,
+    /// Idle frames kept before the first and after the last movement.
+    #[arg(long, default_value_t = 0)]
+    pub margin: usize,
+    /// Keep frames FROM..TO (end excluded) of episode EPISODE: EPISODE=FROM..TO
+    /// (repeatable; other episodes stay whole).
+    #[arg(long, value_name = "EPISODE=FROM..TO")]
+    pub frames: Vec<String>,
+    /// Replace OUT if it exists.
+    #[arg(long)]
+    pub overwrite: bool,
+}
+
+/// Codecs `dataset reencode` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ReencodeCodecArg {
+    /// H.264 (libx264, yuv420p): what most players and openpi's decoders read fastest.
+    H264,
+    /// AV1 (libsvtav1, yuv420p): lerobot's default, smaller files.
+    Av1,
+}
+
+/// `dataset reencode` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Each video file is decoded (yuv420p, no colour conversion) and encoded again with a
+keyframe at every episode's first frame, whatever --gop, so later filters and splits still
+cut it by stream copy. Data, metadata and statistics are copied as they are (video
+statistics describe the frames before re-encoding; `dataset stats` recomputes numbers
+only). Files are encoded in parallel (-j); the bytes do not depend on it.
+
+Examples:
+  dexjoco-data dataset reencode ds/ --codec h264 --crf 23 --gop 2 --out ds_h264/
+  dexjoco-data dataset reencode ds/ --codec av1 --crf 30 --preset 8 --out ds_small/
+  dexjoco-data dataset reencode ds/ --keys observation.images.wrist --codec h264 --out ds_wrist/")]
+pub struct DatasetReencodeArgs {
+    /// The dataset folder (default: <work-dir>/convert/lerobot-v3).
+    #[arg(value_name = "DATASET")]
+    pub dataset: Option<PathBuf>,
+    /// Output dataset folder (default: DATASET_reencoded beside it).
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+    /// The codec.
+    #[arg(long, value_enum, default_value = "h264")]
+    pub codec: ReencodeCodecArg,
+    /// Constant rate factor (lower: better and larger; default 23 for H.264, 30 for AV1).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=63))]
+    pub crf: Option<u8>,
+    /// Encoder preset: x264's name (ultrafast .. slow; default medium) or SVT-AV1's
+    /// number (0 slowest .. 13 fastest; default 12).
+    #[arg(long)]
+    pub preset: Option<String>,
+    /// Frames from one keyframe to the next at most (lerobot: 2, for fast random
+    /// access; default: the encoder's own, 250 for x264).
+    #[arg(long, value_name = "FRAMES", value_parser = clap::value_parser!(u32).range(1..))]
+    pub gop: Option<u32>,
+    /// Only these video features (comma-separated; default all).
+    #[arg(long, value_delimiter = ',')]
+    pub keys: Vec<String>,
     /// Replace OUT if it exists.
     #[arg(long)]
     pub overwrite: bool,

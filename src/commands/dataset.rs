@@ -1,4 +1,4 @@
-//! `dexjoco-data dataset info|filter|split|merge|features|stats|to-v21`: management of
+//! `dexjoco-data dataset info|filter|split|merge|features|trim|reencode|stats|to-v21`: management of
 //! any LeRobot v3.0 dataset, each writing a new dataset beside the source (never
 //! changed; `stats` rewrites the statistics in place, keeping the previous file).
 
@@ -6,13 +6,14 @@ use dexjoco_dataset::SubsetReport;
 
 use crate::cli::{
     DatasetCommand, DatasetFeaturesArgs, DatasetFilterArgs, DatasetInfoArgs, DatasetMergeArgs,
-    DatasetSplitArgs, DatasetStatsArgs, DatasetToV21Args, GlobalArgs,
+    DatasetReencodeArgs, DatasetSplitArgs, DatasetStatsArgs, DatasetToV21Args, DatasetTrimArgs,
+    GlobalArgs,
 };
 use crate::exit::ExitStatus;
 use crate::progress::Bar;
 use crate::settings::{
-    DatasetFeaturesSettings, DatasetFilterSettings, DatasetMergeSettings, DatasetSplitSettings,
-    dataset_or_default,
+    DatasetFeaturesSettings, DatasetFilterSettings, DatasetMergeSettings, DatasetReencodeSettings,
+    DatasetSplitSettings, DatasetTrimSettings, dataset_or_default,
 };
 
 /// Runs a `dataset` subcommand.
@@ -23,6 +24,8 @@ pub fn run(global: &GlobalArgs, cmd: DatasetCommand) -> anyhow::Result<ExitStatu
         DatasetCommand::Split(args) => split(global, args)?,
         DatasetCommand::Merge(args) => merge(global, args)?,
         DatasetCommand::Features(args) => features(global, args)?,
+        DatasetCommand::Trim(args) => trim(global, args)?,
+        DatasetCommand::Reencode(args) => reencode(global, args)?,
         DatasetCommand::Stats(args) => stats(global, args)?,
         DatasetCommand::ToV21(args) => to_v21(global, args)?,
     }
@@ -114,6 +117,64 @@ fn features(global: &GlobalArgs, args: DatasetFeaturesArgs) -> anyhow::Result<()
     let report = dexjoco_dataset::edit_features(&dataset, &options, &out, overwrite, &bar)?;
     bar.finish();
     errln!("{}", describe(&report, &out.display().to_string()));
+    outln!("{}", out.display());
+    Ok(())
+}
+
+/// `dataset trim`.
+fn trim(global: &GlobalArgs, args: DatasetTrimArgs) -> anyhow::Result<()> {
+    let DatasetTrimSettings {
+        dataset,
+        rule,
+        out,
+        overwrite,
+    } = DatasetTrimSettings::resolve(args, global)?;
+    let bar = Bar::new("trim", global.quiet);
+    let report = dexjoco_dataset::trim(&dataset, &rule, &out, overwrite, &bar)?;
+    bar.finish();
+    if !report.still_episodes.is_empty() {
+        errln!(
+            "no movement found in episode(s) {:?}: kept whole",
+            report.still_episodes
+        );
+    }
+    let w = &report.written;
+    errln!(
+        "trimmed {} of {} episodes ({} frames removed, {} kept) into {}: video files {} cut \
+         ({} frames re-encoded by smart cuts), {} re-encoded whole",
+        report.episodes_trimmed,
+        w.episodes,
+        report.frames_removed,
+        w.frames,
+        out.display(),
+        w.videos_cut + w.videos_copied,
+        w.frames_reencoded,
+        w.videos_reencoded
+    );
+    outln!("{}", out.display());
+    Ok(())
+}
+
+/// `dataset reencode`.
+fn reencode(global: &GlobalArgs, args: DatasetReencodeArgs) -> anyhow::Result<()> {
+    let DatasetReencodeSettings {
+        dataset,
+        options,
+        out,
+        overwrite,
+    } = DatasetReencodeSettings::resolve(args, global)?;
+    let bar = Bar::new("reencode", global.quiet);
+    let report = dexjoco_dataset::reencode(&dataset, &options, &out, overwrite, &bar)?;
+    bar.finish();
+    let mb = |b: u64| b as f64 / 1e6;
+    errln!(
+        "re-encoded {} video file(s), {} frames, into {}: {:.1} MB -> {:.1} MB",
+        report.files,
+        report.frames,
+        out.display(),
+        mb(report.bytes_before),
+        mb(report.bytes_after)
+    );
     outln!("{}", out.display());
     Ok(())
 }

@@ -1,12 +1,15 @@
 //! Settings of the `dataset` subcommands, resolved from their arguments.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use dexjoco_dataset::{MergeOptions, Predicate, Selection, SplitSizes};
+use dexjoco_dataset::{MergeOptions, Predicate, ReencodeOptions, Selection, SplitSizes, TrimRule};
+use dexjoco_video::{Codec, Encoding, X264Preset};
 
 use super::{must_exist, outputs_apart, usage};
 use crate::cli::{
-    DatasetFeaturesArgs, DatasetFilterArgs, DatasetMergeArgs, DatasetSplitArgs, GlobalArgs,
+    DatasetFeaturesArgs, DatasetFilterArgs, DatasetMergeArgs, DatasetReencodeArgs,
+    DatasetSplitArgs, DatasetTrimArgs, GlobalArgs, ReencodeCodecArg,
 };
 
 /// The dataset a `dataset` subcommand reads: the one given, else convert's.
@@ -256,6 +259,153 @@ impl DatasetFeaturesSettings {
                 rename,
                 pad: false,
                 remove,
+            },
+            out,
+            overwrite,
+        })
+    }
+}
+
+/// `dataset trim`, resolved.
+#[derive(Debug)]
+pub struct DatasetTrimSettings {
+    /// The source dataset.
+    pub dataset: PathBuf,
+    /// Which frames to keep.
+    pub rule: TrimRule,
+    /// The output dataset.
+    pub out: PathBuf,
+    /// Replace `out`.
+    pub overwrite: bool,
+}
+
+impl DatasetTrimSettings {
+    /// Resolves `dataset trim`'s arguments.
+    pub fn resolve(args: DatasetTrimArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let DatasetTrimArgs {
+            dataset,
+            out,
+            idle,
+            column,
+            threshold,
+            margin,
+            frames,
+            overwrite,
+        } = args;
+        let dataset = dataset_or_default(dataset, global)?;
+        let out = out.unwrap_or_else(|| beside(&dataset, "_trimmed"));
+        outputs_apart(&[&out], &[&dataset])?;
+        let rule = match (idle, frames.is_empty()) {
+            (true, _) => TrimRule::Idle {
+                column,
+                threshold,
+                margin,
+            },
+            (false, false) => TrimRule::Ranges(frame_ranges(&frames)?),
+            (false, true) => {
+                return Err(usage(
+                    "dataset trim: nothing to trim by".into(),
+                    "give --idle, or --frames EPISODE=FROM..TO",
+                ));
+            }
+        };
+        Ok(Self {
+            dataset,
+            rule,
+            out,
+            overwrite,
+        })
+    }
+}
+
+/// `3=10..250` items as episode -> frame range.
+fn frame_ranges(items: &[String]) -> anyhow::Result<BTreeMap<usize, (i64, i64)>> {
+    let mut out = BTreeMap::new();
+    for item in items {
+        let bad = || {
+            usage(
+                format!("--frames: {item:?} is not EPISODE=FROM..TO"),
+                "as --frames 3=10..250 (frames 10 to 249 of episode 3)",
+            )
+        };
+        let (episode, range) = item.split_once('=').ok_or_else(bad)?;
+        let (from, to) = range.split_once("..").ok_or_else(bad)?;
+        let episode: usize = episode.trim().parse().map_err(|_| bad())?;
+        let range = (
+            from.trim().parse().map_err(|_| bad())?,
+            to.trim().parse().map_err(|_| bad())?,
+        );
+        if out.insert(episode, range).is_some() {
+            return Err(usage(
+                format!("--frames: episode {episode} is given twice"),
+                "one range per episode",
+            ));
+        }
+    }
+    Ok(out)
+}
+
+/// `dataset reencode`, resolved.
+#[derive(Debug)]
+pub struct DatasetReencodeSettings {
+    /// The source dataset.
+    pub dataset: PathBuf,
+    /// What to encode, and how.
+    pub options: ReencodeOptions,
+    /// The output dataset.
+    pub out: PathBuf,
+    /// Replace `out`.
+    pub overwrite: bool,
+}
+
+impl DatasetReencodeSettings {
+    /// Resolves `dataset reencode`'s arguments.
+    pub fn resolve(args: DatasetReencodeArgs, global: &GlobalArgs) -> anyhow::Result<Self> {
+        let DatasetReencodeArgs {
+            dataset,
+            out,
+            codec,
+            crf,
+            preset,
+            gop,
+            keys,
+            overwrite,
+        } = args;
+        let dataset = dataset_or_default(dataset, global)?;
+        let out = out.unwrap_or_else(|| beside(&dataset, "_reencoded"));
+        outputs_apart(&[&out], &[&dataset])?;
+        let codec = match codec {
+            ReencodeCodecArg::H264 => Codec::H264 {
+                crf: crf.unwrap_or(23).min(51),
+                preset: match preset {
+                    Some(p) => p
+                        .parse()
+                        .map_err(|e: String| usage(format!("--preset: {e}"), "as --preset fast"))?,
+                    None => X264Preset::Medium,
+                },
+            },
+            ReencodeCodecArg::Av1 => Codec::Av1 {
+                crf: crf.unwrap_or(30),
+                preset: match preset {
+                    Some(p) => p.parse::<u8>().ok().filter(|p| *p <= 13).ok_or_else(|| {
+                        usage(
+                            format!("--preset: {p:?} is no SVT-AV1 preset (0..13)"),
+                            "as --preset 8",
+                        )
+                    })?,
+                    None => 12,
+                },
+            },
+        };
+        Ok(Self {
+            dataset,
+            options: ReencodeOptions {
+                encoding: Encoding {
+                    codec,
+                    interval: gop,
+                },
+                keys,
+                jobs: global.jobs.unwrap_or_else(dexjoco_core::available_cores),
             },
             out,
             overwrite,

@@ -15,6 +15,9 @@ usage: lerobot_edit_compare.py SOURCE EDITED KEPT [--exact-video] [--columns] [-
   --rename OLD=NEW: the source's feature OLD is NEW in EDITED
   --removed KEY: EDITED has left out feature KEY (its per-episode columns too)
   --stats-only: only EDITED's statistics against its own frames (KEPT unused)
+  --frames JSON: EDITED's episode i holds frames FROM..TO of its source episode, for the
+                 episodes named ({"i": [FROM, TO]}; a trim): frame_index and timestamp
+                 count from 0 there, and their per-episode statistics are not compared
 A numeric column wider in EDITED than in SOURCE must hold the source's values then zeros
 (a merge's padding). Statistics are checked without --offset only.
 """
@@ -41,6 +44,7 @@ def flag(name, default):
 offset = int(flag("--offset", "0"))
 rename = dict([flag("--rename", "=").split("=", 1)]) if "--rename" in sys.argv else {}
 removed = flag("--removed", None)
+trims = {int(k): v for k, v in json.loads(flag("--frames", "{}")).items()}
 src = LeRobotDataset("local/src", root=source, video_backend="pyav")
 out = LeRobotDataset("local/out", root=edited, video_backend="pyav")
 
@@ -64,11 +68,16 @@ def episode_range(ds, e):
 
 numeric = [k for k, f in src.meta.features.items() if f["dtype"] in ("float32", "float64")]
 video_diffs = []
+exact_frames = 0
 frames = 0
 for new, old in enumerate(kept):
     new += offset
     a0, a1 = episode_range(src, old)
     b0, b1 = episode_range(out, new)
+    shift = 0
+    if new in trims:
+        shift = trims[new][0]
+        a0, a1 = a0 + trims[new][0], a0 + trims[new][1]
     if a1 - a0 != b1 - b0:
         fail(f"episode {new} (source {old}): {b1 - b0} frames, source {a1 - a0}")
     for k in range(a1 - a0):
@@ -76,9 +85,11 @@ for new, old in enumerate(kept):
         frames += 1
         if int(y["episode_index"]) != new or int(y["index"]) != b0 + k:
             fail(f"episode {new} frame {k}: episode_index/index {int(y['episode_index'])}/{int(y['index'])}")
-        if int(y["frame_index"]) != int(x["frame_index"]) or y["task"] != x["task"]:
+        if int(y["frame_index"]) != int(x["frame_index"]) - shift or y["task"] != x["task"]:
             fail(f"episode {new} frame {k}: frame_index or task differs")
-        for key in numeric + ["timestamp"]:
+        if abs(float(y["timestamp"]) - (float(x["timestamp"]) - shift / src.fps)) > 1e-4:
+            fail(f"episode {new} frame {k}: timestamp {float(y['timestamp'])}, source {float(x['timestamp'])} - {shift} frames")
+        for key in (k for k in numeric if k != "timestamp"):
             xa, ya = np.atleast_1d(np.asarray(x[key])), np.atleast_1d(np.asarray(y[rename.get(key, key)]))
             if ya.shape[0] > xa.shape[0] and not ya[xa.shape[0]:].any():
                 ya = ya[: xa.shape[0]]  # zero-padded by a merge
@@ -87,6 +98,7 @@ for new, old in enumerate(kept):
         for key in src.meta.camera_keys:
             d = np.abs(np.asarray(x[key], dtype=np.float64) - np.asarray(y[rename.get(key, key)], dtype=np.float64)) * 255.0
             video_diffs.append(float(d.mean()))
+            exact_frames += int(d.max() == 0)
             if exact_video and d.max() > 0:
                 fail(f"episode {new} frame {k}: {key} decodes differently (max {d.max():.1f} levels)")
 if video_diffs and max(video_diffs) > 3.0:
@@ -141,6 +153,15 @@ if columns:
                         ("stats/index/min", b0), ("stats/index/max", b1 - 1)]:
             if c in b.columns and not same_value(b[c][new], [want]):
                 fail(f"per-episode column {c}, episode {new}: {b[c][new]!r}, expected [{want}]")
+    # A trimmed episode's per-episode statistics describe its kept frames.
+    for new in trims:
+        b0, b1 = episode_range(out, new)
+        for key in numeric:
+            v = np.stack(hf[key][b0:b1]).astype(np.float64).reshape(b1 - b0, -1)
+            for name, want in [("min", v.min(0)), ("max", v.max(0)), ("mean", v.mean(0))]:
+                c = f"stats/{key}/{name}"
+                if c in b.columns and not np.allclose(np.asarray(b[c][new], dtype=np.float64).ravel(), want, atol=1e-6):
+                    fail(f"per-episode column {c}, trimmed episode {new}: {b[c][new]!r}, its frames give {want}")
     for c in a.columns:
         if c.startswith(placement) or c.startswith(renumbered):
             continue
@@ -155,6 +176,8 @@ if columns:
             fail(f"per-episode column {c} is gone")
         for new, old in enumerate(kept):
             new += offset
+            if new in trims and (c.startswith("stats/") or c == "length"):
+                continue  # recomputed for the kept frames
             if not same_value(a[c][old], b[bc][new]):
                 fail(f"per-episode column {c}, episode {new}: {b[bc][new]!r} != source {a[c][old]!r}")
 
@@ -163,5 +186,7 @@ print(json.dumps({
     "episodes": out.num_episodes,
     "frames": frames,
     "video_mean_error_max": max(video_diffs) if video_diffs else None,
+    "video_frames": len(video_diffs),
+    "video_frames_exact": exact_frames,
     "stats": stats_check,
 }))

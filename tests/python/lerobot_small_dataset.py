@@ -4,6 +4,8 @@ EPISODES episodes of two tasks, lengths LENGTH + 7 * (i % 4), a 6-wide action, a
 state and one SIZExSIZE camera whose frames encode (episode, frame) as colours.
 
 usage: lerobot_small_dataset.py OUT_ROOT EPISODES [SIZE (32)] [LENGTH (20)] [CAMERA (top)] [ACTION_WIDTH (6)]
+With IDLE=k in the environment, episode i holds still at its start for k + i % 3 frames
+(action all zeros) and at its end for k frames (action all ones).
 """
 import os
 import sys
@@ -30,6 +32,7 @@ features = {
 }
 ds = LeRobotDataset.create("local/small", 30, root=out, features=features, use_videos=True)
 rng = np.random.default_rng(0)
+idle = int(os.environ.get("IDLE", "0"))
 for e in range(episodes):
     n = length + 7 * (e % 4)
     task = "Pick the red cube." if e % 3 else "Open the drawer."
@@ -38,8 +41,13 @@ for e in range(episodes):
         img[:, :, 0] = (e * 37) % 256
         img[:, :, 1] = (k * 9) % 256
         img[: size // 2, :, 2] = 200
+        action = rng.normal(size=width).astype(np.float32)
+        if idle and k < idle + e % 3:
+            action[:] = 0.0
+        elif idle and k >= n - idle:
+            action[:] = 1.0
         ds.add_frame({
-            "action": rng.normal(size=width).astype(np.float32),
+            "action": action,
             "observation.state": rng.normal(size=4).astype(np.float32),
             camera: img,
             "task": task,

@@ -192,7 +192,7 @@ pub fn split(
         let splits = BTreeMap::from([(name.clone(), format!("0:{}", rows.len()))]);
         reports.push((
             name.clone(),
-            write_subset(&ds, rows, &dir, Some(splits), progress)?,
+            write_subset(&ds, rows, None, &dir, Some(splits), progress)?,
         ));
     }
     let record = serde_json::json!({

@@ -230,16 +230,18 @@ pub(crate) fn restat_renumbered(
     episodes: &RecordBatch,
     data: &[PathBuf],
 ) -> Result<RecordBatch, EditError> {
-    restat_episode_columns(episodes, data, &RENUMBERED)
+    restat_episode_columns(episodes, data, &RENUMBERED, None)
 }
 
 /// `episodes` with the per-episode statistics (`stats/<column>/...`) of each of
 /// `columns` that has them recomputed from the written data files `data` (rows found
-/// by their `episode_index`, the row number in `episodes`).
+/// by their `episode_index`, the row number in `episodes`); with `only`, in the rows
+/// it marks, the others keeping their values.
 pub(crate) fn restat_episode_columns(
     episodes: &RecordBatch,
     data: &[PathBuf],
     columns: &[&str],
+    only: Option<&[bool]>,
 ) -> Result<RecordBatch, EditError> {
     let present: Vec<&str> = columns
         .iter()
@@ -275,9 +277,17 @@ pub(crate) fn restat_episode_columns(
                 b.append(true);
             }
             let new: ArrayRef = std::sync::Arc::new(b.finish());
-            if let Ok(cast) = arrow_cast::cast(&new, field.data_type()) {
-                out[i] = cast;
-            }
+            let Ok(new) = arrow_cast::cast(&new, field.data_type()) else {
+                continue;
+            };
+            out[i] = match only {
+                None => new,
+                Some(rows) => {
+                    let mask = arrow_array::BooleanArray::from(rows.to_vec());
+                    arrow_select::zip::zip(&mask, &new, &out[i])
+                        .map_err(|e| EditError::Selection(format!("episode rows: {e}")))?
+                }
+            };
         }
     }
     RecordBatch::try_new(schema, out)
@@ -301,9 +311,9 @@ fn pick(s: &FeatureStats, stat: &str) -> Option<Vec<f64>> {
 
 /// Per column of `columns`: each episode's values (flattened rows) and row count, read
 /// from the data files `data`.
-type EpisodeValues<'a> = BTreeMap<&'a str, (Vec<Vec<f64>>, Vec<usize>)>;
+pub(crate) type EpisodeValues<'a> = BTreeMap<&'a str, (Vec<Vec<f64>>, Vec<usize>)>;
 
-fn per_episode_values<'a>(
+pub(crate) fn per_episode_values<'a>(
     n: usize,
     data: &[PathBuf],
     columns: &[&'a str],

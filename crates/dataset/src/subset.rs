@@ -37,6 +37,12 @@ pub struct SubsetReport {
     pub videos_copied: usize,
     /// Video files made by cutting episodes out by stream copy.
     pub videos_cut: usize,
+    /// Video frames re-encoded by smart cuts (where a trimmed episode's first or last
+    /// kept frame falls where no stream copy can start or end).
+    pub frames_reencoded: usize,
+    /// Video files re-encoded whole (where no encoder setting reproduced the source's
+    /// stream headers, so a smart cut could not join it).
+    pub videos_reencoded: usize,
 }
 
 /// Writes the episodes of `source` that `selection` keeps as a new dataset at `out`
@@ -59,7 +65,7 @@ pub fn filter(
     }
     check_output(source, out, overwrite)?;
     let staged = StagedDir::begin(out)?;
-    let report = write_subset(&ds, &rows, staged.path(), None, progress)?;
+    let report = write_subset(&ds, &rows, None, staged.path(), None, progress)?;
     staged.commit()?;
     Ok(report)
 }
@@ -86,17 +92,23 @@ pub(crate) fn check_output(source: &Path, out: &Path, overwrite: bool) -> Result
 }
 
 /// Writes the source `rows` (ascending source indices) of `ds` as a dataset into the
-/// empty folder `dir`; `splits` replaces info.json's (default `train: 0:N`).
+/// empty folder `dir`: each whole, or with `frames`, only frames `from..to` (frame
+/// indices, end excluded) of each; `splits` replaces info.json's (default `train: 0:N`).
 pub fn write_subset(
     ds: &LeRobotDataset,
     rows: &[usize],
+    frames: Option<&[(i64, i64)]>,
     dir: &Path,
     splits: Option<BTreeMap<String, String>>,
     progress: &dyn Progress,
 ) -> Result<SubsetReport, EditError> {
     let chunks_size = ds.info["chunks_size"].as_i64().unwrap_or(1000).max(1);
     let (task_names, task_map) = used_tasks(ds, rows)?;
-    let data = write_data(ds, rows, dir, &task_map, chunks_size, progress)?;
+    let lengths = ds.lengths()?;
+    let whole: Vec<(i64, i64)> = rows.iter().map(|r| (0, lengths[*r])).collect();
+    let trimmed = frames.is_some_and(|f| f != whole);
+    let frames = frames.unwrap_or(&whole);
+    let data = write_data(ds, rows, frames, dir, &task_map, chunks_size, progress)?;
     let mut report = SubsetReport {
         episodes: rows.len(),
         frames: data.places.last().map_or(0, |p| p.to as u64),
@@ -106,13 +118,28 @@ pub fn write_subset(
     };
     let mut video_places = BTreeMap::new();
     for key in ds.video_keys() {
-        let (places, counts) = write_videos(ds, &key, rows, dir, chunks_size, progress)?;
+        let (places, counts) = write_videos(ds, &key, rows, frames, dir, chunks_size, progress)?;
         report.videos_copied += counts.copied;
         report.videos_cut += counts.cut;
+        report.frames_reencoded += counts.frames_reencoded;
+        report.videos_reencoded += counts.reencoded;
         video_places.insert(key, places);
     }
     let episodes = episode_rows(ds, rows, &data.places, &video_places)?;
-    let episodes = stats::restat_renumbered(&episodes, &data.files)?;
+    let episodes = if trimmed {
+        // Every numeric feature's per-episode statistics describe fewer frames now.
+        let features = ds.features();
+        let numeric: Vec<&str> = features
+            .iter()
+            .filter(|(_, f)| !matches!(f["dtype"].as_str(), Some("video" | "image" | "string")))
+            .map(|(k, _)| k.as_str())
+            .collect();
+        let trimmed: Vec<bool> = frames.iter().zip(&whole).map(|(a, b)| a != b).collect();
+        let episodes = stats::restat_renumbered(&episodes, &data.files)?;
+        stats::restat_episode_columns(&episodes, &data.files, &numeric, Some(&trimmed))?
+    } else {
+        stats::restat_renumbered(&episodes, &data.files)?
+    };
     let meta = dir.join("meta");
     fs_err::create_dir_all(meta.join("episodes/chunk-000"))?;
     write_file(&meta.join("episodes/chunk-000/file-000.parquet"), &episodes)?;
@@ -171,6 +198,7 @@ struct WrittenData {
 fn write_data(
     ds: &LeRobotDataset,
     rows: &[usize],
+    frames: &[(i64, i64)],
     dir: &Path,
     task_map: &HashMap<i64, i64>,
     chunks_size: i64,
@@ -178,12 +206,21 @@ fn write_data(
 ) -> Result<WrittenData, EditError> {
     let chunk = ds.int_column("data/chunk_index")?;
     let file = ds.int_column("data/file_index")?;
-    let lengths = ds.lengths()?;
-    let new_index: HashMap<i64, i64> = rows
+    let ranges: HashMap<i64, (i64, i64)> = rows
         .iter()
-        .enumerate()
-        .map(|(new, old)| (*old as i64, new as i64))
+        .zip(frames)
+        .map(|(r, f)| (*r as i64, *f))
         .collect();
+    let copy = CopyRows {
+        new_index: rows
+            .iter()
+            .enumerate()
+            .map(|(new, old)| (*old as i64, new as i64))
+            .collect(),
+        ranges,
+        task_map,
+        fps: ds.fps,
+    };
     let template = ds.info["data_path"].as_str().unwrap_or("").to_owned();
     let mut written = WrittenData {
         places: Vec::with_capacity(rows.len()),
@@ -201,14 +238,15 @@ fn write_data(
         fs_err::create_dir_all(out.parent().unwrap_or(dir))?;
         let src = ds.data_file(chunk[group[0]], file[group[0]]);
         let wanted: HashSet<i64> = group.iter().map(|r| *r as i64).collect();
-        let counts = copy_rows(&src, &out, &wanted, &new_index, task_map, &mut next_index)?;
+        let counts = copy.rows(&src, &out, &wanted, &mut next_index)?;
         for r in group {
             let n = counts.get(&(*r as i64)).copied().unwrap_or(0);
-            if n != lengths[*r] {
+            let (from, to) = copy.ranges[&(*r as i64)];
+            if n != to - from {
                 return Err(EditError::Selection(format!(
-                    "data file '{}': episode {r} has {n} frames there but its length is {}",
+                    "data file '{}': episode {r} has {n} frames {from}..{to} there, not {}",
                     src.display(),
-                    lengths[*r]
+                    to - from
                 )));
             }
             let from = written.places.last().map_or(0, |p| p.to);
@@ -225,41 +263,78 @@ fn write_data(
     Ok(written)
 }
 
-/// Copies the rows of episodes `wanted` from `src` to `out`, renumbered; returns the
-/// frames copied per source episode.
-fn copy_rows(
-    src: &Path,
-    out: &Path,
-    wanted: &HashSet<i64>,
-    new_index: &HashMap<i64, i64>,
-    task_map: &HashMap<i64, i64>,
-    next_index: &mut i64,
-) -> Result<HashMap<i64, i64>, EditError> {
-    let err = |e: &dyn std::fmt::Display| {
-        EditError::Selection(format!("data file '{}': {e}", src.display()))
-    };
-    let builder = ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(src)?.into_parts().0)
+/// How source rows become output rows: episode renumbering, the frames kept of each
+/// episode, task renumbering, and the frame rate (for trimmed episodes' timestamps).
+struct CopyRows<'a> {
+    new_index: HashMap<i64, i64>,
+    ranges: HashMap<i64, (i64, i64)>,
+    task_map: &'a HashMap<i64, i64>,
+    fps: f64,
+}
+
+impl CopyRows<'_> {
+    /// Copies the kept frames of episodes `wanted` from `src` to `out`, renumbered;
+    /// returns the frames copied per source episode.
+    fn rows(
+        &self,
+        src: &Path,
+        out: &Path,
+        wanted: &HashSet<i64>,
+        next_index: &mut i64,
+    ) -> Result<HashMap<i64, i64>, EditError> {
+        let err = |e: &dyn std::fmt::Display| {
+            EditError::Selection(format!("data file '{}': {e}", src.display()))
+        };
+        let builder =
+            ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(src)?.into_parts().0)
+                .map_err(|e| err(&e))?;
+        let schema = builder.schema().clone();
+        let reader = builder.build().map_err(|e| err(&e))?;
+        let mut writer = ArrowWriter::try_new(
+            fs_err::File::create(out)?.into_parts().0,
+            schema.clone(),
+            Some(props()),
+        )
         .map_err(|e| err(&e))?;
-    let schema = builder.schema().clone();
-    let reader = builder.build().map_err(|e| err(&e))?;
-    let mut writer = ArrowWriter::try_new(
-        fs_err::File::create(out)?.into_parts().0,
-        schema.clone(),
-        Some(props()),
-    )
-    .map_err(|e| err(&e))?;
-    let mut counts = HashMap::new();
-    for batch in reader {
-        let batch = batch.map_err(|e| err(&e))?;
+        let mut counts = HashMap::new();
+        for batch in reader {
+            let batch = batch.map_err(|e| err(&e))?;
+            let Some(kept) = self.batch(&batch, &schema, wanted, next_index, &mut counts)? else {
+                continue;
+            };
+            writer.write(&kept).map_err(|e| err(&e))?;
+        }
+        writer.close().map_err(|e| err(&e))?;
+        Ok(counts)
+    }
+
+    /// The kept rows of `batch`, renumbered (`None`: none kept).
+    fn batch(
+        &self,
+        batch: &RecordBatch,
+        schema: &SchemaRef,
+        wanted: &HashSet<i64>,
+        next_index: &mut i64,
+        counts: &mut HashMap<i64, i64>,
+    ) -> Result<Option<RecordBatch>, EditError> {
+        let err = |e: &dyn std::fmt::Display| EditError::Selection(e.to_string());
         let episode =
-            ints(&batch, "episode_index").ok_or_else(|| err(&"no episode_index column"))?;
-        let keep: Vec<u32> = (0..batch.num_rows() as u32)
-            .filter(|i| wanted.contains(&episode[*i as usize]))
+            ints(batch, "episode_index").ok_or_else(|| err(&"no episode_index column"))?;
+        let frame = ints(batch, "frame_index").ok_or_else(|| err(&"no frame_index column"))?;
+        let keep: Vec<u32> = (0..batch.num_rows())
+            .filter(|i| {
+                wanted.contains(&episode[*i])
+                    && self
+                        .ranges
+                        .get(&episode[*i])
+                        .is_some_and(|(from, to)| (*from..*to).contains(&frame[*i]))
+            })
+            .map(|i| i as u32)
             .collect();
         if keep.is_empty() {
-            continue;
+            return Ok(None);
         }
-        let kept = arrow_select::take::take_record_batch(&batch, &UInt32Array::from(keep.clone()))
+        let kept = arrow_select::take::take_record_batch(batch, &UInt32Array::from(keep.clone()))
             .map_err(|e| err(&e))?;
         let old: Vec<i64> = keep.iter().map(|i| episode[*i as usize]).collect();
         for e in &old {
@@ -267,24 +342,34 @@ fn copy_rows(
         }
         let n = old.len() as i64;
         let mut replace: Vec<(&str, Vec<i64>)> = vec![
-            ("episode_index", old.iter().map(|e| new_index[e]).collect()),
+            (
+                "episode_index",
+                old.iter().map(|e| self.new_index[e]).collect(),
+            ),
             ("index", (*next_index..*next_index + n).collect()),
         ];
         if let Some(tasks) = ints(&kept, "task_index") {
-            replace.push((
-                "task_index",
-                tasks
-                    .iter()
-                    .map(|t| task_map.get(t).copied().unwrap_or(*t))
-                    .collect(),
-            ));
+            let map = |t: &i64| self.task_map.get(t).copied().unwrap_or(*t);
+            replace.push(("task_index", tasks.iter().map(map).collect()));
         }
         *next_index += n;
-        let kept = with_columns(&kept, &schema, &replace).map_err(|e| err(&e))?;
-        writer.write(&kept).map_err(|e| err(&e))?;
+        // Trimmed episodes start at frame 0 and time 0 again.
+        let shift: Vec<i64> = old.iter().map(|e| self.ranges[e].0).collect();
+        let mut kept = kept;
+        if shift.iter().any(|s| *s > 0) {
+            let frames: Vec<i64> = keep
+                .iter()
+                .zip(&shift)
+                .map(|(i, s)| frame[*i as usize] - s)
+                .collect();
+            let times: Vec<f64> = frames.iter().map(|f| *f as f64 / self.fps).collect();
+            kept = with_float_column(&kept, schema, "timestamp", times).map_err(|e| err(&e))?;
+            replace.push(("frame_index", frames));
+        }
+        with_columns(&kept, schema, &replace)
+            .map(Some)
+            .map_err(|e| err(&e))
     }
-    writer.close().map_err(|e| err(&e))?;
-    Ok(counts)
 }
 
 /// The episode rows of the kept episodes, every column kept, their placement rewritten.
@@ -310,6 +395,10 @@ pub(crate) fn placed(
     let n = kept.num_rows() as i64;
     let mut ints: Vec<(String, Vec<i64>)> = vec![
         ("episode_index".into(), (0..n).collect()),
+        (
+            "length".into(),
+            data.iter().map(|p| p.to - p.from).collect(),
+        ),
         (
             "data/chunk_index".into(),
             data.iter().map(|p| p.chunk).collect(),
@@ -404,6 +493,23 @@ pub(crate) fn with_columns(
             columns[i] = arrow_cast::cast(&new, schema.field(i).data_type())?;
         }
     }
+    RecordBatch::try_new(schema.clone(), columns)
+}
+
+/// `batch` with the float column `name` (where it exists) holding `values` instead, in
+/// the column's own type.
+fn with_float_column(
+    batch: &RecordBatch,
+    schema: &SchemaRef,
+    name: &str,
+    values: Vec<f64>,
+) -> Result<RecordBatch, arrow_schema::ArrowError> {
+    let Ok(i) = schema.index_of(name) else {
+        return Ok(batch.clone());
+    };
+    let mut columns = batch.columns().to_vec();
+    let new: ArrayRef = Arc::new(Float64Array::from(values));
+    columns[i] = arrow_cast::cast(&new, schema.field(i).data_type())?;
     RecordBatch::try_new(schema.clone(), columns)
 }
 

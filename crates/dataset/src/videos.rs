@@ -1,14 +1,22 @@
-//! The kept episodes' videos: a source file whose episodes are all kept is copied byte
-//! for byte; otherwise the kept episodes are cut out of it by stream copy (each
+//! The kept episodes' videos: a source file whose episodes are all kept whole is copied
+//! byte for byte; otherwise the kept frames are cut out of it by stream copy (each
 //! episode starts a closed group of pictures where it was encoded on its own and
-//! joined, as lerobot and convert write them), so every frame stays bit-exact.
+//! joined, as lerobot and convert write them), so every frame stays bit-exact. A
+//! trimmed episode whose first or last kept frame is no place a stream copy can start or
+//! end gets a smart cut: only the frames outside the copyable span are re-encoded, with
+//! the source's own stream headers; where no encoder setting reproduces those, the
+//! output file is re-encoded whole (keyframes at every episode start).
 
 use std::collections::HashMap;
 use std::path::Path;
 
 use dexjoco_core::Progress;
 use dexjoco_formats::dataset::lerobot_read::{LeRobotDataset, fill_template};
-use dexjoco_video::{ConcatInput, concat_copy};
+use dexjoco_video::{
+    Codec, ConcatInput, CutPoints, Encoding, Keyframes, VideoSpec, X264Preset, concat_copy,
+    smart_cut, transcode,
+};
+use serde_json::Value;
 
 use crate::EditError;
 
@@ -28,6 +36,10 @@ pub(crate) struct VideoCounts {
     pub copied: usize,
     /// Files made by cutting episodes out by stream copy.
     pub cut: usize,
+    /// Frames re-encoded by smart cuts.
+    pub frames_reencoded: usize,
+    /// Files re-encoded whole.
+    pub reencoded: usize,
 }
 
 /// One feature's source placement of every episode.
@@ -57,11 +69,13 @@ impl Placement {
 }
 
 /// Writes the video files of feature `key` for the kept source `rows` (in output
-/// order) under `dir`; returns each kept episode's placement.
+/// order), frames `frames[i]` of row `i`, under `dir`; returns each kept episode's
+/// placement.
 pub(crate) fn write_videos(
     ds: &LeRobotDataset,
     key: &str,
     rows: &[usize],
+    frames: &[(i64, i64)],
     dir: &Path,
     chunks_size: i64,
     progress: &dyn Progress,
@@ -71,13 +85,14 @@ pub(crate) fn write_videos(
     for row in 0..ds.len() {
         per_file.entry(place.source(row)).or_default().push(row);
     }
+    let kept: HashMap<usize, (i64, i64)> =
+        rows.iter().copied().zip(frames.iter().copied()).collect();
+    let whole = |r: &usize| kept[r] == (0, place.lengths[*r]);
     let template = ds.info["video_path"].as_str().unwrap_or("").to_owned();
-    let fps = ds.fps.round() as u32;
     let (mut places, mut counts) = (Vec::with_capacity(rows.len()), VideoCounts::default());
     let same_file = |a: &usize, b: &usize| place.source(*a) == place.source(*b);
     progress.phase(key, rows.chunk_by(same_file).count() as u64);
     for (k, group) in rows.chunk_by(same_file).enumerate() {
-        let done = || progress.advance(1, &format!("{key} file {k}"));
         let (chunk, file) = (k as i64 / chunks_size, k as i64 % chunks_size);
         let rel = fill_template(
             &template,
@@ -92,10 +107,10 @@ pub(crate) fn write_videos(
         let (src_chunk, src_file) = place.source(group[0]);
         let src = ds.video_file(key, src_chunk, src_file);
         let context = |row: usize| format!("video '{}' of episode {row} ({key})", src.display());
-        if per_file[&(src_chunk, src_file)] == group {
+        progress.advance(1, &format!("{key} file {k}"));
+        if per_file[&(src_chunk, src_file)] == group && group.iter().all(whole) {
             fs_err::copy(&src, &out)?;
             counts.copied += 1;
-            done();
             places.extend(group.iter().map(|r| VideoPlace {
                 chunk,
                 file,
@@ -104,51 +119,215 @@ pub(crate) fn write_videos(
             }));
             continue;
         }
-        let inputs = cut_inputs(&place, group, &src, ds.fps, &context)?;
-        concat_copy(&inputs, &out, fps).map_err(|source| EditError::Video {
-            context: context(group[0]),
-            source,
-        })?;
-        counts.cut += 1;
-        done();
-        let mut frames = 0i64;
-        for r in group {
-            let n = place.lengths[*r];
+        let group_frames: Vec<(i64, i64)> = group.iter().map(|r| kept[r]).collect();
+        let inputs = cut_inputs(&place, group, &group_frames, &src, ds.fps, &context)?;
+        let join = Join {
+            src: &src,
+            out: &out,
+            fps: ds.fps.round() as u32,
+            feature: &ds.features()[key],
+            scratch: &dir.join(".smart-cut"),
+        };
+        join.write(&inputs, &group_frames, &mut counts)
+            .map_err(|source| EditError::Video {
+                context: context(group[0]),
+                source,
+            })?;
+        let mut at = 0i64;
+        for (from, to) in group_frames {
             places.push(VideoPlace {
                 chunk,
                 file,
-                from: frames as f64 / ds.fps,
-                to: (frames + n) as f64 / ds.fps,
+                from: at as f64 / ds.fps,
+                to: (at + to - from) as f64 / ds.fps,
             });
-            frames += n;
+            at += to - from;
         }
     }
     Ok((places, counts))
 }
 
-/// The stream-copy cuts of `group`'s episodes out of `src`, episodes that follow one
-/// another in the source joined into one cut.
+/// One output video file made of cuts of one source file.
+struct Join<'a> {
+    src: &'a Path,
+    out: &'a Path,
+    fps: u32,
+    /// The feature's info.json entry (its encoder settings).
+    feature: &'a Value,
+    scratch: &'a Path,
+}
+
+impl Join<'_> {
+    /// Writes `inputs` (cuts of the source) into the output: by stream copy, with smart
+    /// cuts where needed, else re-encoded whole with a keyframe at each episode start.
+    fn write(
+        &self,
+        inputs: &[ConcatInput],
+        frames: &[(i64, i64)],
+        counts: &mut VideoCounts,
+    ) -> Result<(), dexjoco_video::VideoError> {
+        if frames.iter().all(|(from, _)| *from == 0) && inputs.iter().all(|i| i.take.is_some()) {
+            // Whole episodes or ends cut: concat_copy checks each end itself.
+            if let Ok(()) = concat_copy(inputs, self.out, self.fps) {
+                counts.cut += 1;
+                return Ok(());
+            }
+        }
+        let cuts = CutPoints::of(self.src)?;
+        let copyable = |i: &ConcatInput| {
+            let end = i.skip + i.take.unwrap_or(cuts.frames() - i.skip);
+            cuts.can_start(i.skip) && cuts.can_end(end)
+        };
+        if inputs.iter().all(copyable) {
+            concat_copy(inputs, self.out, self.fps)?;
+            counts.cut += 1;
+            return Ok(());
+        }
+        let recorded = dexjoco_video::x264_settings(self.src)?;
+        let candidates = encodings(self.feature, recorded);
+        fs_err::create_dir_all(self.scratch).map_err(|source| dexjoco_video::VideoError::Io {
+            path: self.scratch.to_path_buf(),
+            source,
+        })?;
+        let mut joined = Vec::new();
+        let mut reencoded = 0;
+        for input in inputs {
+            if copyable(input) {
+                joined.push(input.clone());
+                continue;
+            }
+            let take = input.take.unwrap_or(cuts.frames() - input.skip);
+            match smart_cut(self.src, input.skip, take, &cuts, &candidates, self.scratch)? {
+                Some(cut) => {
+                    reencoded += cut.reencoded;
+                    joined.extend(cut.inputs);
+                }
+                None => {
+                    joined.clear();
+                    break;
+                }
+            }
+        }
+        let result = if joined.is_empty() {
+            counts.reencoded += 1;
+            self.reencode(inputs, frames, candidates[0])
+        } else {
+            counts.cut += 1;
+            counts.frames_reencoded += reencoded;
+            concat_copy(&joined, self.out, self.fps)
+        };
+        let _ = fs_err::remove_dir_all(self.scratch);
+        result
+    }
+
+    /// Re-encodes `inputs` whole with `encoding`, a keyframe at each episode's start.
+    fn reencode(
+        &self,
+        inputs: &[ConcatInput],
+        frames: &[(i64, i64)],
+        encoding: Encoding,
+    ) -> Result<(), dexjoco_video::VideoError> {
+        let info = dexjoco_video::probe(self.src)?;
+        let spec = VideoSpec {
+            width: info.width,
+            height: info.height,
+            fps: self.fps,
+            codec: encoding.codec,
+        };
+        let mut at = Vec::new();
+        let mut start = 0;
+        for (from, to) in frames {
+            at.push(start);
+            start += (to - from) as usize;
+        }
+        let keyframes = Keyframes {
+            interval: encoding.interval,
+            at,
+        };
+        transcode(inputs, self.out, spec, &keyframes).map(|_| ())
+    }
+}
+
+/// The encoder settings to try for re-encoded frames of a video feature: the crf and
+/// keyframe interval x264 `recorded` in the file, else its info.json entry's
+/// (`video.crf`, `video.g`, as lerobot and convert record them), with the stated preset
+/// first, then the codec's other presets.
+fn encodings(feature: &Value, recorded: Option<dexjoco_video::X264Settings>) -> Vec<Encoding> {
+    let info = &feature["info"];
+    let codec = info["video.codec"].as_str().unwrap_or("av1");
+    let crf = recorded
+        .and_then(|r| r.crf)
+        .or_else(|| info["video.crf"].as_u64().map(|c| c.min(63) as u8));
+    let g = recorded
+        .and_then(|r| r.keyint)
+        .or_else(|| info["video.g"].as_u64().map(|g| g as u32));
+    let intervals = if g.is_some() {
+        vec![g, None]
+    } else {
+        vec![None, Some(2)]
+    };
+    let codecs: Vec<Codec> = if codec == "h264" {
+        let stated = info["video.preset"]
+            .as_str()
+            .and_then(|p| p.parse::<X264Preset>().ok());
+        let presets = stated.into_iter().chain(X264Preset::ALL);
+        presets
+            .map(|preset| Codec::H264 {
+                crf: crf.unwrap_or(23),
+                preset,
+            })
+            .collect()
+    } else {
+        let stated = info["video.preset"].as_u64().map(|p| p.min(13) as u8);
+        stated
+            .into_iter()
+            .chain([12, 8, 10, 6, 4])
+            .map(|preset| Codec::Av1 {
+                crf: crf.unwrap_or(30),
+                preset,
+            })
+            .collect()
+    };
+    let mut all: Vec<Encoding> = Vec::new();
+    for codec in codecs {
+        for interval in &intervals {
+            let e = Encoding {
+                codec,
+                interval: *interval,
+            };
+            if !all.contains(&e) {
+                all.push(e);
+            }
+        }
+    }
+    all
+}
+
+/// The stream-copy cuts of `group`'s episodes (frames `frames[i]` of episode
+/// `group[i]`) out of `src`, cuts that follow one another in the source joined.
 fn cut_inputs(
     place: &Placement,
     group: &[usize],
+    frames: &[(i64, i64)],
     src: &Path,
     fps: f64,
     context: &dyn Fn(usize) -> String,
 ) -> Result<Vec<ConcatInput>, EditError> {
     let mut inputs: Vec<ConcatInput> = Vec::new();
     let mut end_of_last = None;
-    for &r in group {
-        let skip = (place.from[r] * fps).round() as i64;
-        let frames = ((place.to[r] - place.from[r]) * fps).round() as i64;
-        if frames != place.lengths[r] || skip < 0 || frames < 1 || !place.from[r].is_finite() {
+    for (&r, &(first, last)) in group.iter().zip(frames) {
+        let start = (place.from[r] * fps).round() as i64;
+        let n = ((place.to[r] - place.from[r]) * fps).round() as i64;
+        if n != place.lengths[r] || start < 0 || n < 1 || !place.from[r].is_finite() {
             return Err(EditError::Selection(format!(
-                "{}: its timestamps {}..{} s hold {frames} frames but the episode has {}",
+                "{}: its timestamps {}..{} s hold {n} frames but the episode has {}",
                 context(r),
                 place.from[r],
                 place.to[r],
                 place.lengths[r]
             )));
         }
+        let (skip, frames) = (start + first, last - first);
         match inputs.last_mut() {
             Some(last) if end_of_last == Some(skip) => {
                 last.take = last.take.map(|t| t + frames as usize);

@@ -26,7 +26,9 @@ mod versions;
 pub use depth::{DepthVideoWriter, decode_gray12};
 pub(crate) use read::decode_raw;
 pub use read::{VideoReader, decode_rgb};
-pub use transcode::{CutPoints, Encoding, SmartCut, smart_cut, transcode};
+pub use transcode::{
+    CutPoints, Encoding, SmartCut, X264Settings, smart_cut, transcode, x264_settings,
+};
 
 pub use probe::{
     Packet, VideoInfo, frame_times, keyframe_indices, packets_in_decoding_order, probe,

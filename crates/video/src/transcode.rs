@@ -201,7 +201,7 @@ pub struct SmartCut {
 /// re-encoded into files under `scratch`. Those must join the source's stream, so they
 /// are encoded with the first of `candidates` whose out-of-band parameters (H.264's
 /// SPS/PPS, AV1's sequence header) equal the source's, byte for byte; `None` when none
-/// does (the caller re-encodes everything instead).
+/// does or the encoder refuses them all (the caller re-encodes everything instead).
 pub fn smart_cut(
     src: &Path,
     skip: usize,
@@ -262,8 +262,12 @@ pub fn smart_cut(
                 interval: encoding.interval,
                 at: Vec::new(),
             };
-            let frames = transcode(std::slice::from_ref(piece), &path, spec, &keyframes)?;
-            if probe(&path)?.extradata != info.extradata {
+            // A setting this ffmpeg's encoder refuses (SVT-AV1 1.4 wants 64 px at least)
+            // is just no match.
+            let made = transcode(std::slice::from_ref(piece), &path, spec, &keyframes);
+            let matches = made.is_ok() && probe(&path).is_ok_and(|p| p.extradata == info.extradata);
+            let frames = made.unwrap_or(0);
+            if !matches {
                 let _ = fs_err::remove_file(&path);
                 for made in inputs.iter().filter(|i: &&ConcatInput| i.path != src) {
                     let _ = fs_err::remove_file(&made.path);
@@ -284,4 +288,48 @@ pub fn smart_cut(
         }));
     }
     Ok(None)
+}
+
+/// What an H.264 video's x264 recorded of its settings (x264 writes its options into
+/// the first keyframe: `x264 - core 164 ... options: ... keyint=5 ... crf=21.0 ...`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct X264Settings {
+    /// `crf=`, rounded (absent for other rate controls).
+    pub crf: Option<u8>,
+    /// `keyint=`: the keyframe interval (`-g`).
+    pub keyint: Option<u32>,
+}
+
+/// The x264 settings recorded in the first megabyte of `path`; `None` when there are
+/// none (another encoder, or x264's message left out).
+pub fn x264_settings(path: &Path) -> Result<Option<X264Settings>, VideoError> {
+    let mut head = Vec::new();
+    fs_err::File::open(path)
+        .and_then(|f| f.take(1 << 20).read_to_end(&mut head))
+        .map_err(|source| VideoError::Io {
+            path: path.into(),
+            source,
+        })?;
+    let marker = b"x264 - core ";
+    let Some(at) = head.windows(marker.len()).position(|w| w == marker) else {
+        return Ok(None);
+    };
+    let text: String = head[at..]
+        .iter()
+        .take_while(|b| **b != 0)
+        .take(4096)
+        .map(|b| *b as char)
+        .collect();
+    let options = text.split("options:").nth(1).unwrap_or("");
+    let value = |key: &str| {
+        options
+            .split_whitespace()
+            .find_map(|kv| kv.strip_prefix(key)?.strip_prefix('='))
+    };
+    Ok(Some(X264Settings {
+        crf: value("crf")
+            .and_then(|v| v.parse::<f64>().ok())
+            .map(|c| c.round().clamp(0.0, 63.0) as u8),
+        keyint: value("keyint").and_then(|v| v.parse().ok()),
+    }))
 }
