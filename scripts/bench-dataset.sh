@@ -4,13 +4,16 @@
 # LENGTH..LENGTH+21 frames, one SIZExSIZE AV1 camera (lerobot's default encoding).
 # Operations: delete every 10th episode (ours: `filter --episodes ... --drop`), a 0.8/0.2
 # split (ours seeded and stratified; lerobot's given the same episode lists), and a merge
-# of the source with lerobot's filtered copy (both written by lerobot).
+# of the source with lerobot's filtered copy (both written by lerobot), and a re-encode of
+# every video to H.264 crf 23, GOP 2 (ours with -j JOBS, lerobot's with --operation.num_workers
+# JOBS).
 # Wall time and peak memory (GNU time's maximum resident set) of each, side by side, in
 # OUT/results.md. Reported, not asserted.
 #
 #   scripts/bench-dataset.sh [OUT]
 #
-# Environment: EPISODES (300), LENGTH (100), SIZE (64), BIN (target/release/dexjoco-data).
+# Environment: EPISODES (300), LENGTH (100), SIZE (64), JOBS (2),
+# BIN (target/release/dexjoco-data).
 # Needs the test venv (scripts/setup.sh --python) and GNU time (/usr/bin/time).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -18,6 +21,7 @@ OUT="$(mkdir -p "${1:-$ROOT/bench-dataset}" && cd "${1:-$ROOT/bench-dataset}" &&
 EPISODES="${EPISODES:-300}"
 LENGTH="${LENGTH:-100}"
 SIZE="${SIZE:-64}"
+JOBS="${JOBS:-2}"
 BIN="${BIN:-$ROOT/target/release/dexjoco-data}"
 PY="$(cat "$ROOT/.deps/python-path")"
 EDIT="$(dirname "$PY")/lerobot-edit-dataset"
@@ -59,6 +63,12 @@ theirs_m="$(measure "$EDIT" --new_repo_id local/merged --new_root "$OUT/theirs_m
   --operation.type merge --operation.repo_ids "['local/a', 'local/b']" \
   --operation.roots "['$src', '$OUT/theirs_filter']")"
 
+log "re-encode every video to H.264 (crf 23, GOP 2)"
+ours_r="$(measure "$BIN" -q -j "$JOBS" dataset reencode "$src" --codec h264 --crf 23 --gop 2 --out "$OUT/ours_reencode")"
+theirs_r="$(measure "$EDIT" --repo_id local/source --root "$src" --new_repo_id local/edited \
+  --new_root "$OUT/theirs_reencode" --operation.type reencode_videos --operation.num_workers "$JOBS" \
+  --operation.rgb_encoder.vcodec h264 --operation.rgb_encoder.crf 23 --operation.rgb_encoder.g 2)"
+
 row() {
   local op=$1 ours=$2 theirs=$3
   read -r os om <<<"$ours"
@@ -72,5 +82,6 @@ row() {
   row "delete every 10th episode" "$ours_f" "$theirs_f"
   row "split 0.8 / 0.2" "$ours_s" "$theirs_s"
   row "merge (300 + 270 episodes)" "$ours_m" "$theirs_m"
+  row "re-encode to H.264 ($JOBS workers)" "$ours_r" "$theirs_r"
 } >"$OUT/results.md"
 cat "$OUT/results.md"

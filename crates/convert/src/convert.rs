@@ -460,7 +460,7 @@ impl Run<'_> {
             return None;
         }
         let e = match dexjoco_formats::raw::read_replay_label(&item.dir) {
-            Ok(Some(l)) if !l.success && !self.options.include_failed => {
+            Ok(Some(l)) if !l.success && !l.evaluated && !self.options.include_failed => {
                 ConvertError::FailedReplay {
                     dir: item.dir.clone(),
                 }

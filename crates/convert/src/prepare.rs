@@ -362,7 +362,14 @@ impl Cameras<'_> {
             source: source.into(),
         };
         let info = dexjoco_video::probe(&src).map_err(vid_err)?;
-        if info.frames as usize != n {
+        // An evaluated rollout's video holds one frame more: the one after the last step.
+        let rollout = self
+            .input
+            .dir
+            .join(dexjoco_formats::raw::EVAL_RECORD)
+            .is_file();
+        let extra = info.frames as usize == n + 1 && rollout;
+        if info.frames as usize != n && !extra {
             return Err(ConvertError::Episode {
                 at: cam_at().path(&src).into(),
                 message: format!("the video has {} frames, the episode {n}", info.frames),
@@ -371,9 +378,15 @@ impl Cameras<'_> {
         let fits = COPYABLE.contains(&info.codec.as_str())
             && info.pix_fmt == "yuv420p"
             && (info.fps - f64::from(self.fps)).abs() < 1e-6;
+        // Stream copy can leave that last frame out only where no kept frame refers to it.
+        let ends_cleanly = !extra
+            || dexjoco_video::CutPoints::of(&src)
+                .map_err(vid_err)?
+                .can_end(n);
         let mut frames = Frames {
             reader: VideoReader::open(&src, None).map_err(vid_err)?,
             skipped: self.skipped,
+            end: n,
             samples: sample_indices(n - self.skipped),
             sampler: ImageSampler::default(),
         };
@@ -382,11 +395,14 @@ impl Cameras<'_> {
         let cuts_at_keyframe =
             self.skipped == 0 || info.keyframes.binary_search(&self.skipped).is_ok();
         let use_source = match self.layout {
-            VideoLayout::Joined => fits && !self.video.reencode && cuts_at_keyframe,
+            VideoLayout::Joined => {
+                fits && !self.video.reencode && cuts_at_keyframe && ends_cleanly
+            }
             // Every episode's file must end up in the same codec.
             VideoLayout::PerEpisode => {
                 fits && !self.video.reencode
                     && self.skipped == 0
+                    && !extra
                     && info.codec == self.video.codec.name()
             }
             VideoLayout::Encoded => false,
@@ -467,6 +483,8 @@ struct Frames {
     reader: VideoReader,
     /// Leading frames skipped.
     skipped: usize,
+    /// Frames kept end before this one (an evaluated rollout's video holds one more).
+    end: usize,
     /// Indices (among the kept frames) sampled for statistics.
     samples: Vec<usize>,
     sampler: ImageSampler,
@@ -483,7 +501,7 @@ impl Frames {
         let mut frame = Vec::new();
         let mut k = 0;
         while self.reader.next_frame(&mut frame)? {
-            if k >= self.skipped {
+            if k >= self.skipped && k < self.end {
                 keep(&frame)?;
                 if want.peek().is_some_and(|&&s| s == k - self.skipped) {
                     while want.peek().is_some_and(|&&s| s == k - self.skipped) {

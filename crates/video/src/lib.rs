@@ -214,15 +214,27 @@ pub struct Keyframes {
 }
 
 impl Keyframes {
-    /// ffmpeg's `-force_key_frames expr:` expression for [`Keyframes::at`].
-    fn force_expression(&self) -> Option<String> {
+    /// ffmpeg's `-force_key_frames` value for [`Keyframes::at`] at `fps`: an `expr:` of
+    /// the frame numbers for a few, else a list of the frames' times (ffmpeg's expression
+    /// parser refuses a few hundred terms; it rounds each time to the nearest frame).
+    fn force_value(&self, fps: u32) -> Option<String> {
+        const MOST_TERMS: usize = 16;
         let mut at: Vec<usize> = self.at.iter().copied().filter(|&k| k > 0).collect();
         at.sort_unstable();
         at.dedup();
-        (!at.is_empty()).then(|| {
+        if at.is_empty() {
+            return None;
+        }
+        if at.len() <= MOST_TERMS {
             let terms: Vec<String> = at.iter().map(|k| format!("eq(n,{k})")).collect();
-            format!("expr:{}", terms.join("+"))
-        })
+            return Some(format!("expr:{}", terms.join("+")));
+        }
+        let fps = f64::from(fps.max(1));
+        let times: Vec<String> = at
+            .iter()
+            .map(|k| format!("{:.6}", *k as f64 / fps))
+            .collect();
+        Some(times.join(","))
     }
 }
 
@@ -466,8 +478,8 @@ fn encoder(spec: VideoSpec, keyframes: &Keyframes) -> Command {
     if let Some(g) = keyframes.interval {
         cmd.args(["-g", &g.max(1).to_string()]);
     }
-    if let Some(expr) = keyframes.force_expression() {
-        cmd.args(["-force_key_frames", &expr]);
+    if let Some(value) = keyframes.force_value(spec.fps) {
+        cmd.args(["-force_key_frames", &value]);
     }
     cmd.args(["-pix_fmt", pix_fmt]);
     cmd

@@ -313,3 +313,20 @@ fn a_cut_off_a_keyframe_reencodes_only_the_frames_before_the_next_keyframe() {
         );
     }
 }
+
+#[test]
+fn hundreds_of_forced_keyframes_are_all_keyframes() {
+    // A re-encoded LeRobot file forces one per episode: more than ffmpeg's expression
+    // parser takes as one sum, so they are passed as times.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("many.mp4");
+    let at: Vec<usize> = (0..300).map(|k| k * 3 + k % 2).collect();
+    let keyframes = Keyframes {
+        interval: None,
+        at: at.clone(),
+    };
+    textured(&path, Codec::DEXJOCO, 905, &keyframes);
+    let found = keyframe_indices(&path).unwrap();
+    let missing: Vec<&usize> = at.iter().filter(|k| !found.contains(k)).collect();
+    assert!(missing.is_empty(), "not keyframes: {missing:?}");
+}

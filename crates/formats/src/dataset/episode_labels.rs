@@ -83,6 +83,12 @@ pub fn label_columns(labels: &[Option<&ReplayLabel>]) -> Vec<(String, LabelValue
             })),
         ),
         c(
+            "outcome/subtasks_done",
+            L::Int(per(labels, |l| {
+                (!l.subtasks.is_empty()).then(|| l.subtasks_done() as i64)
+            })),
+        ),
+        c(
             "randomization/seed",
             L::UInt(per(labels, |l| sample(l, "seed")?.as_u64())),
         ),

@@ -297,7 +297,8 @@ impl V3Writer {
             v.parts.push(ConcatInput {
                 path: part.path.clone(),
                 skip: part.skip,
-                take: None,
+                // Fewer frames than the file holds (an evaluated rollout's last one).
+                take: (part.frames < part.info.frames as usize).then_some(kept),
             });
             v.extradata = Some(part.info.extradata.clone());
             if part.temporary {

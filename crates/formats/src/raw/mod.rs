@@ -24,8 +24,8 @@ mod write;
 mod zarr_read;
 
 pub use record::{
-    PLAN_RECORD, REPLAY_RECORD, RenderCheck, RenderFlag, ReplayLabel, read_replay_label,
-    read_subtask_spans, replay_success,
+    EvalRollout, PLAN_RECORD, REPLAY_RECORD, RenderCheck, RenderFlag, ReplayLabel,
+    read_eval_rollout, read_replay_label, read_subtask_spans, replay_success,
 };
 use write::ATTRIBUTES_FILE;
 pub use write::{own_instruction, write_raw_episode, write_replay_zarr};
@@ -140,13 +140,60 @@ pub fn read_raw_episode(dir: &Path, task: &TaskSpec) -> Result<RawEpisode> {
     };
     normalise(&mut episode, task, &mut notes)?;
 
-    let videos = list_files(&dir.join(VIDEOS), Path::new(VIDEOS))?;
+    let mut videos = list_files(&dir.join(VIDEOS), Path::new(VIDEOS))?;
+    if let Some(rollout) = read_eval_rollout(dir)? {
+        videos = eval_rollout(&mut episode, &rollout, dir, &mut notes)?;
+    }
     episode.cameras = cameras_of(&videos);
     Ok(RawEpisode {
         episode,
         videos,
         notes,
     })
+}
+
+/// An evaluated episode (`eval`'s folder: [`EVAL_RECORD`] beside `replay.zarr`, the
+/// camera videos `<key>.mp4` in the folder itself) as data: the warm-up rows before the
+/// first observation left out, so row k is step k and video frame k; its videos (each
+/// holds one frame more, after the last step, which `convert` leaves out).
+fn eval_rollout(
+    episode: &mut Episode,
+    rollout: &EvalRollout,
+    dir: &Path,
+    notes: &mut Vec<String>,
+) -> Result<Vec<PathBuf>> {
+    let rows = rollout.warmup_steps + rollout.steps;
+    if episode.len() != rows {
+        return Err(FormatError::input(
+            ProblemCode::WrongLength,
+            &Location::default().path(dir.join(REPLAY_ZARR)),
+            format!(
+                "{} rows, but its record ({EVAL_RECORD}) says {} warm-up steps and {} steps",
+                episode.len(),
+                rollout.warmup_steps,
+                rollout.steps
+            ),
+        ));
+    }
+    let skip = rollout.warmup_steps;
+    if skip > 0 {
+        for a in episode.arrays.values_mut() {
+            let w = a.width();
+            *a = FrameArray::new(w, a.as_slice()[skip * w..].to_vec()).expect("whole rows");
+        }
+        notes.push(format!(
+            "evaluated rollout: the {skip} warm-up step(s) before the first observation left out"
+        ));
+    }
+    let mut videos: Vec<PathBuf> = fs_err::read_dir(dir)
+        .map_err(io_err("list", dir))?
+        .flatten()
+        .filter(|e| e.path().is_file())
+        .map(|e| PathBuf::from(e.file_name()))
+        .filter(|p| p.extension().is_some_and(|e| e == "mp4"))
+        .collect();
+    videos.sort();
+    Ok(videos)
 }
 
 /// The episode's own instruction: the [`INSTRUCTION_ATTRIBUTE`] of `replay.zarr/.zattrs`

@@ -125,6 +125,10 @@ pub struct ReplayLabel {
     /// have none).
     #[serde(default)]
     pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
+    /// Whether the label is an evaluated rollout's (`episode.json`, `eval`): its
+    /// verdict is data (kept whatever it says), not a reason to leave it out.
+    #[serde(skip)]
+    pub evaluated: bool,
 }
 
 impl ReplayLabel {
@@ -132,15 +136,76 @@ impl ReplayLabel {
     pub fn flagged(&self) -> bool {
         !self.flags.is_empty()
     }
+
+    /// Subtasks that ended.
+    pub fn subtasks_done(&self) -> usize {
+        self.subtasks.iter().filter(|s| s.end.is_some()).count()
+    }
 }
 
-/// Reads the replay record (`replay.json`) of an episode folder: `None` when the folder
-/// has none (a recording, not a replay); an error naming the file and field when it is
-/// unreadable or has no boolean `success`.
+/// The part of an evaluated episode's record (`episode.json`, `eval`) that makes it
+/// data: its verdict, where its subtasks ended, and how its rows and video frames line
+/// up (`replay.zarr` holds the warm-up steps, then one row per step; each video holds
+/// one frame per step, then the frame after the last step).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct EvalRollout {
+    /// Whether the task succeeded.
+    pub success: bool,
+    /// The step it succeeded on, counted from the first observation.
+    #[serde(default)]
+    pub success_step: Option<usize>,
+    /// Steps run after the warm-up.
+    pub steps: usize,
+    /// Steps the click_mouse warm-up ran before the first observation.
+    #[serde(default)]
+    pub warmup_steps: usize,
+    /// Where each subtask ended, counted as `success_step` is.
+    #[serde(default)]
+    pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
+}
+
+/// Reads an evaluated episode's record: `None` when the folder has none; an error naming
+/// the file when it is unreadable.
+pub fn read_eval_rollout(dir: &Path) -> Result<Option<EvalRollout>> {
+    let path = dir.join(super::EVAL_RECORD);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let v = read_json(&path, &Location::default().path(&path))?;
+    serde_json::from_value(v).map(Some).map_err(|e| {
+        FormatError::input(
+            ProblemCode::Corrupt,
+            &Location::default().path(&path),
+            format!("the evaluation record does not parse: {e}"),
+        )
+    })
+}
+
+impl From<EvalRollout> for ReplayLabel {
+    fn from(r: EvalRollout) -> Self {
+        Self {
+            success: r.success,
+            first_success: r.success_step,
+            steps: r.steps,
+            recorded_steps: r.steps,
+            extended: false,
+            flags: Vec::new(),
+            checked: false,
+            sample: Value::Null,
+            dynamics: None,
+            subtasks: r.subtasks,
+            evaluated: true,
+        }
+    }
+}
+
+/// Reads the replay record (`replay.json`) of an episode folder, else its evaluation
+/// record (`episode.json`) as a label: `None` when the folder has neither (a recording);
+/// an error naming the file and field when it is unreadable or has no boolean `success`.
 pub fn read_replay_label(dir: &Path) -> Result<Option<ReplayLabel>> {
     let path = dir.join(REPLAY_RECORD);
     if !path.exists() {
-        return Ok(None);
+        return Ok(read_eval_rollout(dir)?.map(ReplayLabel::from));
     }
     let at = Location::default().path(&path).field("success");
     let v = read_json(&path, &at)?;
