@@ -721,3 +721,88 @@ fn a_policy_that_stops_after_the_first_subtask_shows_it_complete_and_the_rest_no
         "{s}"
     );
 }
+
+#[test]
+fn evaluated_rollouts_convert_to_a_dataset_with_their_videos_and_verdicts() {
+    let tmp = tempfile::tempdir().unwrap();
+    let plans = tmp.path().join("plans");
+    let plan = plan("hammer_nail", "5", &plans, None).expect("a plan that succeeds");
+    let record: serde_json::Value =
+        serde_json::from_slice(&fs_err::read(plan.join("plan.json")).unwrap()).unwrap();
+    let cap = (record["success_step"].as_u64().unwrap() + 40).to_string();
+    let server = Server::start(&["oracle", "--plans", plans.to_str().unwrap()]);
+    // Episode 0 follows the plan and succeeds; episode 1 (another reset, no plan) holds
+    // its pose to the cap. Videos on.
+    let out = tmp.path().join("eval/hammer_nail_seed5");
+    let o = run(dexjoco()
+        .args(["-q", "eval", "--task", "hammer_nail", "--host", "127.0.0.1"])
+        .args(["--port", &server.port.to_string()])
+        .args(["--render-size", "32x32", "--quality", "fast"])
+        .args(["--privileged-keys", "--server-wait", "0"])
+        .args(["--episodes", "2", "--seed", "5", "--step-cap", &cap])
+        .arg("--output")
+        .arg(&out));
+    assert_eq!(o.status.code(), Some(0), "{}", said(&o));
+    let (d0, r0) = episode(&out, 0);
+    let (d1, r1) = episode(&out, 1);
+    assert_eq!(
+        (r0["success"].clone(), r1["success"].clone()),
+        (true.into(), false.into())
+    );
+
+    // convert: both rollouts (the failure too: its verdict is a label), their videos.
+    let ds = tmp.path().join("rollouts");
+    let o = common::succeeds(
+        dexjoco()
+            .args(["convert", "--no-skip-static", "--out"])
+            .arg(&ds)
+            .arg(&out),
+    );
+    let steps = |r: &serde_json::Value| r["steps"].as_u64().unwrap() as usize;
+    let (n0, n1) = (steps(&r0), steps(&r1));
+    assert!(
+        said(&o).contains(&format!("2 episodes, {} frames", n0 + n1)),
+        "{}",
+        said(&o)
+    );
+    dexjoco_testkit::lerobot_doctor_passes(&ds);
+    // Each episode's video frames are the rollout's, but the one after its last step.
+    for camera in ["front", "wrist"] {
+        let file = ds.join(format!(
+            "videos/observation.images.{camera}/chunk-000/file-000.mp4"
+        ));
+        let got = dexjoco_video::decode_rgb(&file).unwrap();
+        let mut want = dexjoco_video::decode_rgb(&d0.join(format!("{camera}.mp4"))).unwrap();
+        assert_eq!(want.len(), n0 + 1);
+        want.truncate(n0);
+        let mut second = dexjoco_video::decode_rgb(&d1.join(format!("{camera}.mp4"))).unwrap();
+        second.truncate(n1);
+        want.extend(second);
+        assert_eq!(got.len(), want.len(), "{camera}");
+        let exact = got.iter().zip(&want).filter(|(a, b)| a == b).count();
+        assert!(
+            exact + 16 >= want.len(),
+            "{camera}: {exact} of {} frames bit-exact",
+            want.len()
+        );
+    }
+    // The verdicts and subtask progress as per-episode labels, to filter by.
+    let kept = |predicate: &str| -> u64 {
+        let filtered = tmp.path().join("filtered");
+        let _ = fs_err::remove_dir_all(&filtered);
+        common::succeeds(
+            dexjoco()
+                .args(["-q", "dataset", "filter"])
+                .arg(&ds)
+                .args(["--where", predicate, "--out"])
+                .arg(&filtered),
+        );
+        let info = common::succeeds(dexjoco().args(["dataset", "info", "--json"]).arg(&filtered));
+        let info: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+        info["episodes"].as_u64().unwrap()
+    };
+    assert_eq!(kept("outcome/success == true"), 1);
+    assert_eq!(kept("outcome/subtasks_done == 3"), 1);
+    assert_eq!(kept("outcome/subtasks_done == 0"), 1);
+    assert_eq!(kept("outcome/first_success >= 0"), 1);
+}

@@ -73,12 +73,19 @@ pub fn run(global: &GlobalArgs, args: ConvertArgs) -> anyhow::Result<ExitStatus>
         .with_context(|| format!("converting {shown} into {}", out.display()))?;
     bar.finish();
     outln!(
-        "wrote {}: {} episodes, {} frames ({} static leading frames skipped); videos: {} stream-copied, {} encoded{}",
+        "wrote {}: {} episodes, {} frames ({} static leading frames skipped); videos: {} stream-copied{}, {} encoded{}",
         summary.out.display(),
         summary.episodes,
         summary.frames,
         summary.skipped_frames,
         summary.videos_copied,
+        match summary.videos_smart_cut {
+            0 => String::new(),
+            k => format!(
+                " ({k} by smart cut: {} frames re-encoded)",
+                summary.frames_reencoded
+            ),
+        },
         summary.videos_encoded,
         if summary.excluded.is_empty() {
             String::new()

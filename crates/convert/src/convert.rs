@@ -120,6 +120,10 @@ pub struct Summary {
     pub videos_copied: usize,
     /// Camera videos encoded.
     pub videos_encoded: usize,
+    /// Of the copied videos, those cut off a keyframe by a smart cut.
+    pub videos_smart_cut: usize,
+    /// Frames those smart cuts re-encoded.
+    pub frames_reencoded: usize,
 }
 
 /// An input episode left out because it could not be read, prepared or fit the dataset.
@@ -518,6 +522,9 @@ impl Run<'_> {
         self.summary.skipped_frames += p.skipped;
         self.summary.videos_copied += p.videos.iter().filter(|v| v.copied).count();
         self.summary.videos_encoded += p.videos.iter().filter(|v| !v.copied).count();
+        let smart = p.videos.iter().filter(|v| v.reencoded_frames > 0);
+        self.summary.videos_smart_cut += smart.clone().count();
+        self.summary.frames_reencoded += smart.map(|v| v.reencoded_frames).sum::<usize>();
         if let Some(norm) = self.norm.as_mut() {
             norm.add_episode(
                 &crate::prepare::as_f32(&p.state),

@@ -378,11 +378,9 @@ impl Cameras<'_> {
         let fits = COPYABLE.contains(&info.codec.as_str())
             && info.pix_fmt == "yuv420p"
             && (info.fps - f64::from(self.fps)).abs() < 1e-6;
-        // Stream copy can leave that last frame out only where no kept frame refers to it.
-        let ends_cleanly = !extra
-            || dexjoco_video::CutPoints::of(&src)
-                .map_err(vid_err)?
-                .can_end(n);
+        let use_source = self
+            .use_source(&src, &info, fits, extra, n)
+            .map_err(vid_err)?;
         let mut frames = Frames {
             reader: VideoReader::open(&src, None).map_err(vid_err)?,
             skipped: self.skipped,
@@ -390,12 +388,71 @@ impl Cameras<'_> {
             samples: sample_indices(n - self.skipped),
             sampler: ImageSampler::default(),
         };
+        // Cut off a keyframe: re-encode only the frames before the next one (a smart cut)
+        // where an encoder setting reproduces the source's stream headers.
+        let smart = match !use_source && fits && !self.video.reencode {
+            true if self.layout == VideoLayout::Joined => {
+                self.smart_cut(name, &src, &info, n).map_err(vid_err)?
+            }
+            _ => None,
+        };
+        let part = match (use_source, smart) {
+            (true, _) => {
+                frames.sample(|_| Ok(())).map_err(vid_err)?;
+                VideoPart {
+                    name: name.to_owned(),
+                    path: src.clone(),
+                    temporary: false,
+                    skip: self.skipped,
+                    frames: n,
+                    bytes: fs_err::metadata(&src)?.len(),
+                    info,
+                    copied: self.layout != VideoLayout::Frames,
+                    reencoded_frames: 0,
+                    source: src.clone(),
+                }
+            }
+            (false, Some((out, reencoded))) => {
+                frames.sample(|_| Ok(())).map_err(vid_err)?;
+                self.made_part(name, &src, out, Some(reencoded))?
+            }
+            (false, None) => {
+                let out = self
+                    .work_dir
+                    .join(format!("{:06}-{name}.mp4", self.ordinal));
+                // Re-encoded to cut: in the source's codec, so that the part joins the
+                // dataset's file (or starts one when its parameters differ).
+                let codec = match info.codec.as_str() {
+                    "h264" if fits && !self.video.reencode => VideoCodec::H264,
+                    "av1" if fits && !self.video.reencode => VideoCodec::Av1,
+                    _ => self.video.codec,
+                };
+                self.encode(&mut frames, &out, codec).map_err(vid_err)?;
+                self.made_part(name, &src, out, None)?
+            }
+        };
+        Ok((part, frames.sampler.finish()))
+    }
+
+    /// Whether the part is the source itself (`fits`: a codec, pixel format and rate
+    /// lerobot reads; `extra`: it holds one frame after the episode's `n`).
+    fn use_source(
+        &self,
+        src: &Path,
+        info: &dexjoco_video::VideoInfo,
+        fits: bool,
+        extra: bool,
+        n: usize,
+    ) -> Result<bool, dexjoco_video::VideoError> {
         // Joined files cut a source's static leading frames by stream copy, which starts
-        // at a keyframe only: augment puts one there; other sources are re-encoded.
+        // at a keyframe only: augment puts one there; others get a smart cut.
         let cuts_at_keyframe =
             self.skipped == 0 || info.keyframes.binary_search(&self.skipped).is_ok();
-        let use_source = match self.layout {
+        Ok(match self.layout {
             VideoLayout::Joined => {
+                // A copy leaves the extra last frame out only where no kept frame refers
+                // to it.
+                let ends_cleanly = !extra || dexjoco_video::CutPoints::of(src)?.can_end(n);
                 fits && !self.video.reencode && cuts_at_keyframe && ends_cleanly
             }
             // Every episode's file must end up in the same codec.
@@ -407,47 +464,81 @@ impl Cameras<'_> {
             }
             VideoLayout::Encoded => false,
             VideoLayout::Frames => true,
+        })
+    }
+
+    /// The part for a file of ours in the work folder holding the kept frames: made by a
+    /// smart cut (`Some(frames re-encoded)`) or encoded (`None`).
+    fn made_part(
+        &self,
+        name: &str,
+        src: &Path,
+        out: PathBuf,
+        smart_cut: Option<usize>,
+    ) -> Result<VideoPart, ConvertError> {
+        let ep = &self.input.episode;
+        let info = dexjoco_video::probe(&out).map_err(|source| ConvertError::Video {
+            at: Location::episode(&ep.id)
+                .field(format!("camera {name}"))
+                .into(),
+            source: source.into(),
+        })?;
+        Ok(VideoPart {
+            name: name.to_owned(),
+            bytes: fs_err::metadata(&out)?.len(),
+            temporary: true,
+            skip: 0,
+            frames: info.frames as usize,
+            info,
+            copied: smart_cut.is_some(),
+            reencoded_frames: smart_cut.unwrap_or(0),
+            source: src.to_path_buf(),
+            path: out,
+        })
+    }
+
+    /// The kept frames `skipped..n` of `src` (camera `name`) as a file in the work folder
+    /// made by a smart cut, and the frames it re-encoded; `None` where no encoder setting
+    /// reproduces the source's stream headers.
+    fn smart_cut(
+        &self,
+        name: &str,
+        src: &Path,
+        info: &dexjoco_video::VideoInfo,
+        n: usize,
+    ) -> Result<Option<(PathBuf, usize)>, dexjoco_video::VideoError> {
+        let recorded = dexjoco_video::x264_settings(src)?;
+        let stated = dexjoco_video::StatedEncoding::default();
+        let candidates = dexjoco_video::candidate_encodings(&info.codec, &stated, recorded);
+        if candidates.is_empty() {
+            return Ok(None);
+        }
+        let cuts = dexjoco_video::CutPoints::of(src)?;
+        let stem = format!("{:06}-{name}", self.ordinal);
+        let scratch = self.work_dir.join(format!("{stem}-cut"));
+        let io = |source| dexjoco_video::VideoError::Io {
+            path: scratch.clone(),
+            source,
         };
-        let part = if use_source {
-            frames.sample(|_| Ok(())).map_err(vid_err)?;
-            VideoPart {
-                name: name.to_owned(),
-                path: src.clone(),
-                temporary: false,
-                skip: self.skipped,
-                frames: n,
-                bytes: fs_err::metadata(&src)?.len(),
-                info,
-                copied: self.layout != VideoLayout::Frames,
-                source: src.clone(),
+        fs_err::create_dir_all(&scratch).map_err(io)?;
+        let take = n - self.skipped;
+        let made = match dexjoco_video::smart_cut(
+            src,
+            self.skipped,
+            take,
+            &cuts,
+            &candidates,
+            &scratch,
+        )? {
+            Some(cut) => {
+                let out = self.work_dir.join(format!("{stem}.mp4"));
+                dexjoco_video::concat_copy(&cut.inputs, &out, self.fps)?;
+                Some((out, cut.reencoded))
             }
-        } else {
-            let out = self
-                .work_dir
-                .join(format!("{:06}-{name}.mp4", self.ordinal));
-            // Re-encoded only to cut at a frame that is no keyframe: in the source's codec,
-            // so that the part joins the dataset's file (or starts one when its
-            // parameters differ).
-            let codec = match info.codec.as_str() {
-                "h264" if fits && !self.video.reencode => VideoCodec::H264,
-                "av1" if fits && !self.video.reencode => VideoCodec::Av1,
-                _ => self.video.codec,
-            };
-            self.encode(&mut frames, &out, codec).map_err(vid_err)?;
-            let info = dexjoco_video::probe(&out).map_err(vid_err)?;
-            VideoPart {
-                name: name.to_owned(),
-                path: out.clone(),
-                temporary: true,
-                skip: 0,
-                frames: n - self.skipped,
-                bytes: fs_err::metadata(&out)?.len(),
-                info,
-                copied: false,
-                source: src.clone(),
-            }
+            None => None,
         };
-        Ok((part, frames.sampler.finish()))
+        let _ = fs_err::remove_dir_all(&scratch);
+        Ok(made)
     }
 
     /// Encodes the kept frames into `out` with `codec` (GOP 2) while sampling them.

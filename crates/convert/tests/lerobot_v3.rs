@@ -84,15 +84,19 @@ fn stream_copied_h264_loads_in_lerobot_with_pyav_and_torchcodec() {
 }
 
 #[test]
-fn recordings_without_a_keyframe_at_the_cut_are_reencoded_in_their_codec() {
+fn recordings_without_a_keyframe_at_the_cut_are_smart_cut() {
     // As the DexJoCo recorder writes them: no keyframe where the static frames end.
     let fx = fixture_with(false);
     let (_out_dir, out, summary) = converted(&fx, VideoOptions::default());
-    // Episodes 0 and 1 (static frames) re-encoded to cut, in H.264 like the copied
-    // episode 2, though the re-encoding codec is AV1; every file's frames are its
-    // episodes' (lerobot-doctor agrees, in `load`).
+    // Episodes 0 and 1 (static frames) cut by smart cut: the frames up to the next
+    // keyframe re-encoded with the source's own x264 settings (read from the stream),
+    // the rest stream-copied, so all six parts join the H.264 files though the
+    // re-encoding codec is AV1; every file's frames are its episodes' (lerobot-doctor
+    // agrees, in `load`).
     assert_eq!((summary.episodes, summary.frames), (3, 32));
-    assert_eq!((summary.videos_copied, summary.videos_encoded), (2, 4));
+    assert_eq!((summary.videos_copied, summary.videos_encoded), (6, 0));
+    assert_eq!(summary.videos_smart_cut, 4, "{summary:?}");
+    assert!(summary.frames_reencoded > 0, "{summary:?}");
     let mut frames = 0;
     for f in fs_err::read_dir(out.join("videos/observation.images.front/chunk-000")).unwrap() {
         let info = dexjoco_video::probe(&f.unwrap().path()).unwrap();
@@ -101,7 +105,7 @@ fn recordings_without_a_keyframe_at_the_cut_are_reencoded_in_their_codec() {
     }
     assert_eq!(frames, 32);
     let loaded = load(&out, "pyav");
-    // Encoded twice (recorded, then cut): a few levels more off than a stream copy.
+    // The re-encoded frames encoded twice (recorded, then cut): a few levels more off.
     check_items(&fx, &loaded, 6.0);
 }
 

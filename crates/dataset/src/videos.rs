@@ -13,8 +13,8 @@ use std::path::Path;
 use dexjoco_core::Progress;
 use dexjoco_formats::dataset::lerobot_read::{LeRobotDataset, fill_template};
 use dexjoco_video::{
-    Codec, ConcatInput, CutPoints, Encoding, Keyframes, VideoSpec, X264Preset, concat_copy,
-    smart_cut, transcode,
+    ConcatInput, CutPoints, Encoding, Keyframes, StatedEncoding, VideoSpec, candidate_encodings,
+    concat_copy, smart_cut, transcode,
 };
 use serde_json::Value;
 
@@ -208,14 +208,22 @@ impl Join<'_> {
                 }
             }
         }
-        let result = if joined.is_empty() {
-            counts.reencoded += 1;
-            self.reencode(inputs, frames, candidates[0])
-        } else {
-            counts.cut += 1;
-            counts.frames_reencoded += reencoded;
-            concat_copy(&joined, self.out, self.fps)
-        };
+        let result =
+            if joined.is_empty() {
+                counts.reencoded += 1;
+                let first = candidates.first().copied().ok_or_else(|| {
+                    dexjoco_video::VideoError::Failed {
+                        program: "smart cut".into(),
+                        path: self.src.to_path_buf(),
+                        message: "no encoder for this codec (H.264 and AV1 only)".into(),
+                    }
+                })?;
+                self.reencode(inputs, frames, first)
+            } else {
+                counts.cut += 1;
+                counts.frames_reencoded += reencoded;
+                concat_copy(&joined, self.out, self.fps)
+            };
         let _ = fs_err::remove_dir_all(self.scratch);
         result
     }
@@ -250,57 +258,20 @@ impl Join<'_> {
 
 /// The encoder settings to try for re-encoded frames of a video feature: the crf and
 /// keyframe interval x264 `recorded` in the file, else its info.json entry's
-/// (`video.crf`, `video.g`, as lerobot and convert record them), with the stated preset
-/// first, then the codec's other presets.
+/// (`video.crf`, `video.preset`, `video.g`, as lerobot and convert record them).
 fn encodings(feature: &Value, recorded: Option<dexjoco_video::X264Settings>) -> Vec<Encoding> {
     let info = &feature["info"];
+    let stated = StatedEncoding {
+        crf: info["video.crf"].as_u64().map(|c| c.min(63) as u8),
+        preset: match &info["video.preset"] {
+            Value::String(p) => Some(p.clone()),
+            Value::Number(n) => Some(n.to_string()),
+            _ => None,
+        },
+        interval: info["video.g"].as_u64().map(|g| g as u32),
+    };
     let codec = info["video.codec"].as_str().unwrap_or("av1");
-    let crf = recorded
-        .and_then(|r| r.crf)
-        .or_else(|| info["video.crf"].as_u64().map(|c| c.min(63) as u8));
-    let g = recorded
-        .and_then(|r| r.keyint)
-        .or_else(|| info["video.g"].as_u64().map(|g| g as u32));
-    let intervals = if g.is_some() {
-        vec![g, None]
-    } else {
-        vec![None, Some(2)]
-    };
-    let codecs: Vec<Codec> = if codec == "h264" {
-        let stated = info["video.preset"]
-            .as_str()
-            .and_then(|p| p.parse::<X264Preset>().ok());
-        let presets = stated.into_iter().chain(X264Preset::ALL);
-        presets
-            .map(|preset| Codec::H264 {
-                crf: crf.unwrap_or(23),
-                preset,
-            })
-            .collect()
-    } else {
-        let stated = info["video.preset"].as_u64().map(|p| p.min(13) as u8);
-        stated
-            .into_iter()
-            .chain([12, 8, 10, 6, 4])
-            .map(|preset| Codec::Av1 {
-                crf: crf.unwrap_or(30),
-                preset,
-            })
-            .collect()
-    };
-    let mut all: Vec<Encoding> = Vec::new();
-    for codec in codecs {
-        for interval in &intervals {
-            let e = Encoding {
-                codec,
-                interval: *interval,
-            };
-            if !all.contains(&e) {
-                all.push(e);
-            }
-        }
-    }
-    all
+    candidate_encodings(codec, &stated, recorded)
 }
 
 /// The stream-copy cuts of `group`'s episodes (frames `frames[i]` of episode

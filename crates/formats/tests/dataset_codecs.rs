@@ -51,6 +51,7 @@ fn write_video(path: &Path, e: usize, n: usize) -> VideoPart {
         bytes: fs_err::metadata(path).unwrap().len(),
         info: dexjoco_video::probe(path).unwrap(),
         copied: true,
+        reencoded_frames: 0,
         source: path.to_path_buf(),
     }
 }

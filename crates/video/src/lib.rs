@@ -27,7 +27,8 @@ pub use depth::{DepthVideoWriter, decode_gray12};
 pub(crate) use read::decode_raw;
 pub use read::{VideoReader, decode_rgb};
 pub use transcode::{
-    CutPoints, Encoding, SmartCut, X264Settings, smart_cut, transcode, x264_settings,
+    CutPoints, Encoding, SmartCut, StatedEncoding, X264Settings, candidate_encodings, smart_cut,
+    transcode, x264_settings,
 };
 
 pub use probe::{

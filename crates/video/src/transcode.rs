@@ -333,3 +333,73 @@ pub fn x264_settings(path: &Path) -> Result<Option<X264Settings>, VideoError> {
         keyint: value("keyint").and_then(|v| v.parse().ok()),
     }))
 }
+
+/// How a video's metadata says it was encoded (LeRobot's `video.crf`, `video.preset`,
+/// `video.g`), where it says.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct StatedEncoding {
+    /// Constant rate factor.
+    pub crf: Option<u8>,
+    /// x264's preset name or SVT-AV1's preset number.
+    pub preset: Option<String>,
+    /// Keyframe interval.
+    pub interval: Option<u32>,
+}
+
+/// The encoder settings to try, in order, for frames that must join a stream of codec
+/// `codec` (`h264`, `av1`; none for others) by stream copy ([`smart_cut`]): the crf and
+/// keyframe interval x264 `recorded` in the file, else the `stated` ones, else the
+/// usual ones (x264's crf 23, lerobot's AV1 crf 30); the stated preset first, then the
+/// codec's other presets; each with the interval, then without.
+pub fn candidate_encodings(
+    codec: &str,
+    stated: &StatedEncoding,
+    recorded: Option<X264Settings>,
+) -> Vec<Encoding> {
+    let crf = recorded.and_then(|r| r.crf).or(stated.crf);
+    let g = recorded.and_then(|r| r.keyint).or(stated.interval);
+    let intervals = if g.is_some() {
+        vec![g, None]
+    } else {
+        vec![None, Some(2)]
+    };
+    let codecs: Vec<crate::Codec> = match codec {
+        "h264" => {
+            let named = stated.preset.as_deref().and_then(|p| p.parse().ok());
+            named
+                .into_iter()
+                .chain(crate::X264Preset::ALL)
+                .map(|preset| crate::Codec::H264 {
+                    crf: crf.unwrap_or(23),
+                    preset,
+                })
+                .collect()
+        }
+        "av1" => {
+            let named = stated.preset.as_deref().and_then(|p| p.parse::<u8>().ok());
+            named
+                .filter(|p| *p <= 13)
+                .into_iter()
+                .chain([12, 8, 10, 6, 4])
+                .map(|preset| crate::Codec::Av1 {
+                    crf: crf.unwrap_or(30),
+                    preset,
+                })
+                .collect()
+        }
+        _ => Vec::new(),
+    };
+    let mut all: Vec<Encoding> = Vec::new();
+    for codec in codecs {
+        for interval in &intervals {
+            let e = Encoding {
+                codec,
+                interval: *interval,
+            };
+            if !all.contains(&e) {
+                all.push(e);
+            }
+        }
+    }
+    all
+}

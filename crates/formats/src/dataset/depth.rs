@@ -188,6 +188,7 @@ pub fn encode_part(
         bytes: fs_err::metadata(out)?.len(),
         info,
         copied: false,
+        reencoded_frames: 0,
         source: part.path.clone(),
     };
     let stats = sampler.finish().ok_or_else(|| DatasetError::Episode {

@@ -94,14 +94,18 @@ pub struct VideoPart {
     pub temporary: bool,
     /// Frames of `path` before the episode's first kept frame.
     pub skip: usize,
-    /// All frames of `path`.
+    /// Frames of `path` up to the episode's last (an evaluated rollout's video holds one
+    /// more after it).
     pub frames: usize,
     /// Size of `path` in bytes.
     pub bytes: u64,
     /// Codec, size and pixel format of `path`.
     pub info: VideoInfo,
-    /// Whether the part is the source, stream-copied.
+    /// Whether the part is the source, stream-copied (or smart-cut from it).
     pub copied: bool,
+    /// Frames a smart cut re-encoded (the source's frames before its first keyframe at or
+    /// after the cut); 0 for a plain stream copy or an encoded part.
+    pub reencoded_frames: usize,
     /// The source video (all frames, before trimming).
     pub source: PathBuf,
 }
