@@ -280,6 +280,38 @@ fn trimmed_episodes_keep_our_labels(dir: &Path, source: &Path, n: usize) {
     let report = compare(source, &out, &kept, &["--columns", "--frames", &frames]);
     assert_smart_cut(&report, &String::from_utf8_lossy(&run.stderr));
     dexjoco_testkit::lerobot_doctor_passes(&out);
+
+    // Refusals name what to do, and write nothing.
+    let refused = |args: &[&str], says: &str| {
+        let o = dexjoco()
+            .args(["dataset", "trim"])
+            .arg(source)
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            !o.status.success() && said(&o).contains(says),
+            "{args:?}: {}",
+            said(&o)
+        );
+    };
+    let elsewhere = dir.join("not_written");
+    let to = elsewhere.to_str().unwrap();
+    refused(
+        &["--frames", "0=5..100000", "--out", to],
+        "episode 0: frames 5..100000",
+    );
+    refused(&["--frames", "0=5", "--out", to], "EPISODE=FROM..TO");
+    refused(
+        &["--idle", "--column", "actoin", "--out", to],
+        "no feature 'actoin'",
+    );
+    refused(&["--out", to], "give --idle, or --frames");
+    refused(
+        &["--frames", "0=1..5", "--out", out.to_str().unwrap()],
+        "--overwrite",
+    );
+    assert!(!elsewhere.exists());
 }
 
 /// Every video frame of a trim's output is bit-exact but those its report says were
