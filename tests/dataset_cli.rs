@@ -385,6 +385,23 @@ fn trim_and_reencode_match_lerobots_tools() {
     assert_eq!(a["lengths"], serde_json::json!(want));
 
     reencode_matches_lerobots_reencode_videos(dir.path(), &source);
+
+    // features on a dataset lerobot wrote: the state renamed, its values kept.
+    let renamed = dir.path().join("renamed");
+    succeeds(
+        dexjoco()
+            .args(["-q", "dataset", "features"])
+            .arg(&source)
+            .args(["--rename", "observation.state=observation.proprio", "--out"])
+            .arg(&renamed),
+    );
+    let all: Vec<usize> = (0..6).collect();
+    let flags = [
+        "--exact-video",
+        "--rename",
+        "observation.state=observation.proprio",
+    ];
+    compare(&source, &renamed, &all, &flags);
     assert!(before == tree(&source), "the source changed");
 }
 
