@@ -240,54 +240,93 @@ pub fn smart_cut(
         }));
     }
     let info = probe(src)?;
-    'candidates: for (candidate, encoding) in candidates.iter().enumerate() {
-        let mut inputs = Vec::new();
-        let mut reencoded = 0;
-        for (piece, encode) in &pieces {
-            if !encode {
-                inputs.push(piece.clone());
-                continue;
-            }
-            let stem = src
-                .file_stem()
-                .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-            let path = scratch.join(format!("{stem}-{}-{candidate}.mp4", piece.skip));
-            let spec = VideoSpec {
-                width: info.width,
-                height: info.height,
-                fps: info.fps.round() as u32,
-                codec: encoding.codec,
-            };
-            let keyframes = Keyframes {
-                interval: encoding.interval,
-                at: Vec::new(),
-            };
-            // A setting this ffmpeg's encoder refuses (SVT-AV1 1.4 wants 64 px at least)
-            // is just no match.
-            let made = transcode(std::slice::from_ref(piece), &path, spec, &keyframes);
-            let matches = made.is_ok() && probe(&path).is_ok_and(|p| p.extradata == info.extradata);
-            let frames = made.unwrap_or(0);
-            if !matches {
-                let _ = fs_err::remove_file(&path);
-                for made in inputs.iter().filter(|i: &&ConcatInput| i.path != src) {
-                    let _ = fs_err::remove_file(&made.path);
-                }
-                continue 'candidates;
-            }
-            reencoded += frames;
-            inputs.push(ConcatInput {
-                path,
-                skip: 0,
-                take: Some(frames),
-            });
+    // Headers depend on the settings, not on the frames: a few frames tell which
+    // candidate reproduces the source's before any piece is encoded whole.
+    let Some(candidate) = matching_candidate(src, &info, &pieces, candidates, scratch) else {
+        return Ok(None);
+    };
+    let mut inputs = Vec::new();
+    let mut reencoded = 0;
+    for (piece, encode) in &pieces {
+        if !encode {
+            inputs.push(piece.clone());
+            continue;
         }
-        return Ok(Some(SmartCut {
-            inputs,
-            candidate: Some(candidate),
-            reencoded,
-        }));
+        let path = scratch.join(format!("{}-{}.mp4", stem(src), piece.skip));
+        let Some(frames) = encode_piece(piece, candidates[candidate], &info, &path) else {
+            for made in inputs.iter().filter(|i| i.path != src) {
+                let _ = fs_err::remove_file(&made.path);
+            }
+            return Ok(None);
+        };
+        reencoded += frames;
+        inputs.push(ConcatInput {
+            path,
+            skip: 0,
+            take: Some(frames),
+        });
     }
-    Ok(None)
+    Ok(Some(SmartCut {
+        inputs,
+        candidate: Some(candidate),
+        reencoded,
+    }))
+}
+
+/// The first of `candidates` whose encoding of the first frames (at most 8) of the
+/// first piece to re-encode has the source's stream headers.
+fn matching_candidate(
+    src: &Path,
+    info: &crate::VideoInfo,
+    pieces: &[(ConcatInput, bool)],
+    candidates: &[Encoding],
+    scratch: &Path,
+) -> Option<usize> {
+    const PROBE_FRAMES: usize = 8;
+    let (first, _) = pieces.iter().find(|(_, encode)| *encode)?;
+    let probe_piece = ConcatInput {
+        take: first.take.map(|t| t.min(PROBE_FRAMES)),
+        ..first.clone()
+    };
+    let path = scratch.join(format!("{}-probe.mp4", stem(src)));
+    let found = candidates
+        .iter()
+        .position(|c| encode_piece(&probe_piece, *c, info, &path).is_some());
+    let _ = fs_err::remove_file(&path);
+    found
+}
+
+/// Encodes `piece` with `encoding` into `path`; its frames where the result's stream
+/// headers equal the source's (`info`), else `None` (nothing left at `path`). A setting
+/// this ffmpeg's encoder refuses (SVT-AV1 1.4 wants 64 px at least) is no match either.
+fn encode_piece(
+    piece: &ConcatInput,
+    encoding: Encoding,
+    info: &crate::VideoInfo,
+    path: &Path,
+) -> Option<usize> {
+    let spec = VideoSpec {
+        width: info.width,
+        height: info.height,
+        fps: info.fps.round() as u32,
+        codec: encoding.codec,
+    };
+    let keyframes = Keyframes {
+        interval: encoding.interval,
+        at: Vec::new(),
+    };
+    let made = transcode(std::slice::from_ref(piece), path, spec, &keyframes).ok();
+    let matches = made.is_some() && probe(path).is_ok_and(|p| p.extradata == info.extradata);
+    if !matches {
+        let _ = fs_err::remove_file(path);
+    }
+    made.filter(|_| matches)
+}
+
+/// A file's name without its extension, for the names of files made from it.
+fn stem(path: &Path) -> String {
+    path.file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned())
 }
 
 /// What an H.264 video's x264 recorded of its settings (x264 writes its options into
