@@ -164,14 +164,20 @@ pub struct EvalRollout {
     pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
 }
 
-/// Reads an evaluated episode's record: `None` when the folder has none; an error naming
-/// the file when it is unreadable.
+/// Reads an evaluated episode's record: `None` when the folder has none, or an
+/// `episode.json` that is not `eval`'s (no boolean `success` and step count `steps`); an
+/// error naming the file when it is unreadable or not JSON.
 pub fn read_eval_rollout(dir: &Path) -> Result<Option<EvalRollout>> {
     let path = dir.join(super::EVAL_RECORD);
     if !path.exists() {
         return Ok(None);
     }
     let v = read_json(&path, &Location::default().path(&path))?;
+    if !(v.get("success").is_some_and(Value::is_boolean)
+        && v.get("steps").is_some_and(Value::is_u64))
+    {
+        return Ok(None);
+    }
     serde_json::from_value(v).map(Some).map_err(|e| {
         FormatError::input(
             ProblemCode::Corrupt,
