@@ -10,6 +10,7 @@
 //! re-indexed, every per-episode column kept, videos cut by stream copy (bit-exact) and
 //! statistics recomputed.
 
+mod data_file;
 mod error;
 mod info;
 mod merge;

@@ -16,9 +16,9 @@ use dexjoco_core::Progress;
 use dexjoco_formats::dataset::lerobot_read::{LeRobotDataset, fill_template};
 use dexjoco_formats::fs::StagedDir;
 use parquet::arrow::ArrowWriter;
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use serde_json::{Map, Value, json};
 
+use crate::data_file::DataFile;
 use crate::subset::{DataPlace, check_output, ints, placed, with_columns};
 use crate::videos::VideoPlace;
 use crate::{EditError, SubsetReport, stats};
@@ -378,14 +378,9 @@ fn write_data(
                 ],
             ));
             fs_err::create_dir_all(out.parent().unwrap_or(dir))?;
-            let err = |e: &dyn std::fmt::Display| {
-                EditError::Selection(format!("data file '{}': {e}", src.display()))
-            };
-            let reader =
-                ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(&src)?.into_parts().0)
-                    .map_err(|e| err(&e))?
-                    .build()
-                    .map_err(|e| err(&e))?;
+            let f = DataFile(&src);
+            let err = |e: &dyn std::fmt::Display| f.error(e);
+            let reader = f.batches()?;
             let mut writer: Option<ArrowWriter<std::fs::File>> = None;
             let mut counts: BTreeMap<i64, i64> = BTreeMap::new();
             for batch in reader {

@@ -12,10 +12,10 @@ use dexjoco_formats::dataset::lerobot_info::stats_json;
 use dexjoco_formats::dataset::lerobot_read::LeRobotDataset;
 use dexjoco_formats::dataset::stats::{FeatureStats, QUANTILES, aggregate, column_stats};
 use dexjoco_formats::openpi::{NormStats, NormStatsOptions};
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use serde_json::{Map, Value};
 
 use crate::EditError;
+use crate::data_file::DataFile;
 
 /// A feature's values gathered row by row.
 struct Column {
@@ -99,14 +99,9 @@ pub(crate) fn norm_stats_of(
         }
     };
     for file in data {
-        let err = |e: &dyn std::fmt::Display| {
-            EditError::Selection(format!("data file '{}': {e}", file.display()))
-        };
-        let reader =
-            ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(file)?.into_parts().0)
-                .and_then(|b| b.build())
-                .map_err(|e| err(&e))?;
-        for batch in reader {
+        let f = DataFile(file);
+        let err = |e: &dyn std::fmt::Display| f.error(e);
+        for batch in f.batches()? {
             let batch = batch.map_err(|e| err(&e))?;
             let column = |name: &str| -> Result<(Vec<f64>, usize), EditError> {
                 let col = batch.column_by_name(name).ok_or_else(|| {
@@ -139,15 +134,9 @@ pub(crate) fn norm_stats_of(
 
 /// Appends every numeric feature's values of the data file `file`.
 fn gather(file: &Path, columns: &mut BTreeMap<String, Column>) -> Result<(), EditError> {
-    let err = |e: &dyn std::fmt::Display| {
-        EditError::Selection(format!("data file '{}': {e}", file.display()))
-    };
-    let reader = ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(file)?.into_parts().0)
-        .map_err(|e| err(&e))?
-        .build()
-        .map_err(|e| err(&e))?;
-    for batch in reader {
-        let batch = batch.map_err(|e| err(&e))?;
+    let f = DataFile(file);
+    for batch in f.batches()? {
+        let batch = batch.map_err(|e| f.error(&e))?;
         for (key, c) in columns.iter_mut() {
             if let Some(col) = batch.column_by_name(key)
                 && let Some(values) = flat_f64(col)
@@ -323,14 +312,9 @@ pub(crate) fn per_episode_values<'a>(
         .map(|c| (*c, (vec![Vec::new(); n], vec![0; n])))
         .collect();
     for file in data {
-        let err = |e: &dyn std::fmt::Display| {
-            EditError::Selection(format!("data file '{}': {e}", file.display()))
-        };
-        let reader =
-            ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(file)?.into_parts().0)
-                .and_then(|b| b.build())
-                .map_err(|e| err(&e))?;
-        for batch in reader {
+        let f = DataFile(file);
+        let err = |e: &dyn std::fmt::Display| f.error(e);
+        for batch in f.batches()? {
             let batch = batch.map_err(|e| err(&e))?;
             let Some(episode) = batch.column_by_name("episode_index").and_then(flat_f64) else {
                 continue;

@@ -15,10 +15,10 @@ use dexjoco_formats::dataset::lerobot_read::{LeRobotDataset, fill_template};
 use dexjoco_formats::dataset::parquet::{props, write_file};
 use dexjoco_formats::fs::StagedDir;
 use parquet::arrow::ArrowWriter;
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use serde::Serialize;
 use serde_json::{Value, json};
 
+use crate::data_file::DataFile;
 use crate::videos::{VideoPlace, write_videos};
 use crate::{EditError, Selection, stats};
 
@@ -282,14 +282,10 @@ impl CopyRows<'_> {
         wanted: &HashSet<i64>,
         next_index: &mut i64,
     ) -> Result<HashMap<i64, i64>, EditError> {
-        let err = |e: &dyn std::fmt::Display| {
-            EditError::Selection(format!("data file '{}': {e}", src.display()))
-        };
-        let builder =
-            ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(src)?.into_parts().0)
-                .map_err(|e| err(&e))?;
-        let schema = builder.schema().clone();
-        let reader = builder.build().map_err(|e| err(&e))?;
+        let f = DataFile(src);
+        let err = |e: &dyn std::fmt::Display| f.error(e);
+        let reader = f.batches()?;
+        let schema = arrow_array::RecordBatchReader::schema(&reader);
         let mut writer = ArrowWriter::try_new(
             fs_err::File::create(out)?.into_parts().0,
             schema.clone(),

@@ -21,9 +21,9 @@ use dexjoco_formats::dataset::lerobot_read::{LeRobotDataset, strings};
 use dexjoco_formats::fs::StagedDir;
 use dexjoco_video::{ConcatInput, concat_copy};
 use parquet::arrow::ArrowWriter;
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use serde_json::{Map, Value, json};
 
+use crate::data_file::DataFile;
 use crate::info::is_format_column;
 use crate::subset::check_output;
 use crate::{EditError, SubsetReport};
@@ -89,14 +89,9 @@ fn write_episode_data(
     let mut open: Option<(i64, ArrowWriter<std::fs::File>)> = None;
     let mut frames = 0u64;
     for file in ds.data_files()? {
-        let err = |e: &dyn std::fmt::Display| {
-            EditError::Selection(format!("data file '{}': {e}", file.display()))
-        };
-        let reader =
-            ParquetRecordBatchReaderBuilder::try_new(fs_err::File::open(&file)?.into_parts().0)
-                .and_then(|b| b.build())
-                .map_err(|e| err(&e))?;
-        for batch in reader {
+        let f = DataFile(&file);
+        let err = |e: &dyn std::fmt::Display| f.error(e);
+        for batch in f.batches()? {
             let batch = without(&batch.map_err(|e| err(&e))?, dropped).map_err(|e| err(&e))?;
             let episodes = crate::subset::ints(&batch, "episode_index").unwrap_or_default();
             let mut start = 0;
