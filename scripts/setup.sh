@@ -6,7 +6,11 @@
 #      into .deps/mujoco/lib (git-ignored);
 #   3. with --python: the cached Python venv of the real readers used by the tests
 #      (outside the repo, under ${XDG_CACHE_HOME:-~/.cache}/dexjoco-data/), and Debian's
-#      slurm-wlm and munge for the Slurm test (its daemons are not started).
+#      slurm-wlm and munge for the Slurm test (its daemons are not started);
+#   4. with --warp: the Python venv of the Warp batch renderer (`--renderer warp`):
+#      mujoco, mujoco-warp and warp-lang as scripts/warp-requirements.txt pins them, in
+#      ${XDG_CACHE_HOME:-~/.cache}/dexjoco-data/venv-warp-<mujoco-warp version>/, where
+#      dexjoco-data looks for it (path also in .deps/warp-python-path).
 # Idempotent: a second run only checks. Source it or run it; it prints what it does.
 set -euo pipefail
 
@@ -18,11 +22,12 @@ DEB_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri ffmpeg g++)
 
 log() { printf '\033[1m[setup]\033[0m %s\n' "$*" >&2; }
 
-want_python=0
+want_python=0 want_warp=0
 for arg in "$@"; do
   case "$arg" in
     --python) want_python=1 ;;
-    -h|--help) sed -n '2,10p' "$0"; exit 0 ;;
+    --warp) want_warp=1 ;;
+    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
     *) echo "setup.sh: unknown argument $arg" >&2; exit 2 ;;
   esac
 done
@@ -223,5 +228,22 @@ PY
     fi
   fi
   echo "$DP_DIR" > "$ROOT/.deps/diffusion-policy-path"
+fi
+
+# --- 4. The Warp batch renderer's venv (--warp) --------------------------------------
+if ((want_warp)); then
+  warp_req="$ROOT/scripts/warp-requirements.txt"
+  warp_version="$(sed -n 's/^mujoco-warp==//p' "$warp_req")"
+  WARP_VENV="${XDG_CACHE_HOME:-$HOME/.cache}/dexjoco-data/venv-warp-$warp_version"
+  warp_hash="$( (cat "$warp_req"; "$PYTHON" -c 'import sys; print(sys.version)') | sha256sum | cut -c1-12)"
+  if [ ! -x "$WARP_VENV/bin/python" ] || [ "$(cat "$WARP_VENV/.complete" 2>/dev/null)" != "$warp_hash" ]; then
+    log "creating the Warp renderer venv $WARP_VENV ($(tr '\n' ' ' < "$warp_req"))"
+    rm -rf "$WARP_VENV"
+    "$PYTHON" -m venv "$WARP_VENV"
+    "$WARP_VENV/bin/python" -m pip install -q --upgrade pip
+    "$WARP_VENV/bin/python" -m pip install -q -r "$warp_req"
+    echo "$warp_hash" > "$WARP_VENV/.complete"
+  fi
+  echo "$WARP_VENV/bin/python" > "$ROOT/.deps/warp-python-path"
 fi
 log "ready: MuJoCo $MUJOCO_VERSION in .deps/mujoco/lib"

@@ -1,15 +1,17 @@
 #!/usr/bin/env bash
-# Sets up everything (Debian packages, MuJoCo, the cached Python venv of real readers)
+# Sets up everything (Debian packages, MuJoCo, the cached Python venvs of real readers
+# and of the Warp renderer)
 # and runs every test: formatting, clippy with warnings as errors, and the whole
 # workspace's tests (real MuJoCo physics and EGL rendering, real files, real readers).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 
-"$ROOT/scripts/setup.sh" --python
+"$ROOT/scripts/setup.sh" --python --warp
 export DEXJOCO_PYTHON="$(cat "$ROOT/.deps/python-path")"
 export DEXJOCO_DIFFUSION_POLICY="${DEXJOCO_DIFFUSION_POLICY:-$(cat "$ROOT/.deps/diffusion-policy-path")}"
 export DEXJOCO_REFERENCE_PYTHON="$(cat "$ROOT/.deps/reference-python-path")"
+export DEXJOCO_WARP_PYTHON="$(cat "$ROOT/.deps/warp-python-path")"
 
 echo "== cargo fmt --check" >&2
 cargo fmt --all -- --check

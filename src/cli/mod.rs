@@ -160,6 +160,65 @@ pub enum QualityArg {
     Fast,
 }
 
+/// Which renderer draws the frames (`augment`, `bench augment`).
+#[derive(Debug, Clone, Args)]
+pub struct RendererArgs {
+    /// opengl: MuJoCo's own renderer through EGL (the reference's look); warp: MuJoCo
+    /// Warp's batch ray tracer on a CUDA GPU (or Warp's CPU device), in a Python worker
+    /// per render worker (`scripts/setup.sh --warp`, or `pip install 'dexjoco-data[warp]'`;
+    /// `doctor` says whether it is usable).
+    #[arg(long, value_enum, default_value_t = RendererArg::Opengl)]
+    pub renderer: RendererArg,
+    /// The Warp device: auto (the first CUDA GPU, else the CPU), cpu or cuda:N.
+    #[arg(long, default_value = "auto", value_name = "DEVICE")]
+    pub warp_device: String,
+    /// Images the Warp renderer draws per call (frames x replays; default 2048 on a GPU,
+    /// 16 on the CPU). The bytes do not depend on it.
+    #[arg(long, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    pub warp_batch: Option<usize>,
+    /// Rays per pixel and axis of the Warp renderer (anti-aliasing: 2 = 4 rays per pixel;
+    /// default: 2 with --quality paper, which multisamples, else 1).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4))]
+    pub warp_supersample: Option<u32>,
+    /// The Python of the Warp renderer's worker (default: $DEXJOCO_WARP_PYTHON, the
+    /// Python beside this program, $VIRTUAL_ENV's, then setup.sh --warp's venv).
+    #[arg(long, value_name = "PYTHON")]
+    pub warp_python: Option<PathBuf>,
+}
+
+/// `--renderer`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RendererArg {
+    /// MuJoCo's OpenGL renderer (EGL).
+    Opengl,
+    /// MuJoCo Warp's batch ray tracer.
+    Warp,
+}
+
+impl RendererArgs {
+    /// The renderer and the Warp worker's options.
+    pub fn resolve(self) -> (dexjoco_sim::RendererKind, dexjoco_sim::warp::WarpOptions) {
+        let Self {
+            renderer,
+            warp_device,
+            warp_batch,
+            warp_supersample,
+            warp_python,
+        } = self;
+        let kind = match renderer {
+            RendererArg::Opengl => dexjoco_sim::RendererKind::Opengl,
+            RendererArg::Warp => dexjoco_sim::RendererKind::Warp,
+        };
+        let options = dexjoco_sim::warp::WarpOptions {
+            python: warp_python,
+            device: warp_device,
+            worlds: warp_batch,
+            supersample: warp_supersample,
+        };
+        (kind, options)
+    }
+}
+
 /// Where worker processes render (`augment`, `eval -j N`): an EGL device each, and the
 /// first-frame deadline.
 #[derive(Debug, Clone, Args)]

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 use dexjoco_augment::VideoEncoding;
 
-use super::{GeometryArg, QualityArg, TasksDirArgs, WorkerArgs};
+use super::{GeometryArg, QualityArg, RendererArgs, TasksDirArgs, WorkerArgs};
 
 /// `ingest` options.
 #[derive(Debug, Args)]
@@ -300,6 +300,7 @@ Examples:
   dexjoco-data augment --replays 2 --camera handcam_rgb --keep-failed --out aug/
   dexjoco-data augment --replays 2 --camera front --depth --size 224  # + <camera>_depth.npz
   dexjoco-data augment --replays 10 --dynamics           # + mass/friction/stiffness per replay
+  dexjoco-data augment --replays 10 --size 224 --renderer warp   # MuJoCo Warp's batch ray tracer (GPU)
   dexjoco-data augment data/ --out /shared/aug --shard 2/8   # one eighth, e.g. on one node
   dexjoco-data augment data/ --out /shared/aug --shard auto  # Slurm array / Kubernetes Indexed Job
   dexjoco-data augment data/ --out /shared/aug               # after the shards: the report
@@ -398,6 +399,9 @@ pub struct AugmentArgs {
     /// Where the worker processes render.
     #[command(flatten)]
     pub workers: WorkerArgs,
+    /// Which renderer draws the frames.
+    #[command(flatten)]
+    pub renderer: RendererArgs,
     /// When --out was made with other settings, start clean: remove what augment wrote
     /// there (replays, records, report), nothing else.
     #[arg(long)]

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
-use super::{FirstFrameArgs, GeometryArg, QualityArg, TasksDirArgs};
+use super::{FirstFrameArgs, GeometryArg, QualityArg, RendererArgs, TasksDirArgs};
 
 /// `doctor` options.
 #[derive(Debug, Args)]
@@ -171,6 +171,9 @@ pub struct BenchAugmentArgs {
     /// The workers' first-frame deadline (as `augment`'s).
     #[command(flatten)]
     pub deadline: FirstFrameArgs,
+    /// The renderer of our runs (as `augment`'s; with warp the table adds its split).
+    #[command(flatten)]
+    pub renderer: RendererArgs,
 }
 
 /// `bench render-limit`: internal, one process of the render-only limit.

@@ -74,6 +74,8 @@ fn config(
         shard: None,
         overwrite: true,
         video: dexjoco_augment::VideoEncoding::default(),
+        renderer: args.renderer,
+        warp: args.warp.clone(),
     }
 }
 
@@ -212,6 +214,8 @@ pub fn render_limit(
         seed: global.seed,
         quiet: global.quiet,
         out: PathBuf::new(),
+        renderer: dexjoco_sim::RendererKind::Opengl,
+        warp: dexjoco_sim::warp::WarpOptions::default(),
     };
     let c = config(
         &bench,

@@ -184,7 +184,9 @@ impl AugmentSettings {
                 },
             overwrite,
             video,
+            renderer,
         } = args;
+        let (renderer, warp) = renderer.resolve();
         if replays == 0 {
             return Err(usage(
                 "--replays 0 makes nothing".into(),
@@ -244,6 +246,8 @@ impl AugmentSettings {
                 shard,
                 overwrite,
                 video: video.encoding(),
+                renderer,
+                warp,
             },
         })
     }

@@ -183,6 +183,10 @@ pub struct BenchAugmentSettings {
     pub quiet: bool,
     /// Folder of the JSON results.
     pub out: PathBuf,
+    /// The renderer of our runs.
+    pub renderer: dexjoco_sim::RendererKind,
+    /// The Warp worker's options.
+    pub warp: dexjoco_sim::warp::WarpOptions,
 }
 
 impl BenchAugmentSettings {
@@ -206,7 +210,9 @@ impl BenchAugmentSettings {
             geometry,
             threads,
             deadline,
+            renderer,
         } = args;
+        let (renderer, warp) = renderer.clone().resolve();
         let mut workers = if workers.is_empty() {
             vec![1, render_workers(global.jobs, Vec::new()).0]
         } else {
@@ -237,6 +243,8 @@ impl BenchAugmentSettings {
             seed: global.seed,
             quiet: global.quiet,
             out,
+            renderer,
+            warp,
         })
     }
 }

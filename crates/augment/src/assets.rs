@@ -2,7 +2,8 @@
 //! randomization draws from, loaded once and shared by every unit that renders the task.
 
 use dexjoco_core::TaskSpec;
-use dexjoco_sim::{Scene, load_task_scene};
+use dexjoco_sim::warp::SceneXml;
+use dexjoco_sim::{Scene, SceneSource, load_task_scene};
 
 use crate::config::AugmentConfig;
 use crate::error::{AugmentError, sim_err};
@@ -11,6 +12,8 @@ use dexjoco_sim::randomize::{CameraPool, TABLE_GEOM, TableLibrary};
 /// A task's scene and what randomization needs of it, shared by every worker thread.
 pub(crate) struct TaskAssets {
     pub(crate) scene: Scene,
+    /// The scene as the Warp renderer's worker compiles it.
+    pub(crate) xml: SceneXml,
     pub(crate) pool: CameraPool,
     pub(crate) table: TableLibrary,
     pub(crate) nlight: usize,
@@ -73,12 +76,19 @@ pub(crate) fn load_assets(
     spec: &TaskSpec,
 ) -> Result<TaskAssets, AugmentError> {
     let scene = load_task_scene(&config.scene, spec).map_err(sim_err(&spec.id))?;
+    let xml = match &config.scene {
+        SceneSource::BuiltIn => {
+            SceneXml::Text(dexjoco_sim::builtin::scene_xml(spec).map_err(sim_err(&spec.id))?)
+        }
+        SceneSource::Dir(_) => SceneXml::Path(scene.path.clone()),
+    };
     let table = TableLibrary::of_model(&scene.model, TABLE_GEOM)?;
     let pool = pool_for(config, spec)?;
     let nlight = scene.model.ffi().nlight as usize;
     let key = format!("{}:{}", spec.id, scene.path.display());
     Ok(TaskAssets {
         scene,
+        xml,
         pool,
         table,
         nlight,

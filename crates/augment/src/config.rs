@@ -3,7 +3,8 @@
 
 use std::path::PathBuf;
 
-use dexjoco_sim::{RenderSettings, SceneSource};
+use dexjoco_sim::warp::WarpOptions;
+use dexjoco_sim::{RenderSettings, RendererKind, SceneSource};
 use dexjoco_video::{Codec, Keyframes, X264Preset};
 use serde::{Deserialize, Serialize};
 
@@ -76,6 +77,12 @@ pub struct AugmentConfig {
     pub overwrite: bool,
     /// How the camera videos are encoded.
     pub video: VideoEncoding,
+    /// Which renderer draws the frames (MuJoCo's OpenGL one unless `--renderer warp`).
+    #[serde(default)]
+    pub renderer: RendererKind,
+    /// How the Warp renderer's worker runs (with `--renderer warp`).
+    #[serde(default)]
+    pub warp: WarpOptions,
 }
 
 /// How augment encodes its camera videos: H.264 (libx264, yuv420p), one encoder process
@@ -167,6 +174,8 @@ impl AugmentConfig {
             extend_steps: DEFAULT_EXTEND_STEPS,
             shard: None,
             overwrite: false,
+            renderer: RendererKind::Opengl,
+            warp: WarpOptions::default(),
             video: VideoEncoding::default(),
         }
     }

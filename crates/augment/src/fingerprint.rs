@@ -10,7 +10,8 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use dexjoco_core::{Episode, TaskSpec};
-use dexjoco_sim::{Geometry, RenderQuality, RenderSettings, SceneSource};
+use dexjoco_sim::warp::WarpOptions;
+use dexjoco_sim::{Geometry, RenderQuality, RenderSettings, RendererKind, SceneSource};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
@@ -45,6 +46,13 @@ pub struct OutputSettings {
     /// the option read the same).
     #[serde(default, skip_serializing_if = "Geometry::is_full")]
     pub geometry: Geometry,
+    /// The renderer (written only when not OpenGL, so folders made before the option read
+    /// the same): a folder is made by one renderer, a resume with another is refused.
+    #[serde(default, skip_serializing_if = "RendererKind::is_opengl")]
+    pub renderer: RendererKind,
+    /// The Warp renderer's rays per pixel and axis, when given (`--warp-supersample`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warp_supersample: Option<u32>,
     /// Fixed cameras rendered besides the third-person view.
     pub cameras: Vec<String>,
     /// Depth archives written.
@@ -206,6 +214,17 @@ impl OutputSettings {
             // The shards of a split write the bytes of one run.
             shard: _,
             overwrite: _,
+            renderer,
+            warp:
+                WarpOptions {
+                    supersample,
+                    // The worker's Python is checked to have the pinned versions.
+                    python: _,
+                    // Warp's device: named in each replay's record (`renderer`).
+                    device: _,
+                    // Each world is one image: the batch size leaves the bytes alone.
+                    worlds: _,
+                },
         } = config;
         let RenderSettings {
             width,
@@ -223,6 +242,8 @@ impl OutputSettings {
             height: *height,
             quality: *quality,
             geometry: *geometry,
+            renderer: *renderer,
+            warp_supersample: supersample.filter(|_| *renderer == RendererKind::Warp),
             cameras: cameras.clone(),
             depth: *depth,
             max_frames: *max_frames,

@@ -37,6 +37,7 @@ mod report;
 mod run;
 mod scene_files;
 mod staging;
+mod warp;
 mod worker;
 
 pub use camera_pool::{BuiltPool, PoolOptions, ScoredPose, build_pool, occlusion};

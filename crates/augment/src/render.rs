@@ -12,7 +12,7 @@ use dexjoco_formats::SourceKind;
 use dexjoco_formats::npz::DepthWriter;
 use dexjoco_formats::raw;
 use dexjoco_sim::mujoco_rs::prelude::MjModel;
-use dexjoco_sim::{RenderSettings, Renderer, Scene};
+use dexjoco_sim::{RenderSettings, Renderer, RendererKind, Scene};
 use dexjoco_video::{VideoSpec, VideoWriter};
 use serde::{Deserialize, Serialize};
 
@@ -63,9 +63,12 @@ fn with_renderer<T>(
 pub(crate) fn preload_renderer(
     assets: &TaskAssets,
     config: &AugmentConfig,
-    opened: &mut dyn FnMut(&dexjoco_sim::EglDevice),
+    opened: &mut dyn FnMut(&str),
 ) -> Result<(), AugmentError> {
     const WARM_UP_VIEWS: usize = 3;
+    if config.renderer == RendererKind::Warp {
+        return crate::warp::preload(assets, config, opened);
+    }
     let model = &assets.scene.model;
     let mut data = dexjoco_sim::mujoco_rs::prelude::MjData::new(model.clone());
     data.forward();
@@ -74,7 +77,8 @@ pub(crate) fn preload_renderer(
         model,
         unit_render_settings(config),
         |renderer| {
-            opened(renderer.device());
+            let device = renderer.device();
+            opened(&format!("{} ({})", device.index, device.label()));
             for r in 0..WARM_UP_VIEWS {
                 let sample = assets.sample(config.seed, "warm-up", r);
                 renderer.update_scene(&mut data, sample.camera.view());
@@ -89,6 +93,9 @@ pub(crate) fn preload_renderer(
 /// Whether this thread's renderer is open for `assets`' scene with `config`'s settings
 /// (and has drawn: it is only kept after its warm-up or a unit).
 pub(crate) fn renderer_ready(assets: &TaskAssets, config: &AugmentConfig) -> bool {
+    if config.renderer == RendererKind::Warp {
+        return crate::warp::ready(assets, config);
+    }
     let settings = unit_render_settings(config);
     RENDERER.with(|cell| {
         matches!(&*cell.borrow(), Some((k, r)) if *k == assets.key && r.settings() == settings)
@@ -96,16 +103,17 @@ pub(crate) fn renderer_ready(assets: &TaskAssets, config: &AugmentConfig) -> boo
 }
 
 /// The renderer settings of a unit.
-fn unit_render_settings(config: &AugmentConfig) -> RenderSettings {
+pub(crate) fn unit_render_settings(config: &AugmentConfig) -> RenderSettings {
     RenderSettings {
         depth: config.depth,
         ..config.settings
     }
 }
 
-/// Closes this thread's renderer (and its EGL context).
+/// Closes this thread's renderers (the EGL context, the Warp worker).
 pub(crate) fn close_renderer() {
     RENDERER.with(|cell| cell.borrow_mut().take());
+    crate::warp::close();
 }
 
 /// One unit of rendering work: replays of one episode, from one simulation; what a
@@ -151,10 +159,10 @@ impl UnitJob {
 }
 
 /// A replay being written.
-struct Pending {
+pub(crate) struct Pending {
     index: usize,
     staging: PathBuf,
-    sample: VisualSample,
+    pub(crate) sample: VisualSample,
     writers: Vec<VideoWriter>,
     /// One per camera, in the order of `writers`, with `--depth`.
     depth: Vec<DepthWriter>,
@@ -201,7 +209,7 @@ pub(crate) fn render_unit(
         ToRender::Dropped(record) => return Ok((vec![Outcome::Dropped(*record)], times)),
     };
     let mut pending = open_replays(job, inputs, &cameras, expected.frames)?;
-    let rendered = draw_replays(
+    let (rendered, renderer) = draw_replays(
         inputs,
         &scene,
         &fixed,
@@ -225,7 +233,7 @@ pub(crate) fn render_unit(
         job,
         inputs,
         pending,
-        &rendered,
+        (&rendered, &renderer),
         &expected,
         &cameras,
         &mut times,
@@ -366,7 +374,8 @@ fn open_replays(
 }
 
 /// Replays the episode on `scene` with this thread's renderer, drawing every pending
-/// replay's `cameras` views of each step into its writers; returns the simulation.
+/// replay's `cameras` views of each step into its writers; returns the simulation and
+/// the renderer's name for the records.
 fn draw_replays(
     inputs: &UnitInputs<'_>,
     scene: &Scene,
@@ -375,7 +384,10 @@ fn draw_replays(
     pending: &mut [Pending],
     times: &mut StageTimes,
     frames_done: &mut dyn FnMut(u64) -> Result<(), AugmentError>,
-) -> Result<Physics, AugmentError> {
+) -> Result<(Physics, String), AugmentError> {
+    if inputs.config.renderer == RendererKind::Warp {
+        return crate::warp::draw_replays(inputs, scene, fixed, pending, times, frames_done);
+    }
     let UnitInputs {
         src,
         assets,
@@ -397,25 +409,14 @@ fn draw_replays(
             let physics = replay(src, &mut env, config, |env, k| {
                 let step_started = Instant::now();
                 for p in pending.iter_mut() {
-                    let views = p.sample.views(fixed);
-                    for (c, (view, writer)) in views.zip(p.writers.iter_mut()).enumerate() {
+                    let views: Vec<_> = p.sample.views(fixed).collect();
+                    for (c, view) in views.into_iter().enumerate() {
                         renderer.update_scene(env.data_mut(), view);
                         timed(&mut times.scene, || {
                             apply_visuals(renderer, &p.sample, &assets.table)
                         });
-                        let mut frame = renderer.draw().map_err(sim_err(id))?;
-                        p.defects.frame(c, k, &mut frame);
-                        timed(&mut times.checks, || {
-                            p.checks.frame(c, k, &frame.rgb, frame.depth.as_deref());
-                        });
-                        timed(&mut times.encode_feed, || writer.write_frame(&frame.rgb))
-                            .map_err(video_err(id))?;
-                        if let (Some(d), Some(depth)) = (p.depth.get_mut(c), &frame.depth) {
-                            d.write_frame(depth)?;
-                        }
-                        if k == 0 && p.preview.is_none() {
-                            p.preview = Some(frame);
-                        }
+                        let frame = renderer.draw().map_err(sim_err(id))?;
+                        p.take(id, c, k, frame, times)?;
                     }
                 }
                 let r = frames_done(per_step);
@@ -424,9 +425,36 @@ fn draw_replays(
             });
             times.physics += started.elapsed().as_secs_f64() - drawing;
             times.add_render(&renderer.take_times());
-            physics
+            Ok((physics?, "opengl".to_owned()))
         },
     )
+}
+
+impl Pending {
+    /// Takes camera `c`'s frame of step `k`: the test hook's defects, the render checks,
+    /// the encoder (and depth archive), the preview.
+    pub(crate) fn take(
+        &mut self,
+        id: &str,
+        c: usize,
+        k: usize,
+        mut frame: dexjoco_sim::Frame,
+        times: &mut StageTimes,
+    ) -> Result<(), AugmentError> {
+        self.defects.frame(c, k, &mut frame);
+        timed(&mut times.checks, || {
+            self.checks.frame(c, k, &frame.rgb, frame.depth.as_deref());
+        });
+        let writer = &mut self.writers[c];
+        timed(&mut times.encode_feed, || writer.write_frame(&frame.rgb)).map_err(video_err(id))?;
+        if let (Some(d), Some(depth)) = (self.depth.get_mut(c), &frame.depth) {
+            d.write_frame(depth)?;
+        }
+        if k == 0 && self.preview.is_none() {
+            self.preview = Some(frame);
+        }
+        Ok(())
+    }
 }
 
 /// Finishes each pending replay's writers, checks its stored arrays and commits the
@@ -436,7 +464,7 @@ fn commit_replays(
     job: &UnitJob,
     inputs: &UnitInputs<'_>,
     pending: Vec<Pending>,
-    rendered: &Physics,
+    (rendered, renderer): (&Physics, &str),
     expected: &PhysicsSummary,
     cameras: &[String],
     times: &mut StageTimes,
@@ -458,6 +486,7 @@ fn commit_replays(
         let mut ep = replay_episode(src, &name, &rendered.states, cameras, config.depth)?;
         p.defects.episode(&mut ep);
         let mut record = record_of(job, p.index, p.sample, p.dynamics, expected);
+        renderer.clone_into(&mut record.renderer);
         record.flags = timed(&mut times.checks, || p.checks.finish(&ep, &src.spec));
         record.videos = cameras
             .iter()
@@ -510,6 +539,7 @@ fn record_of(
         depth: Vec::new(),
         dynamics,
         source_hash: job.source_hash.clone(),
+        renderer: String::new(),
         made_on: Some(crate::provenance::Provenance::here().clone()),
     }
 }

@@ -65,6 +65,11 @@ pub struct ReplayRecord {
     /// Content hash of the source episode it was made from.
     #[serde(default)]
     pub source_hash: String,
+    /// The renderer that drew its frames: `opengl`, or the Warp worker's version and
+    /// device (`warp 3.17.0 on cpu`). Absent in replays made before it was recorded (all
+    /// OpenGL) and in records of replays dropped before rendering.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub renderer: String,
     /// Where it was made: the CPU and the programs' versions (absent in replays made
     /// before it was recorded, and in the report, which lists each once in `made_on`).
     #[serde(default, skip_serializing_if = "Option::is_none")]

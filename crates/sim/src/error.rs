@@ -33,6 +33,9 @@ pub enum SimError {
     /// Rendering failed.
     #[error("rendering failed: {0}")]
     Render(String),
+    /// The Warp renderer's worker could not start or failed.
+    #[error("warp renderer: {0}")]
+    Warp(String),
     /// Writing an image failed.
     #[error("cannot write image '{path}': {message}")]
     Image {

@@ -20,6 +20,7 @@ mod egl;
 mod env;
 mod error;
 mod feedback;
+pub mod fidelity;
 mod geometry;
 pub mod primitives;
 pub mod randomize;
@@ -28,6 +29,7 @@ mod scene;
 pub mod scripted;
 mod sheet;
 mod subtasks;
+pub mod warp;
 
 pub use checker::{SuccessChecker, Verdict, name_id, unresolved_names};
 pub use control::{
@@ -48,6 +50,7 @@ pub use render::{
 pub use scene::{Scene, mujoco_library_path, mujoco_version, route_mujoco_warnings};
 pub use sheet::{SheetLayout, contact_sheet};
 pub use subtasks::SubtaskTracker;
+pub use warp::RendererKind;
 
 /// Re-exported so callers can step and inspect the simulation without naming the crate.
 pub use mujoco_rs;

@@ -15,6 +15,9 @@ use sha2::{Digest, Sha256};
 use crate::env::SceneSource;
 use crate::error::SimError;
 use crate::render::{CameraView, Renderer};
+use crate::warp::WorldView;
+use mujoco_rs::prelude::MjData;
+use mujoco_rs::wrappers::mj_model::traits::ModelType;
 
 /// The table-top geom whose look randomization changes.
 pub const TABLE_GEOM: &str = "table_visual";
@@ -402,6 +405,37 @@ pub fn apply_visuals(renderer: &mut Renderer, sample: &VisualSample, table: &Tab
             }
         }
     }
+}
+
+/// The world a sample makes for the Warp renderer: what [`apply_visuals`] does to the
+/// OpenGL scene (lights offset and recoloured, headlight recoloured, the table's look),
+/// as one world's values.
+pub fn warp_world<M: ModelType>(
+    model: &MjModel,
+    data: &MjData<M>,
+    view: CameraView,
+    sample: &VisualSample,
+    table: &TableLibrary,
+) -> WorldView {
+    let mut world = WorldView::of(model, data, view, table.geom);
+    world.head_ambient = sample.headlight_ambient;
+    world.head_diffuse = sample.headlight_diffuse;
+    for (light, s) in world.lights.iter_mut().zip(&sample.lights) {
+        light.pos[0] += s.pos_offset[0];
+        light.pos[1] += s.pos_offset[1];
+        light.dir[0] += s.dir_offset[0];
+        light.dir[1] += s.dir_offset[1];
+        light.diffuse = s.diffuse;
+    }
+    let look = &table.entries[sample.table_index];
+    if let Some(m) = look.material {
+        world.table_matid = m as i32;
+        world.table_rgba = [1.0, 1.0, 1.0, 1.0];
+    } else if let Some(c) = look.rgba {
+        world.table_matid = -1;
+        world.table_rgba = c;
+    }
+    world
 }
 
 #[cfg(test)]

@@ -130,10 +130,7 @@ impl WorkerState {
         tell(output, &FromWorker::Opening);
         let stall = self.stall;
         preload_renderer(assets, &self.config, &mut |device| {
-            tell(
-                output,
-                &FromWorker::Device(format!("{} ({})", device.index, device.label())),
-            );
+            tell(output, &FromWorker::Device(device.to_owned()));
             if stall {
                 tracing::warn!(
                     "{STALL_ENV}: stalling before the first frame, as a hung driver would"
