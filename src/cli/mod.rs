@@ -169,6 +169,14 @@ pub struct RendererArgs {
     /// `doctor` says whether it is usable).
     #[arg(long, value_enum, default_value_t = RendererArg::Opengl)]
     pub renderer: RendererArg,
+    /// The Warp renderer's options.
+    #[command(flatten)]
+    pub warp: WarpArgs,
+}
+
+/// How the Warp renderer's worker runs (`--renderer warp`, `bench fidelity`).
+#[derive(Debug, Clone, Args)]
+pub struct WarpArgs {
     /// The Warp device: auto (the first CUDA GPU, else the CPU), cpu or cuda:N.
     #[arg(long, default_value = "auto", value_name = "DEVICE")]
     pub warp_device: String,
@@ -180,10 +188,29 @@ pub struct RendererArgs {
     /// default: 2 with --quality paper, which multisamples, else 1).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4))]
     pub warp_supersample: Option<u32>,
-    /// The Python of the Warp renderer's worker (default: $DEXJOCO_WARP_PYTHON, the
-    /// Python beside this program, $VIRTUAL_ENV's, then setup.sh --warp's venv).
+    /// The Python of the Warp renderer's worker (default: $DEXJOCO_WARP_PYTHON, else the
+    /// first with MuJoCo Warp of: the Python beside this program, $VIRTUAL_ENV's,
+    /// setup.sh --warp's venv).
     #[arg(long, value_name = "PYTHON")]
     pub warp_python: Option<PathBuf>,
+}
+
+impl WarpArgs {
+    /// The worker's options.
+    pub fn options(self) -> dexjoco_sim::warp::WarpOptions {
+        let Self {
+            warp_device,
+            warp_batch,
+            warp_supersample,
+            warp_python,
+        } = self;
+        dexjoco_sim::warp::WarpOptions {
+            python: warp_python,
+            device: warp_device,
+            worlds: warp_batch,
+            supersample: warp_supersample,
+        }
+    }
 }
 
 /// `--renderer`.
@@ -198,24 +225,12 @@ pub enum RendererArg {
 impl RendererArgs {
     /// The renderer and the Warp worker's options.
     pub fn resolve(self) -> (dexjoco_sim::RendererKind, dexjoco_sim::warp::WarpOptions) {
-        let Self {
-            renderer,
-            warp_device,
-            warp_batch,
-            warp_supersample,
-            warp_python,
-        } = self;
+        let Self { renderer, warp } = self;
         let kind = match renderer {
             RendererArg::Opengl => dexjoco_sim::RendererKind::Opengl,
             RendererArg::Warp => dexjoco_sim::RendererKind::Warp,
         };
-        let options = dexjoco_sim::warp::WarpOptions {
-            python: warp_python,
-            device: warp_device,
-            worlds: warp_batch,
-            supersample: warp_supersample,
-        };
-        (kind, options)
+        (kind, warp.options())
     }
 }
 

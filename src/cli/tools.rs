@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
-use super::{FirstFrameArgs, GeometryArg, QualityArg, RendererArgs, TasksDirArgs};
+use super::{FirstFrameArgs, GeometryArg, QualityArg, RendererArgs, TasksDirArgs, WarpArgs};
 
 /// `doctor` options.
 #[derive(Debug, Args)]
@@ -100,6 +100,9 @@ pub enum BenchCommand {
     /// Generation attempts per second on one core, against the same loop in Python on the
     /// DexJoCo reference environments.
     Generate(BenchGenerateArgs),
+    /// The Warp batch renderer against MuJoCo's OpenGL one on each task's scene: PSNR and
+    /// SSIM per task and camera, side-by-side pictures.
+    Fidelity(BenchFidelityArgs),
     /// One process of `bench augment`'s render-only limit (started by it).
     #[command(hide = true)]
     RenderLimit(BenchRenderLimitArgs),
@@ -174,6 +177,42 @@ pub struct BenchAugmentArgs {
     /// The renderer of our runs (as `augment`'s; with warp the table adds its split).
     #[command(flatten)]
     pub renderer: RendererArgs,
+}
+
+/// `bench fidelity` options.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+Examples:
+  dexjoco-data bench fidelity                                 # the 11 reference scenes (or built-in)
+  dexjoco-data bench fidelity --task hammer_nail --views 8 --size 640 --quality paper
+  dexjoco-data bench fidelity --warp-supersample 2            # anti-aliased Warp images
+
+Each task's scene at its reset, seen from --views randomized third-person views (camera
+pose, lights, table look as augment samples them) and from the task's cameras, is rendered
+by MuJoCo's OpenGL renderer and by the Warp ray tracer. The table gives PSNR (dB, over RGB)
+and SSIM (luma, 8x8 windows) per task and camera; <work-dir>/bench/fidelity/ holds
+fidelity.json, <task>.png (OpenGL | Warp | difference x4 per view) and sheet.png.")]
+pub struct BenchFidelityArgs {
+    /// Tasks (repeatable; default: all 11).
+    #[arg(long = "task")]
+    pub tasks: Vec<String>,
+    /// Scene pack folder (default: the DexJoCo reference scenes when found, else the
+    /// built-in scenes).
+    #[arg(long)]
+    pub scene_dir: Option<PathBuf>,
+    /// Image size (square).
+    #[arg(long, default_value_t = 224, value_parser = image_side())]
+    pub size: u32,
+    /// Quality preset (shadows, multisampling).
+    #[arg(long, value_enum, default_value_t = QualityArg::Fast)]
+    pub quality: QualityArg,
+    /// Randomized third-person views per task.
+    #[arg(long, default_value_t = 4,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    pub views: usize,
+    /// The Warp renderer's options.
+    #[command(flatten)]
+    pub warp: WarpArgs,
 }
 
 /// `bench render-limit`: internal, one process of the render-only limit.

@@ -24,6 +24,7 @@ pub fn run(global: &GlobalArgs, cmd: &BenchCommand) -> anyhow::Result<ExitStatus
             global,
             super::augment::sample_data,
         )?),
+        BenchCommand::Fidelity(args) => super::bench_fidelity::run(global, args),
         BenchCommand::RenderLimit(args) => super::bench_augment::render_limit(global, args),
     }
 }

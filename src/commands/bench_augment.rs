@@ -269,7 +269,11 @@ fn bench_config(
         } else {
             timed(&cfg, &processes(args, n)?)?
         };
-        let approach = if args.threads { OURS_THREADS } else { OURS };
+        let approach = match (args.threads, args.renderer) {
+            (true, _) => OURS_THREADS,
+            (false, dexjoco_sim::RendererKind::Warp) => OURS_WARP,
+            (false, dexjoco_sim::RendererKind::Opengl) => OURS,
+        };
         runs.push(measured(look, approach, n, &report, s));
         bar.inc(1);
     }
@@ -321,6 +325,7 @@ fn bench_config(
 const REFERENCE: &str = "reference (re-simulate every replay, 1 process)";
 const OURS: &str = "ours, worker processes";
 const OURS_THREADS: &str = "ours, threads of one process";
+const OURS_WARP: &str = "ours, worker processes, Warp renderer";
 const LIMIT: &str = "render-only limit (trajectory states, no stepping, no encoding)";
 
 /// `count` worker processes of this binary, dealt over the node's GPUs as `augment` does.
@@ -540,6 +545,22 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
         );
     }
     print_checks_share(runs);
+    if args.renderer == dexjoco_sim::RendererKind::Warp {
+        let batch = args.warp.worlds.map_or_else(
+            || "the default: 2048 images on a GPU, 16 on the CPU".to_owned(),
+            |n| format!("{n} images"),
+        );
+        outln!();
+        outln!(
+            "Warp renderer ({} device, batch: {batch}): its stages read \
+             scene update = the step's geom poses and each image's view, lights and table look \
+             packed into batches, piped to the worker and copied to the device; \
+             render = BVH refit and ray tracing on the device; \
+             readback = images copied to the worker's memory, piped back and unpacked. \
+             The reference and render-only rows use MuJoCo's OpenGL renderer.",
+            args.warp.device
+        );
+    }
 }
 
 /// What the render checks cost: their share of each augment run's work, smallest and

@@ -42,6 +42,8 @@ struct Report {
     python: Option<PythonReport>,
     sample_data: Option<Located>,
     reference_scenes: Option<Located>,
+    /// The Warp batch renderer (optional): its worker's device and versions, or why not.
+    warp: Result<dexjoco_sim::warp::WorkerInfo, String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -160,6 +162,9 @@ pub fn run(settings: DoctorSettings) -> anyhow::Result<ExitStatus> {
         python: python_report(),
         sample_data: crate::locate::data_dir(),
         reference_scenes: crate::locate::reference_scenes(),
+        warp: dexjoco_sim::warp::WarpWorker::start(&dexjoco_sim::warp::WarpOptions::default())
+            .map(|w| w.info().clone())
+            .map_err(|e| e.to_string()),
     };
     let mujoco_ok = report.mujoco.version == EXPECTED_MUJOCO;
     let egl_ok = report.egl.as_ref().is_ok_and(|p| p.selected.is_some());
@@ -191,6 +196,29 @@ fn print_human(r: &Report, mujoco_ok: bool) {
     print_sample_data(r.sample_data.as_ref());
     outln!();
     print_reference_scenes(r.reference_scenes.as_ref());
+    outln!();
+    print_warp(&r.warp);
+}
+
+/// Whether `--renderer warp` can run, and on which device (optional: not part of the
+/// exit status).
+fn print_warp(warp: &Result<dexjoco_sim::warp::WorkerInfo, String>) {
+    outln!("Warp batch renderer (--renderer warp; optional)");
+    match warp {
+        Ok(info) => {
+            let version = |p: &str| info.versions.get(p).cloned().flatten().unwrap_or_default();
+            outln!("  [ok  ] {}", info.describe());
+            outln!(
+                "         Python {} ({}), warp-lang {}",
+                version("python"),
+                info.python.display(),
+                version("warp-lang")
+            );
+        }
+        Err(e) => {
+            outln!("  [absent] {e}");
+        }
+    }
 }
 
 /// MuJoCo's version and library.

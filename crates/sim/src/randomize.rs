@@ -241,6 +241,80 @@ pub struct TableLook {
     pub material: Option<usize>,
     /// RGBA, when the look is a procedural colour.
     pub rgba: Option<[f32; 4]>,
+    /// What the abstract scene's geom holds with this look: what `mjv_updateScene` copies
+    /// from the material (its texture above all), as if the model's `geom_matid` were
+    /// set, as the DexJoCo reference does.
+    #[serde(default)]
+    pub geom: Option<GeomLook>,
+}
+
+/// The material fields of an abstract-scene geom (`mjvGeom`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GeomLook {
+    /// Material id (-1: none).
+    pub matid: i32,
+    /// Texture id (-1: none).
+    pub texid: i32,
+    /// The material's `texuniform`.
+    pub texuniform: i32,
+    /// The material's `texrepeat`.
+    pub texrepeat: [f32; 2],
+    /// Colour.
+    pub rgba: [f32; 4],
+    /// Emission.
+    pub emission: f32,
+    /// Specular.
+    pub specular: f32,
+    /// Shininess.
+    pub shininess: f32,
+    /// Reflectance.
+    pub reflectance: f32,
+}
+
+impl GeomLook {
+    /// What `mjv_updateScene` gives a geom of material `m` with no colour of its own.
+    pub fn of_material(model: &MjModel, m: usize) -> Self {
+        use mujoco_rs::mujoco_c::mjtTextureRole;
+        Self {
+            matid: m as i32,
+            texid: model.mat_texid()[m][mjtTextureRole::mjTEXROLE_RGB as usize],
+            texuniform: i32::from(model.mat_texuniform()[m]),
+            texrepeat: model.mat_texrepeat()[m],
+            rgba: model.mat_rgba()[m],
+            emission: model.mat_emission()[m],
+            specular: model.mat_specular()[m],
+            shininess: model.mat_shininess()[m],
+            reflectance: model.mat_reflectance()[m],
+        }
+    }
+
+    /// What `mjv_updateScene` gives a geom of no material and colour `rgba`.
+    pub fn of_colour(rgba: [f32; 4]) -> Self {
+        Self {
+            matid: -1,
+            texid: -1,
+            texuniform: 0,
+            texrepeat: [0.0, 0.0],
+            rgba,
+            emission: 0.0,
+            specular: 0.5,
+            shininess: 0.5,
+            reflectance: 0.0,
+        }
+    }
+
+    /// Sets these fields of `g`.
+    pub fn apply(&self, g: &mut mujoco_rs::wrappers::mj_visualization::MjvGeom) {
+        g.matid = self.matid;
+        g.texid = self.texid;
+        g.texuniform = self.texuniform;
+        g.texrepeat = self.texrepeat;
+        g.rgba = self.rgba;
+        g.emission = self.emission;
+        g.specular = self.specular;
+        g.shininess = self.shininess;
+        g.reflectance = self.reflectance;
+    }
 }
 
 /// Size of the procedural library.
@@ -263,6 +337,7 @@ impl TableLibrary {
                     name,
                     material: Some(m),
                     rgba: None,
+                    geom: Some(GeomLook::of_material(model, m)),
                 });
             }
         }
@@ -272,6 +347,7 @@ impl TableLibrary {
                     name: format!("procedural_{i:02}"),
                     material: None,
                     rgba: Some(procedural_colour(i)),
+                    geom: Some(GeomLook::of_colour(procedural_colour(i))),
                 })
                 .collect();
         }
@@ -396,12 +472,18 @@ pub fn apply_visuals(renderer: &mut Renderer, sample: &VisualSample, table: &Tab
     let geom_type = MjtObjBase::mjOBJ_GEOM as i32;
     for g in renderer.scene_geoms_mut() {
         if g.objtype == geom_type && g.objid == table_geom {
-            if let Some(m) = look.material {
-                g.matid = m as i32;
-                g.rgba = [1.0, 1.0, 1.0, 1.0];
-            } else if let Some(c) = look.rgba {
-                g.matid = -1;
-                g.rgba = c;
+            match (look.geom, look.material, look.rgba) {
+                (Some(l), _, _) => l.apply(g),
+                // Libraries made before the looks were recorded: what they did.
+                (None, Some(m), _) => {
+                    g.matid = m as i32;
+                    g.rgba = [1.0, 1.0, 1.0, 1.0];
+                }
+                (None, None, Some(c)) => {
+                    g.matid = -1;
+                    g.rgba = c;
+                }
+                (None, None, None) => {}
             }
         }
     }
@@ -487,6 +569,7 @@ mod tests {
                     name: format!("procedural_{i:02}"),
                     material: None,
                     rgba: Some(procedural_colour(i)),
+                    geom: None,
                 })
                 .collect(),
         };

@@ -96,14 +96,13 @@ impl Default for WarpOptions {
     }
 }
 
-/// Where the worker's Python is looked for, in order: `$DEXJOCO_WARP_PYTHON`; the Python
-/// of the environment this program was installed into (the wheel's `[warp]` extra); the
-/// active `$VIRTUAL_ENV`; the environment `scripts/setup.sh --warp` makes.
+/// Where the worker's Python is looked for when neither `--warp-python` nor
+/// `$DEXJOCO_WARP_PYTHON` names one (those are used as given), in order: the Python of
+/// the environment this program was installed into (the wheel's `[warp]` extra); the
+/// active `$VIRTUAL_ENV`; the environment `scripts/setup.sh --warp` makes. The first
+/// that imports `mujoco_warp` is taken.
 pub fn python_candidates() -> Vec<PathBuf> {
     let mut out = Vec::new();
-    if let Some(p) = std::env::var_os(PYTHON_VARIABLE) {
-        out.push(PathBuf::from(p));
-    }
     if let Some(bin) = std::env::current_exe()
         .ok()
         .and_then(|e| e.canonicalize().ok())
@@ -175,16 +174,21 @@ impl WarpWorker {
     /// Starts the worker with the first Python of [`python_candidates`] (or the one
     /// given) and checks it has the pinned packages.
     pub fn start(options: &WarpOptions) -> Result<Self, SimError> {
-        let python = match &options.python {
-            Some(p) => p.clone(),
+        let explicit = options
+            .python
+            .clone()
+            .or_else(|| std::env::var_os(PYTHON_VARIABLE).map(PathBuf::from));
+        let python = match explicit {
+            Some(p) => p,
             None => python_candidates()
                 .into_iter()
                 .find(|p| p.is_file() && has_warp(p))
                 .ok_or_else(|| {
                     SimError::Warp(format!(
-                        "no Python with MuJoCo Warp found (tried ${PYTHON_VARIABLE}, the Python \
-                         beside this program, $VIRTUAL_ENV and {}); run `scripts/setup.sh --warp` \
-                         or `pip install 'dexjoco-data[warp]'`",
+                        "no Python with MuJoCo Warp found (tried the Python beside this \
+                         program, $VIRTUAL_ENV's and {}); run `scripts/setup.sh --warp` or \
+                         `pip install 'dexjoco-data[warp]'`, or name one with --warp-python or \
+                         ${PYTHON_VARIABLE}",
                         setup_venv().display()
                     ))
                 })?,
@@ -226,10 +230,18 @@ impl WarpWorker {
             supersample: options.supersample,
             worlds: options.worlds,
         };
-        let (hello, _) = worker.call(
-            &serde_json::json!({"op": "hello", "device": options.device}),
-            &[],
-        )?;
+        let (hello, _) = worker
+            .call(
+                &serde_json::json!({"op": "hello", "device": options.device}),
+                &[],
+            )
+            .map_err(|e| {
+                SimError::Warp(format!(
+                    "{} cannot run the worker ({e}); run `scripts/setup.sh --warp` or `pip \
+                     install 'dexjoco-data[warp]'` and use that Python",
+                    python.display()
+                ))
+            })?;
         let info: HelloReply = serde_json::from_value(hello)
             .map_err(|e| SimError::Warp(format!("unexpected hello from the worker: {e}")))?;
         worker.info.device = info.device;

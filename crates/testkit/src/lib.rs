@@ -46,6 +46,27 @@ pub fn python() -> PathBuf {
     );
 }
 
+/// The Python of the Warp renderer's venv: `$DEXJOCO_WARP_PYTHON`, else the path
+/// `scripts/setup.sh --warp` recorded in `.deps/warp-python-path`. Panics with a hint when
+/// neither exists.
+pub fn warp_python() -> PathBuf {
+    if let Some(p) = std::env::var_os("DEXJOCO_WARP_PYTHON") {
+        return p.into();
+    }
+    let recorded = workspace_root().join(".deps/warp-python-path");
+    if let Ok(p) = fs_err::read_to_string(&recorded) {
+        let p = PathBuf::from(p.trim());
+        if p.is_file() {
+            return p;
+        }
+    }
+    panic!(
+        "the Warp renderer's venv is missing: run `scripts/test.sh` (or `scripts/setup.sh --warp`) first; \
+         looked at $DEXJOCO_WARP_PYTHON and {}",
+        recorded.display()
+    );
+}
+
 /// The Python of the reference venv (the DexJoCo reference environments' pins):
 /// `$DEXJOCO_REFERENCE_PYTHON`, else `.deps/reference-python-path` written by
 /// `scripts/setup.sh --python`. Panics with a hint when neither exists.
