@@ -187,6 +187,13 @@ impl AugmentSettings {
             renderer,
         } = args;
         let (renderer, warp) = renderer.resolve();
+        if renderer == dexjoco_sim::RendererKind::Warp && geometry != crate::cli::GeometryArg::Full
+        {
+            return Err(usage(
+                "--geometry light simplifies OpenGL's meshes; the Warp renderer traces the full ones".into(),
+                "leave --geometry out with --renderer warp",
+            ));
+        }
         if replays == 0 {
             return Err(usage(
                 "--replays 0 makes nothing".into(),

@@ -463,6 +463,10 @@ mod tests {
             ("dynamics", changed(&base, |c| c.dynamics = true)),
             ("video", changed(&base, |c| c.video.keyframe_interval = 2)),
             (
+                "renderer",
+                changed(&base, |c| c.renderer = dexjoco_sim::RendererKind::Warp),
+            ),
+            (
                 "scene",
                 changed(&base, |c| c.scene = SceneSource::Dir(scenes.path().into())),
             ),

@@ -507,6 +507,11 @@ pub fn warp_world<M: ModelType>(
         light.pos[1] += s.pos_offset[1];
         light.dir[0] += s.dir_offset[0];
         light.dir[1] += s.dir_offset[1];
+        // OpenGL lights along the unit direction; the ray tracer along the vector given.
+        let norm = light.dir.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if norm > 0.0 {
+            light.dir = light.dir.map(|v| v / norm);
+        }
         light.diffuse = s.diffuse;
     }
     let look = &table.entries[sample.table_index];

@@ -831,3 +831,53 @@ pub fn view_slots(model: &MjModel, views: impl IntoIterator<Item = CameraView>) 
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_pins_are_those_setup_and_the_wheel_install() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let requirements =
+            fs_err::read_to_string(root.join("scripts/warp-requirements.txt")).unwrap();
+        let pyproject = fs_err::read_to_string(root.join("pyproject.toml")).unwrap();
+        for (package, version) in WARP_PINS {
+            let pin = format!("{package}=={version}");
+            assert!(requirements.lines().any(|l| l.trim() == pin), "{pin}");
+            assert!(
+                pyproject.contains(&format!("\"{pin};")),
+                "{pin} in pyproject"
+            );
+        }
+    }
+
+    #[test]
+    fn the_free_camera_looks_at_its_point_from_its_distance() {
+        let model = MjModel::from_xml_string("<mujoco><worldbody/></mujoco>").unwrap();
+        let data = MjData::new(&model);
+        let view = CameraView::Orbit {
+            lookat: [0.0, 0.0, 1.0],
+            distance: 2.0,
+            azimuth: 90.0,
+            elevation: -30.0,
+        };
+        let (pos, mat, fovy) = camera_pose(&model, &data, view);
+        // Backwards (column 2) points from the look-at point to the camera.
+        let back = [mat[2], mat[5], mat[8]];
+        for i in 0..3 {
+            let expect = ([0.0, 0.0, 1.0][i] + 2.0 * back[i] - pos[i]).abs();
+            assert!(expect < 1e-12, "{pos:?} {back:?}");
+        }
+        assert!(pos[2] > 1.0, "elevation -30 looks down from above");
+        assert_eq!(fovy, f64::from(model.ffi().vis.global.fovy));
+        // Orthonormal.
+        let col = |c: usize| [mat[c], mat[3 + c], mat[6 + c]];
+        for a in 0..3 {
+            for b in 0..3 {
+                let d: f64 = (0..3).map(|i| col(a)[i] * col(b)[i]).sum();
+                assert!((d - f64::from(u8::from(a == b))).abs() < 1e-12);
+            }
+        }
+    }
+}
