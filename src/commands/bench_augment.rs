@@ -420,15 +420,22 @@ fn light_differences(
     Ok(differences)
 }
 
-/// The rendering device at the first look's settings (empty when none opens).
+/// The rendering device at the first look's settings (empty when none opens); with the
+/// Warp renderer, its worker's device too.
 fn render_device(args: &BenchAugmentSettings) -> anyhow::Result<String> {
     let settings = render_settings(args.sizes[0], args.qualities[0]);
-    Ok(dexjoco_sim::Renderer::new(
+    let egl = dexjoco_sim::Renderer::new(
         &dexjoco_sim::Scene::from_xml_str(super::TABLETOP_XML, "probe")?.model,
         settings,
     )
     .map(|r| r.device().label())
-    .unwrap_or_default())
+    .unwrap_or_default();
+    if args.renderer != dexjoco_sim::RendererKind::Warp {
+        return Ok(egl);
+    }
+    let warp = dexjoco_sim::warp::WarpWorker::start(&args.warp)
+        .map_or_else(|e| format!("unavailable: {e}"), |w| w.info().describe());
+    Ok(format!("{warp} (Warp rows); {egl} (OpenGL rows)"))
 }
 
 /// Writes the runs and image differences to `<work dir>/bench/augment.json`.

@@ -140,6 +140,16 @@ pub fn dry_run(config: &AugmentConfig, calibration: usize) -> Result<DryRun, Aug
             Err(e) => settings_differ.push(format!("unreadable settings file ({e})")),
         }
     }
+    // The calibration draws with OpenGL one frame at a time; the Warp renderer's speed
+    // is a batch's (`bench augment --renderer warp` measures it).
+    let calibration = if config.renderer == dexjoco_sim::RendererKind::Warp && calibration > 0 {
+        tracing::warn!(
+            "no time estimate with --renderer warp: measure it with `bench augment --renderer warp`"
+        );
+        0
+    } else {
+        calibration
+    };
     if calibration > 0 {
         for (task, t) in per_task.iter_mut() {
             if t.frames_to_render == 0 {

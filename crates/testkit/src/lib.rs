@@ -26,13 +26,13 @@ pub fn workspace_root() -> PathBuf {
         .expect("workspace root")
 }
 
-/// The Python of the test venv: `$DEXJOCO_PYTHON`, else the path `scripts/setup.sh
-/// --python` recorded in `.deps/python-path`. Panics with a hint when neither exists.
-pub fn python() -> PathBuf {
-    if let Some(p) = std::env::var_os("DEXJOCO_PYTHON") {
+/// A venv's Python: `$<variable>`, else the path `scripts/setup.sh <flag>` recorded in
+/// `.deps/<file>`. Panics naming the venv (`what`) and both places when neither exists.
+fn recorded_python(variable: &str, file: &str, what: &str, flag: &str) -> PathBuf {
+    if let Some(p) = std::env::var_os(variable) {
         return p.into();
     }
-    let recorded = workspace_root().join(".deps/python-path");
+    let recorded = workspace_root().join(".deps").join(file);
     if let Ok(p) = fs_err::read_to_string(&recorded) {
         let p = PathBuf::from(p.trim());
         if p.is_file() {
@@ -40,52 +40,45 @@ pub fn python() -> PathBuf {
         }
     }
     panic!(
-        "the test venv of real readers is missing: run `scripts/test.sh` (or `scripts/setup.sh --python`) first; \
-         looked at $DEXJOCO_PYTHON and {}",
+        "{what} is missing: run `scripts/test.sh` (or `scripts/setup.sh {flag}`) first; \
+         looked at ${variable} and {}",
         recorded.display()
     );
+}
+
+/// The Python of the test venv: `$DEXJOCO_PYTHON`, else the path `scripts/setup.sh
+/// --python` recorded in `.deps/python-path`. Panics with a hint when neither exists.
+pub fn python() -> PathBuf {
+    recorded_python(
+        "DEXJOCO_PYTHON",
+        "python-path",
+        "the test venv of real readers",
+        "--python",
+    )
 }
 
 /// The Python of the Warp renderer's venv: `$DEXJOCO_WARP_PYTHON`, else the path
 /// `scripts/setup.sh --warp` recorded in `.deps/warp-python-path`. Panics with a hint when
 /// neither exists.
 pub fn warp_python() -> PathBuf {
-    if let Some(p) = std::env::var_os("DEXJOCO_WARP_PYTHON") {
-        return p.into();
-    }
-    let recorded = workspace_root().join(".deps/warp-python-path");
-    if let Ok(p) = fs_err::read_to_string(&recorded) {
-        let p = PathBuf::from(p.trim());
-        if p.is_file() {
-            return p;
-        }
-    }
-    panic!(
-        "the Warp renderer's venv is missing: run `scripts/test.sh` (or `scripts/setup.sh --warp`) first; \
-         looked at $DEXJOCO_WARP_PYTHON and {}",
-        recorded.display()
-    );
+    recorded_python(
+        "DEXJOCO_WARP_PYTHON",
+        "warp-python-path",
+        "the Warp renderer's venv",
+        "--warp",
+    )
 }
 
 /// The Python of the reference venv (the DexJoCo reference environments' pins):
 /// `$DEXJOCO_REFERENCE_PYTHON`, else `.deps/reference-python-path` written by
 /// `scripts/setup.sh --python`. Panics with a hint when neither exists.
 pub fn reference_python() -> PathBuf {
-    if let Some(p) = std::env::var_os("DEXJOCO_REFERENCE_PYTHON") {
-        return p.into();
-    }
-    let recorded = workspace_root().join(".deps/reference-python-path");
-    if let Ok(p) = fs_err::read_to_string(&recorded) {
-        let p = PathBuf::from(p.trim());
-        if p.is_file() {
-            return p;
-        }
-    }
-    panic!(
-        "the reference venv is missing: run `scripts/test.sh` (or `scripts/setup.sh --python`) first; \
-         looked at $DEXJOCO_REFERENCE_PYTHON and {}",
-        recorded.display()
-    );
+    recorded_python(
+        "DEXJOCO_REFERENCE_PYTHON",
+        "reference-python-path",
+        "the reference venv",
+        "--python",
+    )
 }
 
 /// The code no registry carries (`../shared/third_party`, or `$DEXJOCO_THIRD_PARTY`).
