@@ -187,20 +187,7 @@ fn save_pairs(pairs: &Pairs, path: &Path) -> anyhow::Result<()> {
             },
         ]);
     }
-    let images = tiles
-        .iter()
-        .map(|f| image::RgbImage::from_raw(f.width, f.height, f.rgb.clone()).context("frame size"))
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    let layout = dexjoco_sim::SheetLayout {
-        columns: 3,
-        tile: None,
-        gap: 4,
-        background: [255, 255, 255],
-    };
-    let sheet = dexjoco_sim::contact_sheet(&images, layout).context("no frames")?;
-    sheet
-        .save(path)
-        .with_context(|| format!("cannot write '{}'", path.display()))
+    super::render::contact_sheet_in_columns(&tiles, 3, path)
 }
 
 fn print_table(rows: &[Row], source: &SceneSource, settings: dexjoco_sim::RenderSettings) {

@@ -201,12 +201,21 @@ fn save_sheet(frames: &[Frame], files: &mut StagedFiles, name: &str) -> anyhow::
 
 /// Tiles frames of equal size into a grid (at most 4 per row) with a thin border.
 pub fn contact_sheet(frames: &[Frame], path: &Path) -> anyhow::Result<()> {
+    contact_sheet_in_columns(frames, frames.len().min(4), path)
+}
+
+/// Writes `frames` tiled `columns` to a row (4 px white gaps) as `path`.
+pub fn contact_sheet_in_columns(
+    frames: &[Frame],
+    columns: usize,
+    path: &Path,
+) -> anyhow::Result<()> {
     let tiles = frames
         .iter()
         .map(|f| image::RgbImage::from_raw(f.width, f.height, f.rgb.clone()).context("frame size"))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let layout = dexjoco_sim::SheetLayout {
-        columns: frames.len().min(4) as u32,
+        columns: columns as u32,
         tile: None,
         gap: 4,
         background: [255, 255, 255],

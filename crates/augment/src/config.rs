@@ -146,6 +146,14 @@ impl VideoEncoding {
 }
 
 impl AugmentConfig {
+    /// The renderer settings of a unit: the image settings, with depth as `--depth` says.
+    pub(crate) fn unit_render_settings(&self) -> RenderSettings {
+        RenderSettings {
+            depth: self.depth,
+            ..self.settings
+        }
+    }
+
     /// `inputs` replayed into `out` with `augment`'s documented defaults: 10 replays,
     /// seed 0, the built-in scenes and camera pool, only the randomized third-person view
     /// at 640x640 in the paper quality, failed replays dropped, whole episodes, a contact

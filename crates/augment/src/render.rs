@@ -75,7 +75,7 @@ pub(crate) fn preload_renderer(
     with_renderer(
         &assets.key,
         model,
-        unit_render_settings(config),
+        config.unit_render_settings(),
         |renderer| {
             let device = renderer.device();
             opened(&format!("{} ({})", device.index, device.label()));
@@ -96,18 +96,10 @@ pub(crate) fn renderer_ready(assets: &TaskAssets, config: &AugmentConfig) -> boo
     if config.renderer == RendererKind::Warp {
         return crate::warp::ready(assets, config);
     }
-    let settings = unit_render_settings(config);
+    let settings = config.unit_render_settings();
     RENDERER.with(|cell| {
         matches!(&*cell.borrow(), Some((k, r)) if *k == assets.key && r.settings() == settings)
     })
-}
-
-/// The renderer settings of a unit.
-pub(crate) fn unit_render_settings(config: &AugmentConfig) -> RenderSettings {
-    RenderSettings {
-        depth: config.depth,
-        ..config.settings
-    }
 }
 
 /// Closes this thread's renderers (the EGL context, the Warp worker).
@@ -159,10 +151,10 @@ impl UnitJob {
 }
 
 /// A replay being written.
-pub(crate) struct Pending {
+struct Pending {
     index: usize,
     staging: PathBuf,
-    pub(crate) sample: VisualSample,
+    sample: VisualSample,
     writers: Vec<VideoWriter>,
     /// One per camera, in the order of `writers`, with `--depth`.
     depth: Vec<DepthWriter>,
@@ -386,7 +378,22 @@ fn draw_replays(
     frames_done: &mut dyn FnMut(u64) -> Result<(), AugmentError>,
 ) -> Result<(Physics, String), AugmentError> {
     if inputs.config.renderer == RendererKind::Warp {
-        return crate::warp::draw_replays(inputs, scene, fixed, pending, times, frames_done);
+        let id = &inputs.src.episode.id;
+        let samples: Vec<VisualSample> = pending.iter().map(|p| p.sample.clone()).collect();
+        let source = crate::warp::Source {
+            src: inputs.src,
+            assets: inputs.assets,
+            config: inputs.config,
+            scene,
+            fixed,
+        };
+        return crate::warp::draw_replays(
+            &source,
+            &samples,
+            times,
+            &mut |r, c, k, frame, times| pending[r].take(id, c, k, frame, times),
+            frames_done,
+        );
     }
     let UnitInputs {
         src,
@@ -400,7 +407,7 @@ fn draw_replays(
     with_renderer(
         &assets.key,
         &assets.scene.model,
-        unit_render_settings(config),
+        config.unit_render_settings(),
         |renderer| {
             // What the renderer did before this unit (a warm-up, another unit) is not ours.
             renderer.take_times();
@@ -433,7 +440,7 @@ fn draw_replays(
 impl Pending {
     /// Takes camera `c`'s frame of step `k`: the test hook's defects, the render checks,
     /// the encoder (and depth archive), the preview.
-    pub(crate) fn take(
+    fn take(
         &mut self,
         id: &str,
         c: usize,

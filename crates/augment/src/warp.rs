@@ -6,16 +6,16 @@
 use std::cell::RefCell;
 use std::time::Instant;
 
-use dexjoco_sim::Scene;
+use dexjoco_sim::randomize::VisualSample;
 use dexjoco_sim::randomize::warp_world;
 use dexjoco_sim::warp::{WarpBatch, WarpRenderer, WarpTimes, WarpWorker, view_fovy, view_slots};
+use dexjoco_sim::{Frame, Scene};
 
 use crate::assets::TaskAssets;
 use crate::config::AugmentConfig;
 use crate::error::{AugmentError, sim_err};
 use crate::physics::{Physics, new_env, replay};
 use crate::profile::{StageTimes, timed};
-use crate::render::{Pending, UnitInputs, unit_render_settings};
 
 thread_local! {
     /// One Warp renderer (worker process and scene) per worker thread, as for OpenGL.
@@ -27,7 +27,7 @@ fn key(assets: &TaskAssets, config: &AugmentConfig) -> String {
     format!(
         "{} {:?} {:?} {:?}",
         assets.key,
-        unit_render_settings(config),
+        config.unit_render_settings(),
         config.cameras,
         config.warp
     )
@@ -61,7 +61,7 @@ fn open(assets: &TaskAssets, config: &AugmentConfig) -> Result<WarpRenderer, Aug
     let slots = view_slots(model, sample.views(&fixed));
     let worker = WarpWorker::start(&config.warp).map_err(sim_err(task))?;
     let worlds = worker.batch_worlds();
-    let settings = unit_render_settings(config);
+    let settings = config.unit_render_settings();
     WarpRenderer::open(
         worker,
         &assets.xml,
@@ -118,42 +118,59 @@ struct Batches {
     first_step: usize,
 }
 
-/// Replays the episode on `scene`, rendering every pending replay's views of each step
-/// with this thread's Warp renderer in batches; returns the simulation and the renderer's
-/// name.
+/// What a unit renders from: the episode, its task's assets, the settings, the
+/// simulation's scene and the fixed cameras.
+pub(crate) struct Source<'a> {
+    pub(crate) src: &'a crate::inputs::Source,
+    pub(crate) assets: &'a TaskAssets,
+    pub(crate) config: &'a AugmentConfig,
+    pub(crate) scene: &'a Scene,
+    pub(crate) fixed: &'a [usize],
+}
+
+/// Takes replay `r`'s camera `c` image of step `k` (checks, encoder, preview).
+pub(crate) type TakeFrame<'a> =
+    dyn FnMut(usize, usize, usize, Frame, &mut StageTimes) -> Result<(), AugmentError> + 'a;
+
+/// Replays the episode, rendering each replay's (`samples`') views of every step with this
+/// thread's Warp renderer in batches and handing the images to `take` in step order;
+/// returns the simulation and the renderer's name.
 pub(crate) fn draw_replays(
-    inputs: &UnitInputs<'_>,
-    scene: &Scene,
-    fixed: &[usize],
-    pending: &mut [Pending],
+    source: &Source<'_>,
+    samples: &[VisualSample],
     times: &mut StageTimes,
+    take: &mut TakeFrame<'_>,
     frames_done: &mut dyn FnMut(u64) -> Result<(), AugmentError>,
 ) -> Result<(Physics, String), AugmentError> {
-    let UnitInputs {
+    let Source {
         src,
         assets,
         config,
-        ..
-    } = *inputs;
+        scene,
+        fixed,
+    } = *source;
     let id = &src.episode.id;
     let model = &assets.scene.model;
     let mut env = new_env(src, scene, &src.spec)?;
     with_warp(assets, config, |warp| {
         warp.take_times();
-        let views: Vec<Vec<_>> = pending
-            .iter()
-            .map(|p| p.sample.views(fixed).collect())
-            .collect();
-        let cameras = views.first().map_or(0, Vec::len);
-        let mut slots = Vec::with_capacity(cameras);
+        let views: Vec<Vec<_>> = samples.iter().map(|s| s.views(fixed).collect()).collect();
+        let mut slots = Vec::new();
         for v in views.first().into_iter().flatten() {
             slots.push(warp.slot_of(view_fovy(model, *v)).map_err(sim_err(id))?);
         }
         // Frames per flush: as many as fill a batch of frames x replays worlds.
-        let per_batch = (warp.worlds() / pending.len().max(1)).max(1);
+        let per_batch = (warp.worlds() / samples.len().max(1)).max(1);
         let mut batches = Batches {
             cameras: slots.iter().map(|&s| WarpBatch::new(s)).collect(),
             first_step: 0,
+        };
+        let mut flusher = Flush {
+            warp,
+            replays: samples.len(),
+            id,
+            take,
+            frames_done,
         };
         let started = Instant::now();
         let mut drawing = 0.0;
@@ -163,9 +180,8 @@ pub(crate) fn draw_replays(
             timed(&mut times.scene, || {
                 for (c, batch) in batches.cameras.iter_mut().enumerate() {
                     let f = batch.push_frame(data);
-                    for (p, v) in pending.iter().zip(&views) {
-                        batch
-                            .push_world(f, warp_world(model, data, v[c], &p.sample, &assets.table));
+                    for (s, v) in samples.iter().zip(&views) {
+                        batch.push_world(f, warp_world(model, data, v[c], s, &assets.table));
                     }
                 }
             });
@@ -175,16 +191,17 @@ pub(crate) fn draw_replays(
                 .first()
                 .is_some_and(|b| b.frames() == per_batch)
             {
-                r = flush(warp, &mut batches, pending, id, times, frames_done);
+                r = flusher.flush(&mut batches, times);
                 batches.first_step = k + 1;
             }
             drawing += step_started.elapsed().as_secs_f64();
             r
         });
         let flush_started = Instant::now();
-        let last = flush(warp, &mut batches, pending, id, times, frames_done);
+        let last = flusher.flush(&mut batches, times);
         drawing += flush_started.elapsed().as_secs_f64();
         times.physics += started.elapsed().as_secs_f64() - drawing;
+        let warp = flusher.warp;
         add_warp_times(times, &warp.take_times());
         let physics = physics?;
         last?;
@@ -192,36 +209,45 @@ pub(crate) fn draw_replays(
     })
 }
 
-/// Renders the batches and hands their frames to the replays in step order (step, replay,
-/// camera: as the OpenGL path does); empties them.
-fn flush(
-    warp: &mut WarpRenderer,
-    batches: &mut Batches,
-    pending: &mut [Pending],
-    id: &str,
-    times: &mut StageTimes,
-    frames_done: &mut dyn FnMut(u64) -> Result<(), AugmentError>,
-) -> Result<(), AugmentError> {
-    let frames = batches.cameras.first().map_or(0, WarpBatch::frames);
-    if frames == 0 {
-        return Ok(());
-    }
-    let mut images = Vec::with_capacity(batches.cameras.len());
-    for batch in &mut batches.cameras {
-        images.push(warp.render(batch).map_err(sim_err(id))?.into_iter());
-        batch.clear();
-    }
-    for j in 0..frames {
-        let k = batches.first_step + j;
-        for p in pending.iter_mut() {
-            for (c, camera) in images.iter_mut().enumerate() {
-                let frame = camera.next().expect("one image per world");
-                p.take(id, c, k, frame, times)?;
-            }
+/// Where rendered batches go.
+struct Flush<'a, 'b> {
+    warp: &'a mut WarpRenderer,
+    replays: usize,
+    id: &'a str,
+    take: &'a mut TakeFrame<'b>,
+    frames_done: &'a mut dyn FnMut(u64) -> Result<(), AugmentError>,
+}
+
+impl Flush<'_, '_> {
+    /// Renders the batches and hands their frames over in step order (step, replay,
+    /// camera: as the OpenGL path does); empties them.
+    fn flush(&mut self, batches: &mut Batches, times: &mut StageTimes) -> Result<(), AugmentError> {
+        let frames = batches.cameras.first().map_or(0, WarpBatch::frames);
+        if frames == 0 {
+            return Ok(());
         }
-        frames_done((pending.len() * images.len()) as u64)?;
+        let mut images = Vec::with_capacity(batches.cameras.len());
+        for batch in &mut batches.cameras {
+            images.push(
+                self.warp
+                    .render(batch)
+                    .map_err(sim_err(self.id))?
+                    .into_iter(),
+            );
+            batch.clear();
+        }
+        for j in 0..frames {
+            let k = batches.first_step + j;
+            for r in 0..self.replays {
+                for (c, camera) in images.iter_mut().enumerate() {
+                    let frame = camera.next().expect("one image per world");
+                    (self.take)(r, c, k, frame, times)?;
+                }
+            }
+            (self.frames_done)((self.replays * images.len()) as u64)?;
+        }
+        Ok(())
     }
-    Ok(())
 }
 
 /// The Warp renderer's times as augment's stages: building and sending the batches is the
