@@ -93,8 +93,9 @@ impl DatasetFilterSettings {
     }
 }
 
-/// `0,2,5-7` as indices.
-fn episode_list(items: &[String]) -> anyhow::Result<Vec<usize>> {
+/// `0,2,5-7` as index ranges (both ends included), never expanded here: a range is
+/// checked against the dataset before anything is made of it.
+fn episode_list(items: &[String]) -> anyhow::Result<Vec<std::ops::RangeInclusive<usize>>> {
     let mut out = Vec::new();
     for item in items.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
         let bad = || {
@@ -112,9 +113,12 @@ fn episode_list(items: &[String]) -> anyhow::Result<Vec<usize>> {
                 if a > b {
                     return Err(bad());
                 }
-                out.extend(a..=b);
+                out.push(a..=b);
             }
-            None => out.push(item.parse().map_err(|_| bad())?),
+            None => {
+                let i: usize = item.parse().map_err(|_| bad())?;
+                out.push(i..=i);
+            }
         }
     }
     Ok(out)

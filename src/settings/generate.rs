@@ -67,10 +67,6 @@ impl GenerateSettings {
         outputs_apart(&[&out], &read)?;
         let max_attempts = max_attempts.unwrap_or(count.saturating_mul(10));
         let scene = SceneSource::from_option(scene_dir);
-        let scene_label = match &scene {
-            SceneSource::BuiltIn => "built-in".to_owned(),
-            SceneSource::Dir(d) => format!("dir:{}", dexjoco_formats::fs::resolve(d).display()),
-        };
         let options = AttemptOptions {
             choice: match choice {
                 ChoiceArg::Random => SegmentChoice::Random,
@@ -91,7 +87,7 @@ impl GenerateSettings {
                 overwrite,
                 shard,
                 options,
-                scene: scene_label,
+                scene: scene.clone(),
             },
             task: spec,
             tasks: task_set,

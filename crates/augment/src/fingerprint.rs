@@ -10,6 +10,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use dexjoco_core::{Episode, TaskSpec};
+use dexjoco_sim::scene_files::SceneHashes;
 use dexjoco_sim::warp::WarpOptions;
 use dexjoco_sim::{Geometry, RenderQuality, RenderSettings, RendererKind, SceneSource};
 use serde::{Deserialize, Serialize};
@@ -98,57 +99,15 @@ fn sha(bytes: &[u8]) -> String {
     format!("sha256:{:x}", Sha256::digest(bytes))
 }
 
-/// A task's scene as this run loads it, by content: its MJCF file and every file that
-/// loads.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct SceneHashes {
-    /// SHA-256 of the scene file (a built-in scene: its composed XML, which holds it all).
-    pub(crate) scene: String,
-    /// The other files, by path relative to the scene folder.
-    pub(crate) files: BTreeMap<String, String>,
-}
-
-/// What a file named by a scene but found nowhere hashes to.
-const MISSING: &str = "missing";
-
 /// The content hashes of a task's scene as this run loads it.
 pub(crate) fn scene_hash(
     source: &SceneSource,
     spec: &TaskSpec,
 ) -> Result<SceneHashes, AugmentError> {
-    match source {
-        SceneSource::BuiltIn => {
-            let xml =
-                dexjoco_sim::builtin::scene_xml(spec).map_err(|source| AugmentError::Sim {
-                    episode: spec.id.clone(),
-                    source,
-                })?;
-            Ok(SceneHashes {
-                scene: sha(xml.as_bytes()),
-                files: BTreeMap::new(),
-            })
-        }
-        SceneSource::Dir(dir) => {
-            let path = dir.join(&spec.scene);
-            let bytes = fs_err::read(&path).map_err(crate::error::io_err("read", &path))?;
-            let mut files = BTreeMap::new();
-            // Names relative to the folder however it is written (`xmls`, `./xmls`).
-            let dir = &crate::scene_files::tidy(dir);
-            for file in crate::scene_files::scene_files(&path)?.into_iter().skip(1) {
-                let hash = match fs_err::read(&file) {
-                    Ok(bytes) => sha(&bytes),
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => MISSING.into(),
-                    Err(e) => return Err(crate::error::io_err("read", &file)(e)),
-                };
-                let name = file.strip_prefix(dir).unwrap_or(&file);
-                files.insert(name.display().to_string(), hash);
-            }
-            Ok(SceneHashes {
-                scene: sha(&bytes),
-                files,
-            })
-        }
-    }
+    dexjoco_sim::scene_files::scene_hash(source, spec).map_err(|source| AugmentError::Sim {
+        episode: spec.id.clone(),
+        source,
+    })
 }
 
 /// SHA-256 of an episode's content: task, id, every array's values bit for bit, and its

@@ -35,7 +35,6 @@ mod provenance;
 mod render;
 mod report;
 mod run;
-mod scene_files;
 mod staging;
 mod warp;
 mod worker;

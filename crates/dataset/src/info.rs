@@ -84,24 +84,25 @@ pub fn info(root: &Path) -> Result<DatasetSummary, EditError> {
             *tasks.entry(name).or_insert(0) += 1;
         }
     }
+    let raw = ds.features();
     let features = ds
-        .features()
+        .meta
+        .features
         .iter()
         .map(|(key, f)| FeatureSummary {
             key: key.clone(),
-            dtype: f["dtype"].as_str().unwrap_or("?").to_owned(),
-            shape: f["shape"]
-                .as_array()
-                .map(|s| s.iter().filter_map(Value::as_u64).collect())
-                .unwrap_or_default(),
-            video: (f["dtype"] == "video").then(|| video_text(&f["info"])),
+            dtype: f.dtype.clone(),
+            shape: f.shape.clone(),
+            video: f
+                .is_video()
+                .then(|| video_text(raw.get(key).map_or(&Value::Null, |f| &f["info"]))),
         })
         .collect();
     let frames: u64 = lengths.iter().map(|l| *l as u64).sum();
     Ok(DatasetSummary {
         root: root.display().to_string(),
-        version: ds.info["codebase_version"].as_str().unwrap_or("").into(),
-        robot_type: ds.info["robot_type"].as_str().map(str::to_owned),
+        version: ds.meta.codebase_version.clone(),
+        robot_type: ds.meta.robot_type.clone(),
         fps: ds.fps,
         episodes: ds.len(),
         frames,
@@ -114,14 +115,7 @@ pub fn info(root: &Path) -> Result<DatasetSummary, EditError> {
             .into_iter()
             .filter(|c| !is_format_column(c))
             .collect(),
-        splits: ds.info["splits"]
-            .as_object()
-            .map(|s| {
-                s.iter()
-                    .map(|(k, v)| (k.clone(), v.as_str().unwrap_or("").to_owned()))
-                    .collect()
-            })
-            .unwrap_or_default(),
+        splits: ds.meta.splits.clone(),
         bytes: tree_bytes(root),
     })
 }
@@ -141,19 +135,21 @@ fn video_text(info: &Value) -> String {
         .join(" ")
 }
 
+/// Bytes of the files under `dir`: linked files count as their targets (a Hugging Face
+/// cache holds links), linked folders are not followed (a link may loop).
 fn tree_bytes(dir: &Path) -> u64 {
     let Ok(entries) = fs_err::read_dir(dir) else {
         return 0;
     };
     entries
         .flatten()
-        .map(|e| {
-            let p = e.path();
-            if p.is_dir() {
-                tree_bytes(&p)
-            } else {
-                e.metadata().map(|m| m.len()).unwrap_or(0)
-            }
+        .map(|e| match e.file_type() {
+            Ok(t) if t.is_dir() => tree_bytes(&e.path()),
+            Ok(t) if t.is_symlink() => fs_err::metadata(e.path())
+                .ok()
+                .filter(std::fs::Metadata::is_file)
+                .map_or(0, |m| m.len()),
+            _ => e.metadata().map(|m| m.len()).unwrap_or(0),
         })
         .sum()
 }

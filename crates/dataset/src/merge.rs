@@ -13,7 +13,8 @@ use std::sync::Arc;
 use arrow_array::{Array, ArrayRef, FixedSizeListArray, Float64Array, RecordBatch, new_null_array};
 use arrow_schema::{DataType, Field, Schema, SchemaRef};
 use dexjoco_core::Progress;
-use dexjoco_formats::dataset::lerobot_read::{LeRobotDataset, fill_template};
+use dexjoco_formats::dataset::lerobot_meta::InfoMeta;
+use dexjoco_formats::dataset::lerobot_read::LeRobotDataset;
 use dexjoco_formats::fs::StagedDir;
 use parquet::arrow::ArrowWriter;
 use serde_json::{Map, Value, json};
@@ -58,6 +59,12 @@ impl Part {
     /// Opens `source` with `options`' renames and removals.
     fn open(source: &Path, options: &MergeOptions) -> Result<Self, EditError> {
         let ds = LeRobotDataset::open(source)?;
+        // A new name is a data column, a per-episode column prefix and, for a video, a
+        // folder of the output: one name, checked as every name that becomes a path is.
+        for (_, new) in &options.rename {
+            dexjoco_core::safe_name("feature name", new)
+                .map_err(|e| EditError::Selection(format!("--rename: {e}")))?;
+        }
         let names = ds
             .features()
             .keys()
@@ -279,9 +286,8 @@ fn write_merged(
     progress: &dyn Progress,
 ) -> Result<SubsetReport, EditError> {
     let first = &parts[0].ds;
-    let chunks_size = first.info["chunks_size"].as_i64().unwrap_or(1000).max(1);
     let (tasks, task_maps) = merged_tasks(parts)?;
-    let (places, files) = write_data(parts, features, dir, &task_maps, chunks_size, progress)?;
+    let (places, files) = write_data(parts, features, dir, &task_maps, progress)?;
     let mut report = SubsetReport {
         episodes: places.len(),
         frames: places.last().map_or(0, |p| p.to as u64),
@@ -292,7 +298,7 @@ fn write_merged(
     let mut video_places = BTreeMap::new();
     for (key, f) in features {
         if f["dtype"] == "video" {
-            let (p, copied) = copy_videos(parts, key, dir, chunks_size)?;
+            let (p, copied) = copy_videos(parts, key, dir)?;
             report.videos_copied += copied;
             video_places.insert(key.clone(), p);
         }
@@ -314,6 +320,7 @@ fn write_merged(
     );
     let mut merged = first.clone();
     merged.info = info.clone();
+    merged.meta = InfoMeta::parse(&mut merged.info, &meta.join("info.json"))?;
     stats::write_stats(&merged, &files, &episodes, dir)?;
     let had = parts
         .iter()
@@ -352,13 +359,9 @@ fn write_data(
     features: &Map<String, Value>,
     dir: &Path,
     task_maps: &[TaskMap],
-    chunks_size: i64,
     progress: &dyn Progress,
 ) -> Result<(Vec<DataPlace>, Vec<PathBuf>), EditError> {
-    let template = parts[0].ds.info["data_path"]
-        .as_str()
-        .unwrap_or("")
-        .to_owned();
+    let first = &parts[0].ds;
     let total: usize = parts
         .iter()
         .map(|p| p.ds.data_files().map_or(0, |f| f.len()))
@@ -369,14 +372,8 @@ fn write_data(
     for (p, task_map) in parts.iter().zip(task_maps) {
         let lengths = p.ds.lengths()?;
         for src in p.ds.data_files()? {
-            let k = files.len() as i64;
-            let out = dir.join(fill_template(
-                &template,
-                &[
-                    ("chunk_index", "", k / chunks_size),
-                    ("file_index", "", k % chunks_size),
-                ],
-            ));
+            let (out_chunk, out_file) = first.placement(files.len());
+            let out = dir.join(first.data_rel(out_chunk, out_file));
             fs_err::create_dir_all(out.parent().unwrap_or(dir))?;
             let f = DataFile(&src);
             let err = |e: &dyn std::fmt::Display| f.error(e);
@@ -435,8 +432,8 @@ fn write_data(
                 }
                 let from = places.last().map_or(0, |p: &DataPlace| p.to);
                 places.push(DataPlace {
-                    chunk: k / chunks_size,
-                    file: k % chunks_size,
+                    chunk: out_chunk,
+                    file: out_file,
                     from,
                     to: from + n,
                 });
@@ -547,19 +544,17 @@ fn copy_videos(
     parts: &[Part],
     key: &str,
     dir: &Path,
-    chunks_size: i64,
 ) -> Result<(Vec<VideoPlace>, usize), EditError> {
-    let template = parts[0].ds.info["video_path"]
-        .as_str()
-        .unwrap_or("")
-        .to_owned();
-    let (mut places, mut files) = (Vec::new(), 0i64);
+    let first = &parts[0].ds;
+    let (mut places, mut files) = (Vec::new(), 0usize);
     for p in parts {
         let source_key = p
             .names
             .iter()
             .find(|(_, n)| *n == key)
             .map_or(key, |(o, _)| o.as_str());
+        // Copied whole, but the placements carried over must describe the files.
+        crate::videos::Placement::checked(&p.ds, source_key)?;
         let col = |s: &str| format!("videos/{source_key}/{s}");
         let (chunk, file) = (
             p.ds.int_column(&col("chunk_index"))?,
@@ -574,15 +569,8 @@ fn copy_videos(
             let (out_chunk, out_file) = match copied.get(&(chunk[e], file[e])) {
                 Some(at) => *at,
                 None => {
-                    let at = (files / chunks_size, files % chunks_size);
-                    let out = dir.join(fill_template(
-                        &template,
-                        &[
-                            ("video_key", key, 0),
-                            ("chunk_index", "", at.0),
-                            ("file_index", "", at.1),
-                        ],
-                    ));
+                    let at = first.placement(files);
+                    let out = dir.join(first.video_rel(key, at.0, at.1));
                     fs_err::create_dir_all(out.parent().unwrap_or(dir))?;
                     fs_err::copy(p.ds.video_file(source_key, chunk[e], file[e]), &out)?;
                     copied.insert((chunk[e], file[e]), at);

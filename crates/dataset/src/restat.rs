@@ -31,12 +31,16 @@ pub struct RestatReport {
 /// `norm_stats.json` with `norm`).
 pub fn restat(root: &Path, norm: Option<NormStatsOptions>) -> Result<RestatReport, EditError> {
     let ds = LeRobotDataset::open(root)?;
+    let path = root.join("meta/stats.json");
+    // In place: the files written replace links, never write through them, and no folder
+    // on the way may be a link (it would lead the writes out of the dataset).
+    dexjoco_formats::fs::check_no_linked_folders(root, &path)?;
     let data = ds.data_files()?;
     let doc = stats::stats_document(&ds, &data, &ds.episodes)?;
-    let path = root.join("meta/stats.json");
-    let previous: Option<Value> = fs_err::read_to_string(&path)
-        .ok()
-        .and_then(|t| serde_json::from_str(&t).ok());
+    let previous_bytes = fs_err::read(&path).ok();
+    let previous: Option<Value> = previous_bytes
+        .as_deref()
+        .and_then(|t| serde_json::from_slice(t).ok());
     let previous_off_by = doc
         .as_object()
         .into_iter()
@@ -47,10 +51,10 @@ pub fn restat(root: &Path, norm: Option<NormStatsOptions>) -> Result<RestatRepor
         })
         .collect();
     let text = serde_json::to_string_pretty(&doc).expect("json");
-    let backup = match &previous {
-        Some(old) if *old != doc => {
+    let backup = match (&previous, &previous_bytes) {
+        (Some(old), Some(bytes)) if *old != doc => {
             let bak = root.join("meta/stats.json.bak");
-            fs_err::copy(&path, &bak)?;
+            dexjoco_formats::fs::write_atomic(&bak, bytes)?;
             Some(bak)
         }
         _ => None,

@@ -181,8 +181,10 @@ pub(crate) fn column_names(ds: &LeRobotDataset) -> Vec<String> {
 /// matching them all are the ones dropped (`drop`).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Selection {
-    /// Episode indices (of the source); empty: any.
-    pub episodes: Vec<usize>,
+    /// Episode index ranges (of the source, both ends included, as `--episodes 0,2,5-7`
+    /// gives them: never expanded before they are checked against the dataset); empty:
+    /// any.
+    pub episodes: Vec<std::ops::RangeInclusive<usize>>,
     /// Task strings; empty: any.
     pub tasks: Vec<String>,
     /// Fewest frames.
@@ -199,17 +201,22 @@ impl Selection {
     /// The source indices of the kept episodes, ascending.
     pub fn apply(&self, ds: &LeRobotDataset) -> Result<Vec<usize>, EditError> {
         let n = ds.len();
-        if let Some(bad) = self.episodes.iter().find(|e| **e >= n) {
+        if let Some(bad) = self.episodes.iter().find(|r| *r.end() >= n) {
             return Err(EditError::Selection(format!(
-                "episode {bad} is out of range: '{}' has episodes 0..{}",
+                "episode {} is out of range: '{}' has episodes 0..{}",
+                bad.end(),
                 ds.root.display(),
                 n.saturating_sub(1)
             )));
         }
         let mut matches = vec![true; n];
         if !self.episodes.is_empty() {
-            let listed: std::collections::BTreeSet<_> = self.episodes.iter().copied().collect();
-            and(&mut matches, (0..n).map(|i| listed.contains(&i)));
+            // Each range lies within the dataset now: marking it is bounded by its size.
+            let mut listed = vec![false; n];
+            for r in &self.episodes {
+                listed[r.clone()].fill(true);
+            }
+            and(&mut matches, listed);
         }
         if !self.tasks.is_empty() {
             self.check_tasks(ds)?;

@@ -17,6 +17,9 @@ use serde::Serialize;
 use crate::subset::check_output;
 use crate::{EditError, SubsetReport, write_subset};
 
+/// The record of which source episodes went where, beside the splits.
+const SPLIT_RECORD: &str = "split.json";
+
 /// How large each split is.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SplitSizes(pub Vec<(String, f64)>);
@@ -36,9 +39,16 @@ impl std::str::FromStr for SplitSizes {
                 .parse()
                 .map_err(|_| format!("{part:?}: {f:?} is no fraction"))?;
             let name = name.trim();
-            if !(0.0..=1.0).contains(&f) || name.is_empty() || name.contains(['/', '\\']) {
+            if !(0.0..=1.0).contains(&f) {
                 return Err(format!(
                     "{part:?}: a split is NAME=FRACTION with 0 <= FRACTION <= 1"
+                ));
+            }
+            // Each split is a folder of the output, beside split.json.
+            dexjoco_core::safe_name("split name", name).map_err(|e| e.to_string())?;
+            if name == SPLIT_RECORD {
+                return Err(format!(
+                    "{part:?}: {SPLIT_RECORD} is the split record's name"
                 ));
             }
             if parts.iter().any(|(n, _): &(String, f64)| n == name) {
@@ -202,7 +212,7 @@ pub fn split(
         "splits": plan.splits.iter().map(|(n, r)| (n.clone(), r.clone())).collect::<BTreeMap<_, _>>(),
     });
     fs_err::write(
-        staged.path().join("split.json"),
+        staged.path().join(SPLIT_RECORD),
         serde_json::to_string_pretty(&record).expect("json") + "\n",
     )?;
     staged.commit()?;
@@ -224,6 +234,15 @@ mod tests {
         assert_eq!(s.0.len(), 2);
         assert!("train=0.8,val=0.3".parse::<SplitSizes>().is_err());
         assert!("train".parse::<SplitSizes>().is_err());
+        for bad in [
+            "..=0.5",
+            ".=0.5",
+            "a/b=0.5",
+            ".hidden=0.5",
+            "split.json=0.5",
+        ] {
+            assert!(bad.parse::<SplitSizes>().is_err(), "{bad}");
+        }
     }
 
     #[test]

@@ -44,38 +44,31 @@ pub(crate) fn stats_document(
     data: &[PathBuf],
     episodes: &RecordBatch,
 ) -> Result<Value, EditError> {
-    let features = ds.features();
-    let mut numeric: BTreeMap<String, Column> = features
+    let mut numeric: BTreeMap<String, Column> = ds
+        .meta
+        .features
         .iter()
-        .filter(|(_, f)| !matches!(f["dtype"].as_str(), Some("video" | "image" | "string")))
+        .filter(|(_, f)| f.is_numeric())
         .map(|(k, f)| {
-            let width = f["shape"].as_array().map_or(1, |s| {
-                s.iter().filter_map(Value::as_u64).product::<u64>() as usize
-            });
-            (
-                k.clone(),
-                Column {
-                    width: width.max(1),
-                    values: Vec::new(),
-                },
-            )
+            let column = Column {
+                width: f.width,
+                values: Vec::new(),
+            };
+            (k.clone(), column)
         })
         .collect();
     for file in data {
         gather(file, &mut numeric)?;
     }
     let mut out = Map::new();
-    for (key, f) in &features {
+    for (key, f) in &ds.meta.features {
         let stats = match numeric.get(key) {
-            Some(c) if !c.values.is_empty() && c.values.len() % c.width == 0 => {
-                Some(column_stats(&c.values, c.width))
-            }
+            Some(c) if !c.values.is_empty() => Some(column_stats(&c.values, c.width)),
             Some(_) => None,
             None => per_episode(episodes, key)?,
         };
         if let Some(s) = stats {
-            let image = matches!(f["dtype"].as_str(), Some("video" | "image"));
-            out.insert(key.clone(), stats_json(&s, image));
+            out.insert(key.clone(), stats_json(&s, f.is_visual()));
         }
     }
     Ok(Value::Object(out))
@@ -141,6 +134,15 @@ fn gather(file: &Path, columns: &mut BTreeMap<String, Column>) -> Result<(), Edi
             if let Some(col) = batch.column_by_name(key)
                 && let Some(values) = flat_f64(col)
             {
+                if values.len() != batch.num_rows() * c.width {
+                    return Err(f.error(&format!(
+                        "column {key:?} holds {} values in {} rows, but info.json's shape \
+                         says {} per frame: the dataset's metadata does not describe its data",
+                        values.len(),
+                        batch.num_rows(),
+                        c.width
+                    )));
+                }
                 c.values.extend(values);
             }
         }

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use arrow_array::{Array, ArrayRef, Float64Array, Int64Array, RecordBatch, UInt32Array};
 use arrow_schema::{DataType, SchemaRef};
 use dexjoco_core::Progress;
-use dexjoco_formats::dataset::lerobot_read::{LeRobotDataset, fill_template};
+use dexjoco_formats::dataset::lerobot_read::LeRobotDataset;
 use dexjoco_formats::dataset::parquet::{props, write_file};
 use dexjoco_formats::fs::StagedDir;
 use parquet::arrow::ArrowWriter;
@@ -102,13 +102,12 @@ pub fn write_subset(
     splits: Option<BTreeMap<String, String>>,
     progress: &dyn Progress,
 ) -> Result<SubsetReport, EditError> {
-    let chunks_size = ds.info["chunks_size"].as_i64().unwrap_or(1000).max(1);
     let (task_names, task_map) = used_tasks(ds, rows)?;
     let lengths = ds.lengths()?;
     let whole: Vec<(i64, i64)> = rows.iter().map(|r| (0, lengths[*r])).collect();
     let trimmed = frames.is_some_and(|f| f != whole);
     let frames = frames.unwrap_or(&whole);
-    let data = write_data(ds, rows, frames, dir, &task_map, chunks_size, progress)?;
+    let data = write_data(ds, rows, frames, dir, &task_map, progress)?;
     let mut report = SubsetReport {
         episodes: rows.len(),
         frames: data.places.last().map_or(0, |p| p.to as u64),
@@ -118,7 +117,7 @@ pub fn write_subset(
     };
     let mut video_places = BTreeMap::new();
     for key in ds.video_keys() {
-        let (places, counts) = write_videos(ds, &key, rows, frames, dir, chunks_size, progress)?;
+        let (places, counts) = write_videos(ds, &key, rows, frames, dir, progress)?;
         report.videos_copied += counts.copied;
         report.videos_cut += counts.cut;
         report.frames_reencoded += counts.frames_reencoded;
@@ -201,7 +200,6 @@ fn write_data(
     frames: &[(i64, i64)],
     dir: &Path,
     task_map: &HashMap<i64, i64>,
-    chunks_size: i64,
     progress: &dyn Progress,
 ) -> Result<WrittenData, EditError> {
     let chunk = ds.int_column("data/chunk_index")?;
@@ -221,7 +219,6 @@ fn write_data(
         task_map,
         fps: ds.fps,
     };
-    let template = ds.info["data_path"].as_str().unwrap_or("").to_owned();
     let mut written = WrittenData {
         places: Vec::with_capacity(rows.len()),
         files: Vec::new(),
@@ -230,11 +227,8 @@ fn write_data(
     let same_file = |a: &usize, b: &usize| (chunk[*a], file[*a]) == (chunk[*b], file[*b]);
     progress.phase("data", rows.chunk_by(same_file).count() as u64);
     for (k, group) in rows.chunk_by(same_file).enumerate() {
-        let (out_chunk, out_file) = (k as i64 / chunks_size, k as i64 % chunks_size);
-        let out = dir.join(fill_template(
-            &template,
-            &[("chunk_index", "", out_chunk), ("file_index", "", out_file)],
-        ));
+        let (out_chunk, out_file) = ds.placement(k);
+        let out = dir.join(ds.data_rel(out_chunk, out_file));
         fs_err::create_dir_all(out.parent().unwrap_or(dir))?;
         let src = ds.data_file(chunk[group[0]], file[group[0]]);
         let wanted: HashSet<i64> = group.iter().map(|r| *r as i64).collect();

@@ -26,6 +26,7 @@ use serde_json::{Map, Value, json};
 use crate::data_file::DataFile;
 use crate::info::is_format_column;
 use crate::subset::check_output;
+use crate::videos::Placement;
 use crate::{EditError, SubsetReport};
 use dexjoco_formats::dataset::parquet::props;
 
@@ -45,7 +46,7 @@ pub fn to_v21(
     check_output(source, out, overwrite)?;
     let staged = StagedDir::begin(out)?;
     let dir = staged.path();
-    let chunks_size = ds.info["chunks_size"].as_i64().unwrap_or(1000).max(1);
+    let chunks_size = ds.meta.chunks_size as i64;
     let dropped: Vec<String> = ds
         .features()
         .iter()
@@ -189,27 +190,14 @@ fn write_episode_videos(
     dir: &Path,
     chunks_size: i64,
 ) -> Result<usize, EditError> {
-    let lengths = ds.lengths()?;
     let mut written = 0;
     for key in ds.video_keys() {
-        let col = |s: &str| format!("videos/{key}/{s}");
-        let chunk = ds.int_column(&col("chunk_index"))?;
-        let file = ds.int_column(&col("file_index"))?;
-        let from = ds.float_column(&col("from_timestamp"))?;
-        let to = ds.float_column(&col("to_timestamp"))?;
+        let place = Placement::checked(ds, &key)?;
         for e in 0..ds.len() {
-            let src = ds.video_file(&key, chunk[e], file[e]);
-            let frames = ((to[e] - from[e]) * ds.fps).round();
-            if !(from[e] >= 0.0 && frames >= 1.0 && frames as i64 == lengths[e]) {
-                return Err(EditError::Selection(format!(
-                    "video '{}' of episode {e} ({key}): its timestamps {}..{} s hold {frames} \
-                     frames but the episode has {}",
-                    src.display(),
-                    from[e],
-                    to[e],
-                    lengths[e]
-                )));
-            }
+            let (chunk, file) = place.source(e);
+            let src = ds.video_file(&key, chunk, file);
+            let context = |r: usize| format!("video '{}' of episode {r} ({key})", src.display());
+            let (start, frames) = place.span(e, ds.fps, &context)?;
             let out = dir.join(format!(
                 "videos/chunk-{:03}/{key}/episode_{e:06}.mp4",
                 chunk_of(e, chunks_size)
@@ -217,8 +205,8 @@ fn write_episode_videos(
             fs_err::create_dir_all(out.parent().unwrap_or(dir))?;
             let input = ConcatInput {
                 path: src.clone(),
-                skip: (from[e] * ds.fps).round() as usize,
-                take: Some(lengths[e] as usize),
+                skip: start as usize,
+                take: Some(frames as usize),
             };
             concat_copy(&[input], &out, ds.fps.round() as u32).map_err(|source| {
                 EditError::Video {

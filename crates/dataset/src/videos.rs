@@ -11,7 +11,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use dexjoco_core::Progress;
-use dexjoco_formats::dataset::lerobot_read::{LeRobotDataset, fill_template};
+use dexjoco_formats::dataset::lerobot_read::LeRobotDataset;
 use dexjoco_video::{
     ConcatInput, CutPoints, Encoding, Keyframes, StatedEncoding, VideoSpec, candidate_encodings,
     concat_copy, smart_cut, transcode,
@@ -43,7 +43,7 @@ pub(crate) struct VideoCounts {
 }
 
 /// One feature's source placement of every episode.
-struct Placement {
+pub(crate) struct Placement {
     chunk: Vec<i64>,
     file: Vec<i64>,
     from: Vec<f64>,
@@ -52,19 +52,89 @@ struct Placement {
 }
 
 impl Placement {
-    fn read(ds: &LeRobotDataset, key: &str) -> Result<Self, EditError> {
+    /// The placement of video feature `key`'s episodes, each checked against its file
+    /// before anything is cut or copied: its span holds its length in frames and lies
+    /// within the file's frames (counted by probing each file once). A span past the end
+    /// would otherwise be cut short, silently.
+    pub(crate) fn checked(ds: &LeRobotDataset, key: &str) -> Result<Self, EditError> {
         let col = |s: &str| format!("videos/{key}/{s}");
-        Ok(Self {
+        let place = Self {
             chunk: ds.int_column(&col("chunk_index"))?,
             file: ds.int_column(&col("file_index"))?,
             from: ds.float_column(&col("from_timestamp"))?,
             to: ds.float_column(&col("to_timestamp"))?,
             lengths: ds.lengths()?,
-        })
+        };
+        let mut frames: HashMap<(i64, i64), u64> = HashMap::new();
+        for row in 0..ds.len() {
+            let (chunk, file) = place.source(row);
+            let src = ds.video_file(key, chunk, file);
+            let context = |r: usize| format!("video '{}' of episode {r} ({key})", src.display());
+            let in_file = match frames.get(&(chunk, file)) {
+                Some(n) => *n,
+                None => {
+                    let n = dexjoco_video::probe(&src)
+                        .map_err(|source| EditError::Video {
+                            context: context(row),
+                            source,
+                        })?
+                        .frames;
+                    *frames.entry((chunk, file)).or_insert(n)
+                }
+            };
+            place.check_within(row, in_file, ds.fps, &context)?;
+        }
+        Ok(place)
     }
 
-    fn source(&self, row: usize) -> (i64, i64) {
+    /// Episode `row`'s video file (chunk and file indices).
+    pub(crate) fn source(&self, row: usize) -> (i64, i64) {
         (self.chunk[row], self.file[row])
+    }
+
+    /// Episode `row`'s first frame and frame count in its file: its span must hold its
+    /// length in frames, at a non-negative time.
+    pub(crate) fn span(
+        &self,
+        row: usize,
+        fps: f64,
+        context: &dyn Fn(usize) -> String,
+    ) -> Result<(i64, i64), EditError> {
+        let start = (self.from[row] * fps).round() as i64;
+        let n = ((self.to[row] - self.from[row]) * fps).round() as i64;
+        if n != self.lengths[row] || start < 0 || n < 1 || !self.from[row].is_finite() {
+            return Err(EditError::Selection(format!(
+                "{}: its timestamps {}..{} s hold {n} frames but the episode has {}",
+                context(row),
+                self.from[row],
+                self.to[row],
+                self.lengths[row]
+            )));
+        }
+        Ok((start, n))
+    }
+
+    /// Refuses episode `row` when its span runs past the `frames` of its video file.
+    fn check_within(
+        &self,
+        row: usize,
+        frames: u64,
+        fps: f64,
+        context: &dyn Fn(usize) -> String,
+    ) -> Result<(), EditError> {
+        let (start, n) = self.span(row, fps, context)?;
+        if (start + n) as u64 > frames {
+            return Err(EditError::Selection(format!(
+                "{}: its timestamps {}..{} s place frames {start}..{} but the file holds {frames} \
+                 frames: the episode rows do not describe this file (a truncated or replaced \
+                 video?)",
+                context(row),
+                self.from[row],
+                self.to[row],
+                start + n
+            )));
+        }
+        Ok(())
     }
 }
 
@@ -77,10 +147,9 @@ pub(crate) fn write_videos(
     rows: &[usize],
     frames: &[(i64, i64)],
     dir: &Path,
-    chunks_size: i64,
     progress: &dyn Progress,
 ) -> Result<(Vec<VideoPlace>, VideoCounts), EditError> {
-    let place = Placement::read(ds, key)?;
+    let place = Placement::checked(ds, key)?;
     let mut per_file: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
     for row in 0..ds.len() {
         per_file.entry(place.source(row)).or_default().push(row);
@@ -88,21 +157,12 @@ pub(crate) fn write_videos(
     let kept: HashMap<usize, (i64, i64)> =
         rows.iter().copied().zip(frames.iter().copied()).collect();
     let whole = |r: &usize| kept[r] == (0, place.lengths[*r]);
-    let template = ds.info["video_path"].as_str().unwrap_or("").to_owned();
     let (mut places, mut counts) = (Vec::with_capacity(rows.len()), VideoCounts::default());
     let same_file = |a: &usize, b: &usize| place.source(*a) == place.source(*b);
     progress.phase(key, rows.chunk_by(same_file).count() as u64);
     for (k, group) in rows.chunk_by(same_file).enumerate() {
-        let (chunk, file) = (k as i64 / chunks_size, k as i64 % chunks_size);
-        let rel = fill_template(
-            &template,
-            &[
-                ("video_key", key, 0),
-                ("chunk_index", "", chunk),
-                ("file_index", "", file),
-            ],
-        );
-        let out = dir.join(rel);
+        let (chunk, file) = ds.placement(k);
+        let out = dir.join(ds.video_rel(key, chunk, file));
         fs_err::create_dir_all(out.parent().unwrap_or(dir))?;
         let (src_chunk, src_file) = place.source(group[0]);
         let src = ds.video_file(key, src_chunk, src_file);
@@ -287,17 +347,7 @@ fn cut_inputs(
     let mut inputs: Vec<ConcatInput> = Vec::new();
     let mut end_of_last = None;
     for (&r, &(first, last)) in group.iter().zip(frames) {
-        let start = (place.from[r] * fps).round() as i64;
-        let n = ((place.to[r] - place.from[r]) * fps).round() as i64;
-        if n != place.lengths[r] || start < 0 || n < 1 || !place.from[r].is_finite() {
-            return Err(EditError::Selection(format!(
-                "{}: its timestamps {}..{} s hold {n} frames but the episode has {}",
-                context(r),
-                place.from[r],
-                place.to[r],
-                place.lengths[r]
-            )));
-        }
+        let (start, _) = place.span(r, fps, context)?;
         let (skip, frames) = (start + first, last - first);
         match inputs.last_mut() {
             Some(last) if end_of_last == Some(skip) => {

@@ -203,6 +203,20 @@ pub enum FormatError {
         /// The file or folder.
         path: PathBuf,
     },
+    /// A symbolic link where dexjoco-data writes (it makes none): writing through it
+    /// would write outside the folder.
+    #[error(
+        "'{}' is a symbolic link{}: dexjoco-data never writes through a link it did not make; \
+         remove the link (or copy what it points to in its place) and run again",
+        path.display(),
+        target.as_ref().map_or(String::new(), |t| format!(" to '{}'", t.display()))
+    )]
+    Linked {
+        /// The link.
+        path: PathBuf,
+        /// Where it points.
+        target: Option<PathBuf>,
+    },
     /// An episode breaks the core data model.
     #[error(transparent)]
     Core(#[from] CoreError),
@@ -280,6 +294,16 @@ pub enum DatasetError {
     /// the field).
     #[error("{0}")]
     Layout(String),
+    /// A field of a dataset's metadata is missing, of the wrong type or out of range.
+    #[error("file '{}': {field}: {message}", path.display())]
+    Metadata {
+        /// The metadata file (`meta/info.json`, an episodes file).
+        path: PathBuf,
+        /// The field (`chunks_size`, `features.action.shape`, a column).
+        field: String,
+        /// What is wrong and what to do.
+        message: String,
+    },
     /// An episode does not fit the dataset (layout, cameras, decoded frames).
     #[error("{at}: {message}")]
     Episode {

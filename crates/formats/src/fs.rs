@@ -453,6 +453,59 @@ pub fn is_within(inner: &Path, outer: &Path) -> bool {
     resolve(inner).starts_with(resolve(outer))
 }
 
+/// Refuses to write `path` when a folder on the way to it from `root` (`root` itself
+/// excluded: the user named it) is a symbolic link: writing there would write wherever the
+/// link points, outside the folder. The file itself may be a link: [`write_atomic`]
+/// replaces a link, never writes through it.
+pub fn check_no_linked_folders(root: &Path, path: &Path) -> Result<()> {
+    let Ok(rel) = path.strip_prefix(root) else {
+        return Ok(());
+    };
+    let mut at = root.to_path_buf();
+    let mut parts: Vec<_> = rel.components().collect();
+    parts.pop();
+    for c in parts {
+        at.push(c);
+        if fs_err::symlink_metadata(&at).is_ok_and(|m| m.file_type().is_symlink()) {
+            return Err(FormatError::Linked {
+                target: fs_err::read_link(at.as_path()).ok(),
+                path: at,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Refuses an output folder that holds a symbolic link anywhere inside it: a stage that
+/// resumes into its output writes into the folders it finds there, and dexjoco-data never
+/// makes links, so a link there was put by someone else and could lead its writes outside
+/// the folder. `out` itself may be a link (the user named it). Returns the first link
+/// found.
+pub fn refuse_links_within(out: &Path) -> Result<()> {
+    let mut stack = vec![out.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let Ok(entries) = fs_err::read_dir(&dir) else {
+            continue;
+        };
+        let mut entries: Vec<_> = entries.flatten().collect();
+        entries.sort_by_key(fs_err::DirEntry::file_name);
+        for e in entries {
+            match e.file_type() {
+                Ok(t) if t.is_symlink() => {
+                    let path = e.path();
+                    return Err(FormatError::Linked {
+                        target: fs_err::read_link(&path).ok(),
+                        path,
+                    });
+                }
+                Ok(t) if t.is_dir() => stack.push(e.path()),
+                _ => {}
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Copies a file or a folder tree (symlinks are followed).
 pub fn copy_tree(from: &Path, to: &Path) -> Result<()> {
     if from.is_dir() {

@@ -9,6 +9,7 @@ use std::path::Path;
 use dexjoco_core::{Shard, TaskSpec};
 use dexjoco_formats::raw::RawFolder;
 use dexjoco_formats::{EpisodeContainer, EpisodeMeta, write_atomic};
+use dexjoco_sim::SceneSource;
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
@@ -32,22 +33,29 @@ fn sha256_json(v: &impl Serialize) -> String {
     format!("{:x}", Sha256::digest(bytes))
 }
 
-/// The settings that decide a run's bytes.
+/// The settings that decide a run's bytes: the scene named and, by content, every file
+/// it loads (a resume after a scene file changed would mix episodes of two scenes).
 pub(crate) fn settings(
     config: &GenerateConfig,
     spec: &TaskSpec,
     sources: &[SourceDemo],
-) -> serde_json::Value {
-    serde_json::json!({
+) -> Result<serde_json::Value, GenerateError> {
+    let label = match &config.scene {
+        SceneSource::BuiltIn => "built-in".to_owned(),
+        SceneSource::Dir(d) => format!("dir:{}", dexjoco_formats::fs::resolve(d).display()),
+    };
+    let hashes = dexjoco_sim::scene_files::scene_hash(&config.scene, spec)?;
+    Ok(serde_json::json!({
         "format": "dexjoco-data/generate-settings",
         "version": 1,
         "task": spec.id,
         "spec": format!("sha256:{}", sha256_json(spec)),
-        "scene": config.scene,
+        "scene": label,
+        "scene_content": {"scene": hashes.scene, "files": hashes.files},
         "seed": config.seed,
         "options": config.options,
         "sources": sources.iter().map(|s| [s.id.clone(), s.sha256.clone()]).collect::<Vec<_>>(),
-    })
+    }))
 }
 
 /// Writes the settings file, or checks an earlier run's against it; with `overwrite`, an
@@ -115,25 +123,188 @@ fn episode_name(k: usize) -> String {
     format!("episode_{k:06}")
 }
 
-/// The records of the attempts earlier runs finished, by index.
-pub(crate) fn finished(out: &Path) -> Result<BTreeMap<usize, AttemptRecord>, GenerateError> {
-    let mut done = BTreeMap::new();
+/// A record of the resume log that is not trusted, and why: the attempt is redone.
+#[derive(Debug, Clone)]
+pub(crate) struct Untrusted {
+    /// The record file.
+    pub(crate) file: std::path::PathBuf,
+    /// The attempt its name says.
+    pub(crate) attempt: Option<usize>,
+    /// Why it is not trusted.
+    pub(crate) why: String,
+}
+
+/// The resume log of a folder: the records of finished attempts that check out, by index,
+/// and those that do not.
+#[derive(Debug, Default)]
+pub(crate) struct Finished {
+    pub(crate) done: BTreeMap<usize, AttemptRecord>,
+    pub(crate) untrusted: Vec<Untrusted>,
+}
+
+/// The records of the attempts earlier runs finished, each checked before it is trusted
+/// (a record decides what a resumed run skips and what its report lists): it parses,
+/// its file's name is its attempt, its seed is the run's, its reset has the task's state
+/// width, its steps, success step and subtask spans agree, and a success's episode folder
+/// is there and complete (its record the same, its `replay.zarr` of that many steps).
+pub(crate) fn finished(out: &Path, spec: &TaskSpec, seed: u64) -> Result<Finished, GenerateError> {
+    let mut log = Finished::default();
     let dir = out.join(ATTEMPTS);
     let Ok(entries) = fs_err::read_dir(&dir) else {
-        return Ok(done);
+        return Ok(log);
     };
-    for e in entries.flatten() {
-        let path = e.path();
-        let Ok(bytes) = fs_err::read(&path) else {
+    let mut entries: Vec<_> = entries.flatten().map(|e| e.path()).collect();
+    entries.sort();
+    for path in entries {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        // Hidden files are a killed writer's temporary files, cleaned up elsewhere.
+        if name.starts_with('.') {
             continue;
-        };
-        // A record a killed run left half written is redone (written atomically, so
-        // only a foreign file can be unreadable).
-        if let Ok(r) = serde_json::from_slice::<AttemptRecord>(&bytes) {
-            done.insert(r.attempt, r);
+        }
+        let attempt = name
+            .strip_prefix("attempt_")
+            .and_then(|n| n.strip_suffix(".json"))
+            .and_then(|n| n.parse::<usize>().ok());
+        match check_record(out, &path, attempt, spec, seed) {
+            Ok(r) => {
+                log.done.insert(r.attempt, r);
+            }
+            Err(why) => log.untrusted.push(Untrusted {
+                file: path,
+                attempt,
+                why,
+            }),
         }
     }
-    Ok(done)
+    Ok(log)
+}
+
+/// The largest record read (a record holds a reset and a few spans).
+const MAX_RECORD_BYTES: u64 = 16 << 20;
+
+/// The record at `path` (named for attempt `attempt`), or why it is not trusted.
+fn check_record(
+    out: &Path,
+    path: &Path,
+    attempt: Option<usize>,
+    spec: &TaskSpec,
+    seed: u64,
+) -> Result<AttemptRecord, String> {
+    let r = read_record(path)?;
+    let Some(k) = attempt.filter(|k| *k == r.attempt) else {
+        return Err(format!(
+            "it records attempt {}, not the one its name says",
+            r.attempt
+        ));
+    };
+    if r.seed != seed {
+        return Err(format!("its seed {} is not the run's {seed}", r.seed));
+    }
+    let width = spec.state_layout().width();
+    if r.reset.len() != width || r.reset.iter().any(|x| !x.is_finite()) {
+        return Err(format!(
+            "its reset holds {} values (finite: {}), the task's state has {width}",
+            r.reset.len(),
+            r.reset.iter().all(|x| x.is_finite())
+        ));
+    }
+    let spans_end = r
+        .subtasks
+        .iter()
+        .flat_map(|s| [s.start, s.end])
+        .flatten()
+        .max();
+    if r.steps == 0 || spans_end.is_some_and(|e| e > r.steps) {
+        return Err(format!(
+            "its {} steps do not hold its subtask spans",
+            r.steps
+        ));
+    }
+    match (r.success, r.success_step, &r.failure) {
+        (true, Some(s), _) if s <= r.steps => {}
+        (false, None, Some(_)) => {}
+        _ => {
+            return Err(format!(
+                "its verdict (success {}, success step {:?}, failure {}) does not hold together",
+                r.success,
+                r.success_step,
+                if r.failure.is_some() { "given" } else { "none" }
+            ));
+        }
+    }
+    if r.success {
+        let episode = out.join(episode_name(k));
+        let mine = read_record(&episode.join(GENERATE_RECORD)).map_err(|e| {
+            format!(
+                "its episode '{}' is missing or incomplete: {e}",
+                episode.display()
+            )
+        })?;
+        if mine != r {
+            return Err(format!(
+                "its episode '{}' records another attempt",
+                episode.display()
+            ));
+        }
+        let rows = zarr_rows(&episode.join("replay.zarr/data/action/.zarray"))
+            .map_err(|e| format!("its episode '{}' is incomplete: {e}", episode.display()))?;
+        if rows != r.steps as u64 {
+            return Err(format!(
+                "its episode '{}' holds {rows} steps, the record {}",
+                episode.display(),
+                r.steps
+            ));
+        }
+    }
+    Ok(r)
+}
+
+/// An attempt record read from `path` (bounded), or why not.
+fn read_record(path: &Path) -> Result<AttemptRecord, String> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    fs_err::File::open(path)
+        .and_then(|f| f.take(MAX_RECORD_BYTES + 1).read_to_end(&mut bytes))
+        .map_err(|e| e.to_string())?;
+    if bytes.len() as u64 > MAX_RECORD_BYTES {
+        return Err(format!("it is larger than {} MB", MAX_RECORD_BYTES >> 20));
+    }
+    serde_json::from_slice(&bytes).map_err(|e| format!("it is no attempt record: {e}"))
+}
+
+/// The first dimension of a Zarr v2 array (its `.zarray`'s `shape[0]`).
+fn zarr_rows(zarray: &Path) -> Result<u64, String> {
+    let text = fs_err::read(zarray).map_err(|e| e.to_string())?;
+    let v: serde_json::Value = serde_json::from_slice(&text).map_err(|e| e.to_string())?;
+    v["shape"][0]
+        .as_u64()
+        .ok_or_else(|| format!("'{}' has no shape", zarray.display()))
+}
+
+/// Forgets the untrusted records of `log` (each named in a warning): the record and the
+/// attempt's episode folders are removed, so the attempt is made again.
+pub(crate) fn forget(out: &Path, log: &Finished) -> Result<(), GenerateError> {
+    for u in &log.untrusted {
+        tracing::warn!(
+            "'{}' is not trusted ({}): attempt {} is made again",
+            u.file.display(),
+            u.why,
+            u.attempt.map_or_else(|| "?".into(), |k| k.to_string())
+        );
+        fs_err::remove_file(&u.file)?;
+        if let Some(k) = u.attempt.filter(|k| !log.done.contains_key(k)) {
+            for rel in places(k).into_iter().skip(1) {
+                let p = out.join(rel);
+                if p.is_dir() {
+                    fs_err::remove_dir_all(&p)?;
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Commits one attempt: a success's episode folder (staged, renamed into place), a
@@ -201,9 +372,10 @@ fn move_attempt(from: &Path, to: &Path, k: usize) -> Result<(), GenerateError> {
 }
 
 /// Puts back the attempts an earlier run set aside (before a run reads the records).
-pub(crate) fn restore_surplus(out: &Path) -> Result<(), GenerateError> {
+pub(crate) fn restore_surplus(out: &Path, spec: &TaskSpec, seed: u64) -> Result<(), GenerateError> {
     let surplus = out.join(SURPLUS);
-    for k in finished(&surplus)?.into_keys() {
+    // Untrusted ones are left there, removed with the rest of the surplus.
+    for k in finished(&surplus, spec, seed)?.done.into_keys() {
         move_attempt(&surplus, out, k)?;
     }
     if surplus.exists() {

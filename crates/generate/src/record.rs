@@ -45,9 +45,9 @@ pub struct GenerateConfig {
     pub shard: Option<dexjoco_core::Shard>,
     /// How each attempt runs.
     pub options: AttemptOptions,
-    /// The scene the sources and attempts run on (`built-in` or a scene folder), for
-    /// the settings file.
-    pub scene: String,
+    /// The scene the sources and attempts run on (built-in or a scene folder): named in
+    /// the settings file, and fingerprinted there by the content of every file it loads.
+    pub scene: dexjoco_sim::SceneSource,
 }
 
 /// An attempt's record (`.attempts/attempt_NNNNNN.json`, and a generated episode's

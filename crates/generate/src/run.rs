@@ -108,14 +108,16 @@ pub fn generate(
     let _lock = dexjoco_formats::lock::lock_output(out, config.shard)?;
     folder::check_settings(
         out,
-        &folder::settings(config, spec, sources),
+        &folder::settings(config, spec, sources)?,
         config.overwrite,
     )?;
     if config.shard.is_none() {
-        folder::restore_surplus(out)?;
+        folder::restore_surplus(out, spec, config.seed)?;
     }
     folder::clean_up(out, config.shard)?;
-    let mut done = folder::finished(out)?;
+    let log = folder::finished(out, spec, config.seed)?;
+    folder::forget(out, &log)?;
+    let mut done = log.done;
     let work = attempt_loop(config, scene, spec, sources, progress, &mut done)?;
     if config.shard.is_some() {
         let report = report(spec, config, sources, &done);
@@ -202,7 +204,7 @@ fn attempt_loop(
             // The other shards' attempts count too: stop once the successes before the
             // next attempt of this shard are enough. (How often this is read decides only
             // how far a shard runs past the end; the finalize sets that aside.)
-            *done = folder::finished(out)?;
+            *done = folder::finished(out, spec, config.seed)?.done;
             ok = successes_before(done, usize::MAX);
             synced = std::time::Instant::now();
         }

@@ -63,6 +63,17 @@ pub enum SimError {
         /// What is wrong.
         message: String,
     },
+    /// A file of a scene could not be read.
+    #[error("cannot {action} '{}': {source}", path.display())]
+    Io {
+        /// What was being done.
+        action: &'static str,
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
     /// A state or action row has the wrong width.
     #[error("{what} has {found} values, the task needs {expected}")]
     Width {

@@ -26,6 +26,7 @@ pub mod primitives;
 pub mod randomize;
 mod render;
 mod scene;
+pub mod scene_files;
 pub mod scripted;
 mod sheet;
 mod subtasks;

@@ -45,7 +45,19 @@ pub struct SubtaskRow {
 pub fn subtask_rows(spans: &[SubtaskSpan], skipped: usize, frames: usize) -> Vec<SubtaskRow> {
     let mut rows: Vec<SubtaskRow> = Vec::new();
     let mut last: Option<Vec<usize>> = None;
-    for f in 0..frames {
+    // The running set changes only where a span starts or ends: those frames (and the
+    // first) are the only ones looked at, so the work is the spans', not the frames'.
+    let mut changes: Vec<usize> = spans
+        .iter()
+        .flat_map(|s| [s.start, s.end.map(|e| e.saturating_add(1))])
+        .flatten()
+        .map(|at| at.saturating_sub(skipped))
+        .chain([0])
+        .filter(|f| *f < frames)
+        .collect();
+    changes.sort_unstable();
+    changes.dedup();
+    for f in changes {
         let at = f + skipped;
         let running: Vec<usize> = spans
             .iter()

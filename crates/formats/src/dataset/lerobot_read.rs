@@ -11,6 +11,7 @@ use arrow_schema::DataType;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use serde_json::{Map, Value};
 
+use super::lerobot_meta::{InfoMeta, MAX_INDEX};
 use super::parquet::parquet_err;
 use crate::error::DatasetError;
 
@@ -23,8 +24,11 @@ pub const V3_VERSION: &str = "v3.0";
 pub struct LeRobotDataset {
     /// The dataset folder (holding `meta/`, `data/`, `videos/`).
     pub root: PathBuf,
-    /// `meta/info.json`, every key kept.
+    /// `meta/info.json`, every key kept, completed with the format's defaults (what an
+    /// edited copy writes).
     pub info: Map<String, Value>,
+    /// `meta/info.json`, checked and typed: what the commands read of it.
+    pub meta: InfoMeta,
     /// Frames per second.
     pub fps: f64,
     /// Every episode's row of `meta/episodes/`, sorted by `episode_index`, all columns.
@@ -38,42 +42,40 @@ impl LeRobotDataset {
     /// numbered 0..N without gaps and cover `total_episodes`.
     pub fn open(root: &Path) -> Result<Self, DatasetError> {
         let info_path = root.join("meta/info.json");
-        let text = fs_err::read_to_string(&info_path).map_err(|e| {
+        let text = read_bounded(&info_path, MAX_INFO_BYTES).map_err(|e| {
             DatasetError::Layout(format!(
                 "'{}' is no LeRobot dataset: {e} (a dataset folder holds meta/info.json)",
                 root.display()
             ))
         })?;
-        let info: Map<String, Value> =
-            serde_json::from_str(&text).map_err(|source| DatasetError::Json {
+        let mut info: Map<String, Value> =
+            serde_json::from_slice(&text).map_err(|source| DatasetError::Json {
                 path: info_path.clone(),
                 source,
             })?;
-        let version = info["codebase_version"].as_str().unwrap_or("?");
-        if version != V3_VERSION {
+        let meta = InfoMeta::parse(&mut info, &info_path)?;
+        if meta.codebase_version != V3_VERSION {
             return Err(bad(
                 &info_path,
                 &format!(
-                    "codebase_version is {version}; these commands read {V3_VERSION} \
-                     (convert a v2.1 dataset with lerobot's convert_dataset_v21_to_v30)"
+                    "codebase_version is {}; these commands read {V3_VERSION} \
+                     (convert a v2.1 dataset with lerobot's convert_dataset_v21_to_v30)",
+                    meta.codebase_version
                 ),
             ));
         }
-        let fps = info
-            .get("fps")
-            .and_then(Value::as_f64)
-            .ok_or_else(|| bad(&info_path, "no fps"))?;
-        check_paths(&info, &info_path)?;
         let episodes = read_episodes(root)?;
         let tasks = read_all(&root.join("meta/tasks.parquet"))?;
         let ds = Self {
             root: root.to_path_buf(),
             info,
-            fps,
+            fps: meta.fps,
+            meta,
             episodes,
             tasks,
         };
         ds.check_numbering()?;
+        ds.check_rows()?;
         Ok(ds)
     }
 
@@ -98,11 +100,7 @@ impl LeRobotDataset {
 
     /// The features stored as videos, in `info.json`'s order.
     pub fn video_keys(&self) -> Vec<String> {
-        self.features()
-            .iter()
-            .filter(|(_, f)| f["dtype"] == "video")
-            .map(|(k, _)| k.clone())
-            .collect()
+        self.meta.video_keys()
     }
 
     /// The episodes-metadata column `name`.
@@ -118,6 +116,7 @@ impl LeRobotDataset {
             .as_any()
             .downcast_ref::<Int64Array>()
             .expect("cast to int64");
+        self.no_nulls(name, &cast)?;
         Ok((0..ints.len()).map(|i| ints.value(i)).collect())
     }
 
@@ -130,6 +129,7 @@ impl LeRobotDataset {
             .as_any()
             .downcast_ref::<Float64Array>()
             .expect("cast to float64");
+        self.no_nulls(name, &cast)?;
         Ok((0..floats.len()).map(|i| floats.value(i)).collect())
     }
 
@@ -191,54 +191,50 @@ impl LeRobotDataset {
         Ok(by_index)
     }
 
-    /// A path of the dataset from one of info.json's templates (`data_path`,
-    /// `video_path`), its `{name}` / `{name:03d}` fields filled in.
-    pub fn path_of(&self, template: &str, fields: &[(&str, &str, i64)]) -> PathBuf {
-        let t = self
-            .info
-            .get(template)
-            .and_then(Value::as_str)
-            .unwrap_or("");
-        self.root.join(fill_template(t, fields))
+    /// Chunk and file indices of the `k`-th file an edited copy of this dataset writes
+    /// (`chunks_size` files per chunk folder).
+    pub fn placement(&self, k: usize) -> (i64, i64) {
+        let per = self.meta.chunks_size as i64;
+        (k as i64 / per, k as i64 % per)
     }
 
-    /// The data file of chunk/file indices.
+    /// The data file of chunk/file indices, relative to a dataset's folder.
+    pub fn data_rel(&self, chunk: i64, file: i64) -> String {
+        self.meta.data_path.fill("", index(chunk), index(file))
+    }
+
+    /// The video file of `key` at chunk/file indices, relative to a dataset's folder.
+    pub fn video_rel(&self, key: &str, chunk: i64, file: i64) -> String {
+        let template = self
+            .meta
+            .video_path
+            .as_ref()
+            .expect("a dataset with video features has a video_path");
+        template.fill(key, index(chunk), index(file))
+    }
+
+    /// The data file of chunk/file indices (checked non-negative by [`Self::open`]).
     pub fn data_file(&self, chunk: i64, file: i64) -> PathBuf {
-        self.path_of(
-            "data_path",
-            &[("chunk_index", "", chunk), ("file_index", "", file)],
-        )
+        self.root.join(self.data_rel(chunk, file))
     }
 
     /// The data files of the episodes, in the order of the episodes (each once).
     pub fn data_files(&self) -> Result<Vec<PathBuf>, DatasetError> {
         let chunk = self.int_column("data/chunk_index")?;
         let file = self.int_column("data/file_index")?;
+        let mut seen = std::collections::HashSet::new();
         let mut out: Vec<PathBuf> = Vec::new();
         for (c, f) in chunk.into_iter().zip(file) {
-            let p = self.data_file(c, f);
-            if !out.contains(&p) {
-                out.push(p);
+            if seen.insert((c, f)) {
+                out.push(self.data_file(c, f));
             }
         }
         Ok(out)
     }
 
-    /// The video file of `key` at chunk/file indices.
+    /// The video file of `key` (a video feature) at chunk/file indices.
     pub fn video_file(&self, key: &str, chunk: i64, file: i64) -> PathBuf {
-        let t = self
-            .info
-            .get("video_path")
-            .and_then(Value::as_str)
-            .unwrap_or("");
-        self.root.join(fill_template(
-            t,
-            &[
-                ("video_key", key, 0),
-                ("chunk_index", "", chunk),
-                ("file_index", "", file),
-            ],
-        ))
+        self.root.join(self.video_rel(key, chunk, file))
     }
 
     fn required(&self, name: &str) -> Result<&ArrayRef, DatasetError> {
@@ -255,6 +251,83 @@ impl LeRobotDataset {
             &self.root.join("meta/episodes"),
             &format!("column {name:?}: {e}"),
         )
+    }
+
+    /// Refuses a null in column `name` (cast `values`), naming the first row.
+    fn no_nulls(&self, name: &str, values: &ArrayRef) -> Result<(), DatasetError> {
+        match (0..values.len()).find(|i| values.is_null(*i)) {
+            Some(row) => Err(self.row_err(name, row, "is null".into())),
+            None => Ok(()),
+        }
+    }
+
+    fn row_err(&self, name: &str, row: usize, message: String) -> DatasetError {
+        DatasetError::Metadata {
+            path: self.root.join("meta/episodes"),
+            field: name.to_owned(),
+            message: format!("episode {row} {message}"),
+        }
+    }
+
+    /// Checks the episode rows' placement columns: lengths, chunk and file indices in
+    /// range, the data span of each episode its length, video spans finite and ordered,
+    /// task lists of text. Nothing read from them later can overflow or index out of range.
+    fn check_rows(&self) -> Result<(), DatasetError> {
+        let in_range = |name: &str| -> Result<Vec<i64>, DatasetError> {
+            let v = self.int_column(name)?;
+            match v.iter().position(|x| !(0..=MAX_INDEX).contains(x)) {
+                Some(row) => Err(self.row_err(
+                    name,
+                    row,
+                    format!("has {}, outside 0..={MAX_INDEX}", v[row]),
+                )),
+                None => Ok(v),
+            }
+        };
+        let lengths = in_range("length")?;
+        in_range("data/chunk_index")?;
+        in_range("data/file_index")?;
+        if self.column("dataset_from_index").is_some() && self.column("dataset_to_index").is_some()
+        {
+            let from = in_range("dataset_from_index")?;
+            let to = in_range("dataset_to_index")?;
+            if let Some(row) = (0..lengths.len()).find(|r| to[*r] - from[*r] != lengths[*r]) {
+                return Err(self.row_err(
+                    "dataset_to_index",
+                    row,
+                    format!(
+                        "spans frames {}..{} of its data file, but its length is {}",
+                        from[row], to[row], lengths[row]
+                    ),
+                ));
+            }
+        }
+        for key in self.video_keys() {
+            let col = |s: &str| format!("videos/{key}/{s}");
+            if self.column(&col("chunk_index")).is_none() {
+                continue;
+            }
+            in_range(&col("chunk_index"))?;
+            in_range(&col("file_index"))?;
+            let from = self.float_column(&col("from_timestamp"))?;
+            let to = self.float_column(&col("to_timestamp"))?;
+            let bad = |r: usize| {
+                !(from[r].is_finite() && to[r].is_finite() && 0.0 <= from[r] && from[r] <= to[r])
+                    || to[r] > MAX_INDEX as f64
+            };
+            if let Some(row) = (0..from.len()).find(|r| bad(*r)) {
+                return Err(self.row_err(
+                    &col("to_timestamp"),
+                    row,
+                    format!(
+                        "spans {}..{} s of its video: not a finite, ordered span",
+                        from[row], to[row]
+                    ),
+                ));
+            }
+        }
+        self.episode_tasks()?;
+        Ok(())
     }
 
     fn check_numbering(&self) -> Result<(), DatasetError> {
@@ -282,74 +355,6 @@ impl LeRobotDataset {
         }
         Ok(())
     }
-}
-
-/// Refuses a dataset whose path templates or video keys would place files outside its
-/// folder (an absolute path, a `..`, a key with a path separator): the files of a
-/// downloaded dataset are untrusted, and edits write the same layout.
-fn check_paths(info: &Map<String, Value>, info_path: &Path) -> Result<(), DatasetError> {
-    let escapes = |p: &str| {
-        let path = Path::new(p);
-        path.is_absolute()
-            || p.starts_with(['/', '\\'])
-            || path
-                .components()
-                .any(|c| !matches!(c, std::path::Component::Normal(_)))
-    };
-    for key in ["data_path", "video_path"] {
-        if let Some(t) = info.get(key).and_then(Value::as_str)
-            && escapes(t)
-        {
-            return Err(bad(
-                info_path,
-                &format!("{key} {t:?} leaves the dataset folder (absolute, or with ..)"),
-            ));
-        }
-    }
-    let features = info.get("features").and_then(Value::as_object);
-    for (k, f) in features.into_iter().flatten() {
-        if f["dtype"] == "video"
-            && (k.contains(['/', '\\']) || k == "." || k == ".." || k.is_empty())
-        {
-            return Err(bad(
-                info_path,
-                &format!(
-                    "video feature {k:?} is no folder name (it names the feature's video folder)"
-                ),
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// Fills a Python format template's `{name}` and `{name:0Nd}` fields: a field with a
-/// non-empty text takes the text, else the number (zero-padded to N where asked).
-pub fn fill_template(template: &str, fields: &[(&str, &str, i64)]) -> String {
-    let mut out = String::new();
-    let mut rest = template;
-    while let Some(open) = rest.find('{') {
-        out.push_str(&rest[..open]);
-        let Some(close) = rest[open..].find('}') else {
-            break;
-        };
-        let spec = &rest[open + 1..open + close];
-        let (name, format) = spec.split_once(':').unwrap_or((spec, ""));
-        match fields.iter().find(|(n, _, _)| *n == name) {
-            Some((_, text, _)) if !text.is_empty() => out.push_str(text),
-            Some((_, _, number)) => {
-                let width: usize = format
-                    .trim_start_matches('0')
-                    .trim_end_matches('d')
-                    .parse()
-                    .unwrap_or(0);
-                out.push_str(&format!("{number:0width$}"));
-            }
-            None => out.push_str(&rest[open..=open + close]),
-        }
-        rest = &rest[open + close + 1..];
-    }
-    out.push_str(rest);
-    out
 }
 
 /// The strings of a string column (`Utf8` or `LargeUtf8`; nulls as "").
@@ -388,7 +393,7 @@ pub fn read_all(path: &Path) -> Result<RecordBatch, DatasetError> {
 fn read_episodes(root: &Path) -> Result<RecordBatch, DatasetError> {
     let dir = root.join("meta/episodes");
     let mut files = Vec::new();
-    collect_parquet(&dir, &mut files)?;
+    collect_parquet(&dir, &mut files, 0)?;
     files.sort();
     if files.is_empty() {
         return Err(bad(&dir, "no episode metadata files"));
@@ -428,14 +433,20 @@ fn sort_by_episode(all: RecordBatch, dir: &Path) -> Result<RecordBatch, DatasetE
     arrow_select::take::take_record_batch(&all, &order).map_err(|e| bad(dir, &e.to_string()))
 }
 
-fn collect_parquet(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), DatasetError> {
+/// How deep episode metadata files are looked for (`chunk-000/file-000.parquet` is 1):
+/// a folder linked into itself is not followed forever.
+const MAX_EPISODES_DEPTH: usize = 4;
+
+fn collect_parquet(dir: &Path, out: &mut Vec<PathBuf>, depth: usize) -> Result<(), DatasetError> {
     let Ok(entries) = fs_err::read_dir(dir) else {
         return Ok(());
     };
     for entry in entries {
         let path = entry?.path();
         if path.is_dir() {
-            collect_parquet(&path, out)?;
+            if depth < MAX_EPISODES_DEPTH {
+                collect_parquet(&path, out, depth + 1)?;
+            }
         } else if path.extension().is_some_and(|e| e == "parquet") {
             out.push(path);
         }
@@ -443,58 +454,34 @@ fn collect_parquet(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), DatasetErro
     Ok(())
 }
 
+/// A checked index as a number for a path (non-negative once [`LeRobotDataset::open`]
+/// has checked the rows).
+fn index(i: i64) -> u64 {
+    u64::try_from(i).unwrap_or(0)
+}
+
+/// The largest `meta/info.json` read (its features and templates are small; a file
+/// larger than this is no dataset's).
+const MAX_INFO_BYTES: u64 = 64 << 20;
+
+/// The bytes of `path`, refused past `limit`.
+fn read_bounded(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    fs_err::File::open(path)?
+        .take(limit + 1)
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(std::io::Error::other(format!(
+            "'{}' is larger than {} MB",
+            path.display(),
+            limit >> 20
+        )));
+    }
+    Ok(bytes)
+}
+
 /// A [`DatasetError::Layout`] naming the file.
 fn bad(path: &Path, message: &str) -> DatasetError {
     DatasetError::Layout(format!("file '{}': {message}", path.display()))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::fill_template;
-
-    #[test]
-    fn templates_leaving_the_folder_are_refused() {
-        let info = |data: &str, key: &str| -> serde_json::Map<String, serde_json::Value> {
-            serde_json::from_value(serde_json::json!({
-                "data_path": data,
-                "video_path": "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4",
-                "features": {key: {"dtype": "video"}}
-            }))
-            .unwrap()
-        };
-        let p = std::path::Path::new("meta/info.json");
-        let ok = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet";
-        assert!(super::check_paths(&info(ok, "observation.images.top"), p).is_ok());
-        for bad in [
-            "../x/{file_index}.parquet",
-            "/etc/{file_index}",
-            "data/../../x",
-        ] {
-            let e = super::check_paths(&info(bad, "top"), p).unwrap_err();
-            assert!(e.to_string().contains("leaves the dataset folder"), "{e}");
-        }
-        for key in ["../top", "a/b", ".."] {
-            assert!(super::check_paths(&info(ok, key), p).is_err(), "{key}");
-        }
-    }
-
-    #[test]
-    fn templates_fill_like_python_format() {
-        let f = [
-            ("video_key", "observation.images.top", 0),
-            ("chunk_index", "", 1),
-            ("file_index", "", 12),
-        ];
-        assert_eq!(
-            fill_template(
-                "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4",
-                &f
-            ),
-            "videos/observation.images.top/chunk-001/file-012.mp4"
-        );
-        assert_eq!(
-            fill_template("a/{file_index}.x{unknown}", &f),
-            "a/12.x{unknown}"
-        );
-    }
 }

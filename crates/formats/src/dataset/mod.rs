@@ -19,6 +19,7 @@ pub mod diffusion_policy;
 pub mod episode_labels;
 pub mod language;
 pub mod lerobot_info;
+pub mod lerobot_meta;
 pub mod lerobot_read;
 pub mod lerobot_v21;
 pub mod lerobot_v3;

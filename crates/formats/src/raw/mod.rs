@@ -92,10 +92,13 @@ pub fn task_from_path(dir: &Path, tasks: &TaskSet) -> Option<String> {
 pub const EVAL_RECORD: &str = "episode.json";
 
 /// The task an evaluated episode's record names, when the folder holds one.
-pub fn task_from_eval_record(dir: &Path) -> Option<String> {
-    let bytes = fs_err::read(dir.join(EVAL_RECORD)).ok()?;
-    let v: serde_json::Value = serde_json::from_slice(&bytes).ok()?;
-    v.get("task")?.as_str().map(str::to_owned)
+pub fn task_from_eval_record(dir: &Path) -> Result<Option<String>> {
+    let path = dir.join(EVAL_RECORD);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let v = read_json(&path, &Location::default().path(&path).field("task"))?;
+    Ok(v.get("task").and_then(|t| t.as_str()).map(str::to_owned))
 }
 
 /// Reads a raw episode folder (holding `replay.zarr`, optionally `videos/`) of `task`.
@@ -454,11 +457,13 @@ impl EpisodeContainer for RawFolder {
     /// ([`task_from_path`]); its id is the store entry's, else the folder name.
     fn read(&self, dir: &Path, tasks: &TaskSet, options: ReadOptions<'_>) -> Result<ReadEpisode> {
         let entry = ManifestEntry::of_episode_dir(dir);
+        // An evaluation record that cannot be read is named as such, whatever names the task.
+        let from_record = task_from_eval_record(dir)?;
         let name = options
             .task
             .map(str::to_owned)
             .or_else(|| entry.as_ref().and_then(|e| e.task.clone()))
-            .or_else(|| task_from_eval_record(dir))
+            .or(from_record)
             .or_else(|| task_from_path(dir, tasks));
         let at = Location::default().path(dir);
         let task = match name.as_deref() {

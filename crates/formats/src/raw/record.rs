@@ -164,27 +164,91 @@ pub struct EvalRollout {
     pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
 }
 
+/// The most steps a record (a replay's, an evaluated rollout's) may say: far beyond any
+/// episode (over three days at 30 fps), far below what would exhaust memory when
+/// something is made per step.
+pub const MAX_RECORD_STEPS: u64 = 10_000_000;
+
 /// Reads an evaluated episode's record: `None` when the folder has none, or an
-/// `episode.json` that is not `eval`'s (no boolean `success` and step count `steps`); an
-/// error naming the file when it is unreadable or not JSON.
+/// `episode.json` that is not `eval`'s (neither `success` nor `steps`); an error naming
+/// the file and field when it is unreadable, not JSON, or `eval`'s with a field of the
+/// wrong type or out of range (a step count over [`MAX_RECORD_STEPS`], a success or
+/// subtask step past the rollout's end): never read as a plain recording.
 pub fn read_eval_rollout(dir: &Path) -> Result<Option<EvalRollout>> {
     let path = dir.join(super::EVAL_RECORD);
     if !path.exists() {
         return Ok(None);
     }
     let v = read_json(&path, &Location::default().path(&path))?;
-    if !(v.get("success").is_some_and(Value::is_boolean)
-        && v.get("steps").is_some_and(Value::is_u64))
-    {
+    if v.get("success").is_none() && v.get("steps").is_none() {
         return Ok(None);
     }
-    serde_json::from_value(v).map(Some).map_err(|e| {
+    let at = |field: &str| Location::default().path(&path).field(field);
+    let field = |name: &str, why: String| FormatError::input(ProblemCode::Corrupt, &at(name), why);
+    if !v.get("success").is_some_and(Value::is_boolean) {
+        return Err(field(
+            "success",
+            format!(
+                "the evaluation record's verdict is {}, not true or false",
+                shown(v.get("success"))
+            ),
+        ));
+    }
+    let steps = |name: &str, required: bool| -> Result<u64> {
+        match v.get(name) {
+            None if !required => Ok(0),
+            Some(n) if n.as_u64().is_some_and(|n| n <= MAX_RECORD_STEPS) => {
+                Ok(n.as_u64().unwrap_or(0))
+            }
+            other => Err(field(
+                name,
+                format!(
+                    "{} is no step count (a whole number, 0 to {MAX_RECORD_STEPS})",
+                    shown(other)
+                ),
+            )),
+        }
+    };
+    let n = steps("steps", true)?;
+    steps("warmup_steps", false)?;
+    let rollout: EvalRollout = serde_json::from_value(v).map_err(|e| {
         FormatError::input(
             ProblemCode::Corrupt,
             &Location::default().path(&path),
             format!("the evaluation record does not parse: {e}"),
         )
-    })
+    })?;
+    if let Some(s) = rollout.success_step.filter(|s| *s as u64 > n) {
+        return Err(field(
+            "success_step",
+            format!("step {s} is past the rollout's {n} steps"),
+        ));
+    }
+    let ends = rollout
+        .subtasks
+        .iter()
+        .flat_map(|s| [s.start, s.end])
+        .flatten();
+    if let Some(s) = ends.into_iter().find(|s| *s as u64 > n) {
+        return Err(field(
+            "subtasks",
+            format!("a subtask step {s} is past the rollout's {n} steps"),
+        ));
+    }
+    Ok(Some(rollout))
+}
+
+/// A JSON value (or its absence) for a message, shortened.
+fn shown(v: Option<&Value>) -> String {
+    let Some(v) = v else {
+        return "missing".into();
+    };
+    let s = v.to_string();
+    if s.len() > 40 {
+        format!("{}...", &s[..s.floor_char_boundary(40)])
+    } else {
+        s
+    }
 }
 
 impl From<EvalRollout> for ReplayLabel {
@@ -221,6 +285,20 @@ pub fn read_replay_label(dir: &Path) -> Result<Option<ReplayLabel>> {
             &at,
             "the replay record has no boolean 'success'",
         ));
+    }
+    for name in ["steps", "recorded_steps"] {
+        if let Some(n) = v.get(name)
+            && !n.as_u64().is_some_and(|n| n <= MAX_RECORD_STEPS)
+        {
+            return Err(FormatError::input(
+                ProblemCode::Corrupt,
+                &Location::default().path(&path).field(name),
+                format!(
+                    "{} is no step count (a whole number, 0 to {MAX_RECORD_STEPS})",
+                    shown(Some(n))
+                ),
+            ));
+        }
     }
     let checked = v.get("flags").is_some();
     let mut label: ReplayLabel = serde_json::from_value(v).map_err(|e| {

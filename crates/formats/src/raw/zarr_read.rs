@@ -9,7 +9,24 @@ pub(super) struct ArrayInfo {
     pub(super) chunks: Vec<u64>,
 }
 
+/// The largest JSON file read (array metadata, records): larger is no recorder's.
+const MAX_JSON_BYTES: u64 = 64 << 20;
+
 pub(super) fn read_json(path: &Path, at: &Location) -> Result<Value> {
+    if let Ok(m) = fs_err::metadata(path)
+        && m.len() > MAX_JSON_BYTES
+    {
+        return Err(FormatError::input(
+            ProblemCode::Corrupt,
+            at,
+            format!(
+                "'{}' holds {} bytes: no record or array description is larger than {} MB",
+                path.display(),
+                m.len(),
+                MAX_JSON_BYTES >> 20
+            ),
+        ));
+    }
     let bytes = fs_err::read(path).map_err(|e| {
         if e.kind() == std::io::ErrorKind::NotFound {
             FormatError::input(

@@ -1,12 +1,77 @@
-//! The files a MuJoCo scene loads, found as MuJoCo 3 finds them, so that an augment
-//! output's fingerprint covers every byte that decides its scenes: the MJCF file, the
-//! files it `<include>`s (and theirs), `<model>` sub-models, and the meshes, height
-//! fields, skins and textures they name.
+//! The files a MuJoCo scene loads, found as MuJoCo 3 finds them, and their content
+//! hashes ([`scene_hash`]), so that the fingerprint of an output made on a scene (augment's,
+//! generate's) covers every byte that decides it: the MJCF file, the files it
+//! `<include>`s (and theirs), `<model>` sub-models, and the meshes, height fields, skins
+//! and textures they name.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Component, Path, PathBuf};
 
-use crate::error::{AugmentError, io_err};
+use dexjoco_core::TaskSpec;
+use sha2::{Digest, Sha256};
+
+use crate::SceneSource;
+use crate::error::SimError;
+
+/// `SimError::Io` of `action` on `path`.
+fn io_err(action: &'static str, path: &Path) -> impl FnOnce(std::io::Error) -> SimError + use<> {
+    let path = path.to_path_buf();
+    move |source| SimError::Io {
+        action,
+        path,
+        source,
+    }
+}
+
+fn sha(bytes: &[u8]) -> String {
+    format!("sha256:{:x}", Sha256::digest(bytes))
+}
+
+/// A task's scene as a run loads it, by content: its MJCF file and every file that loads.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SceneHashes {
+    /// SHA-256 of the scene file (a built-in scene: its composed XML, which holds it all).
+    pub scene: String,
+    /// The other files, by path relative to the scene folder (`missing` for a name that
+    /// resolves to no file).
+    pub files: BTreeMap<String, String>,
+}
+
+/// What a file named by a scene but found nowhere hashes to.
+const MISSING: &str = "missing";
+
+/// The content hashes of `spec`'s scene as `source` loads it.
+pub fn scene_hash(source: &SceneSource, spec: &TaskSpec) -> Result<SceneHashes, SimError> {
+    match source {
+        SceneSource::BuiltIn => {
+            let xml = crate::builtin::scene_xml(spec)?;
+            Ok(SceneHashes {
+                scene: sha(xml.as_bytes()),
+                files: BTreeMap::new(),
+            })
+        }
+        SceneSource::Dir(dir) => {
+            let path = dir.join(&spec.scene);
+            let bytes = fs_err::read(&path).map_err(io_err("read", &path))?;
+            let mut files = BTreeMap::new();
+            // Names relative to the folder however it is written (`xmls`, `./xmls`).
+            let dir = &tidy(dir);
+            for file in scene_files(&path)?.into_iter().skip(1) {
+                let hash = match fs_err::read(&file) {
+                    Ok(bytes) => sha(&bytes),
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => MISSING.into(),
+                    Err(e) => return Err(io_err("read", &file)(e)),
+                };
+                let name = file.strip_prefix(dir).unwrap_or(&file);
+                files.insert(name.display().to_string(), hash);
+            }
+            Ok(SceneHashes {
+                scene: sha(&bytes),
+                files,
+            })
+        }
+    }
+}
 
 /// The attributes of `<texture>` that name a file (a cube map may take one per face).
 const TEXTURE_FILES: [&str; 7] = [
@@ -47,7 +112,7 @@ struct Walk {
 ///
 /// A name found nowhere is returned as its first candidate (the load would have failed
 /// on it; hashing it as missing still notices it appearing).
-pub(crate) fn scene_files(scene: &Path) -> Result<Vec<PathBuf>, AugmentError> {
+pub fn scene_files(scene: &Path) -> Result<Vec<PathBuf>, SimError> {
     let scene = tidy(scene);
     let root = scene.parent().unwrap_or(Path::new("")).to_path_buf();
     let mut walk = Walk::default();
@@ -70,7 +135,7 @@ pub(crate) fn scene_files(scene: &Path) -> Result<Vec<PathBuf>, AugmentError> {
 }
 
 /// Reads one MJCF file into `walk`, following its includes where they stand.
-fn read_mjcf(root: &Path, file: &Path, walk: &mut Walk) -> Result<(), AugmentError> {
+fn read_mjcf(root: &Path, file: &Path, walk: &mut Walk) -> Result<(), SimError> {
     if walk.xml.iter().any(|f| f == file) {
         return Ok(());
     }
@@ -196,7 +261,7 @@ fn resolve(base: &Path, dir: &Path, name: &str) -> PathBuf {
 }
 
 /// `path` without its `.` components (`./a/./b` is `a/b`), so one file has one name.
-pub(crate) fn tidy(path: &Path) -> PathBuf {
+pub fn tidy(path: &Path) -> PathBuf {
     path.components()
         .filter(|c| !matches!(c, Component::CurDir))
         .collect()
