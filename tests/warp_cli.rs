@@ -170,3 +170,106 @@ fn warp_renders_the_reference_hammer_nail_scene_into_a_dataset() {
     );
     lerobot_reads(&dataset, 2, 1);
 }
+
+/// The processes (other than this one) whose environment holds `marker`.
+fn processes_marked(marker: &str) -> Vec<String> {
+    let mut left = Vec::new();
+    for e in fs_err::read_dir("/proc").unwrap().flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !name.bytes().all(|b| b.is_ascii_digit()) || name == std::process::id().to_string() {
+            continue;
+        }
+        let Ok(env) = std::fs::read(e.path().join("environ")) else {
+            continue;
+        };
+        if env.windows(marker.len()).any(|w| w == marker.as_bytes()) {
+            let cmd = std::fs::read(e.path().join("cmdline")).unwrap_or_default();
+            left.push(format!(
+                "{name}: {}",
+                String::from_utf8_lossy(&cmd[..cmd.len().min(80)])
+            ));
+        }
+    }
+    left
+}
+
+/// A worker that is not MuJoCo Warp's: it answers `hello` and `open` as the worker does,
+/// then replies to a render with a header claiming 2^60 bytes of images, followed by an
+/// endless stream of zeros.
+const LYING_WORKER: &str = r#"
+import json, struct, sys
+H = struct.Struct("<IQ")
+out = sys.stdout.buffer
+def read(n):
+    b = sys.stdin.buffer.read(n)
+    if len(b) < n:
+        sys.exit(0)
+    return b
+while True:
+    n, p = H.unpack(read(12))
+    req = json.loads(read(n)); read(p)
+    if req["op"] == "hello":
+        body = {"ok": True, "device": "cpu", "device_name": "cpu", "versions":
+                {"mujoco": "3.17.0", "mujoco-warp": "3.17.0", "warp-lang": "1.19.0"}}
+    elif req["op"] == "open":
+        body = {"ok": True, "open_seconds": 0.0}
+    else:
+        b = json.dumps({"ok": True, "worlds": 1, "times": {}}).encode()
+        out.write(H.pack(len(b), 1 << 60) + b)
+        zeros = bytes(1 << 20)
+        while True:
+            out.write(zeros)
+    b = json.dumps(body).encode()
+    out.write(H.pack(len(b), 0) + b)
+    out.flush()
+"#;
+
+/// A worker's reply is bounded by what was asked for (a claim of 2^60 bytes is refused
+/// from its header, not read into memory), and a worker that hangs is killed with the
+/// process that started it: no Python is left running after augment ends.
+#[test]
+fn a_lying_or_hanging_warp_worker_fails_the_run_by_name_and_leaves_no_process() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = dir.path().join("python");
+    let shebang = format!("#!{}\n", dexjoco_testkit::python().display());
+    fs_err::write(&fake, shebang + LYING_WORKER).unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    fs_err::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let marker = format!("DEXJOCO_TEST_MARKER=lying-{}", std::process::id());
+    let started = std::time::Instant::now();
+    let o = augment_warp(&dir.path().join("lying"), &["-j", "1"])
+        .env("DEXJOCO_TEST_MARKER", marker.split_once('=').unwrap().1)
+        .args(["--first-frame-timeout", "120", "--warp-python"])
+        .arg(&fake)
+        .output()
+        .unwrap();
+    let text = said(&o);
+    assert_eq!(o.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("Warp worker") && text.contains("1152921504606846976"),
+        "{text}"
+    );
+    assert!(started.elapsed().as_secs() < 100, "{:?}", started.elapsed());
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    assert_eq!(processes_marked(&marker), Vec::<String>::new());
+
+    // The real worker, its augment worker stalled after the renderer opened (as a hung
+    // driver would): killed at the deadline, and its Python with it.
+    let marker = format!("DEXJOCO_TEST_MARKER=stalled-{}", std::process::id());
+    let o = augment_warp(&dir.path().join("stalled"), &["-j", "1"])
+        .env("DEXJOCO_TEST_MARKER", marker.split_once('=').unwrap().1)
+        .env(dexjoco_augment::STALL_ENV, "all")
+        .args(["--first-frame-timeout", "40"])
+        .output()
+        .unwrap();
+    let text = said(&o);
+    assert_eq!(o.status.code(), Some(1), "{text}");
+    // The Warp renderer opened (its Python was running) before the worker was killed.
+    assert!(
+        text.contains("on the Warp renderer (warp 3.17.0 on cpu)"),
+        "{text}"
+    );
+    assert!(!text.contains("EGL"), "{text}");
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    assert_eq!(processes_marked(&marker), Vec::<String>::new());
+}

@@ -106,8 +106,9 @@ pub struct ScriptedArgs {
     /// Task id, e.g. pinch_tongs.
     #[arg(long)]
     pub task: String,
-    /// Random resets to plan from.
-    #[arg(long, default_value_t = 1)]
+    /// Random resets to plan from (1 to 1000000).
+    #[arg(long, default_value_t = 1,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1_000_000))]
     pub episodes: usize,
     /// Scene pack folder (e.g. the DexJoCo reference xmls/); default: built-in scenes.
     #[arg(long)]
@@ -329,8 +330,9 @@ pub struct AugmentArgs {
     /// Raw episode folders, episode stores or MCAP files (default: the sample data in
     /// datasets/demos).
     pub inputs: Vec<PathBuf>,
-    /// Randomized replays per episode.
-    #[arg(long, default_value_t = dexjoco_augment::DEFAULT_REPLAYS)]
+    /// Randomized replays per episode (1 to 10000).
+    #[arg(long, default_value_t = dexjoco_augment::DEFAULT_REPLAYS,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000))]
     pub replays: usize,
     /// Scene pack folder (e.g. the DexJoCo reference xmls/); default: built-in scenes.
     #[arg(long)]

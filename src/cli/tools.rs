@@ -140,7 +140,7 @@ pub struct BenchAugmentArgs {
     pub scene_dir: Option<PathBuf>,
     /// Replays per episode.
     #[arg(long, default_value_t = 4,
-          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000))]
     pub replays: usize,
     /// Only the first N frames of each episode (0: whole episodes).
     #[arg(long, default_value_t = 120)]

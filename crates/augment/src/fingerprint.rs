@@ -54,6 +54,12 @@ pub struct OutputSettings {
     /// The Warp renderer's rays per pixel and axis, when given (`--warp-supersample`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub warp_supersample: Option<u32>,
+    /// The Warp renderer's device as asked for (`--warp-device`: `auto`, `cpu`,
+    /// `cuda:N`): a CPU and a GPU ray tracer may differ in last bits, so a resume on
+    /// another is refused (`auto` resolves per machine: each replay's record names the
+    /// device that drew it, and the report warns when they differ).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warp_device: Option<String>,
     /// Fixed cameras rendered besides the third-person view.
     pub cameras: Vec<String>,
     /// Depth archives written.
@@ -179,8 +185,7 @@ impl OutputSettings {
                     supersample,
                     // The worker's Python is checked to have the pinned versions.
                     python: _,
-                    // Warp's device: named in each replay's record (`renderer`).
-                    device: _,
+                    device,
                     // Each world is one image: the batch size leaves the bytes alone.
                     worlds: _,
                 },
@@ -203,6 +208,7 @@ impl OutputSettings {
             geometry: *geometry,
             renderer: *renderer,
             warp_supersample: supersample.filter(|_| *renderer == RendererKind::Warp),
+            warp_device: (*renderer == RendererKind::Warp).then(|| device.clone()),
             cameras: cameras.clone(),
             depth: *depth,
             max_frames: *max_frames,
@@ -472,11 +478,37 @@ mod tests {
         ]);
         for (key, now) in changed {
             let d = now.differences(&was);
+            // The Warp renderer brings its device (the one asked for) along.
+            let named = |l: &String| {
+                l.starts_with(key) || (key == "renderer" && l.starts_with("warp_device"))
+            };
             assert!(
-                !d.is_empty() && d.iter().all(|l| l.starts_with(key)),
+                !d.is_empty() && d.iter().all(named),
                 "changing {key} gives {d:?}"
             );
         }
+    }
+
+    /// A Warp folder records the device asked for: a resume on another is refused (CPU
+    /// and GPU ray tracers may differ in last bits); an OpenGL folder records none.
+    #[test]
+    fn the_warp_device_is_part_of_a_warp_folders_settings() {
+        let pool = dexjoco_sim::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
+        let task = || [("t".to_owned(), hashes("s", &[]), &pool, "x".to_owned())];
+        let warp = |device: &str| {
+            let mut c = config(64);
+            c.renderer = dexjoco_sim::RendererKind::Warp;
+            c.warp.device = device.into();
+            OutputSettings::of(&c, task())
+        };
+        let (cpu, gpu) = (warp("cpu"), warp("cuda:0"));
+        assert_eq!(
+            gpu.differences(&cpu),
+            ["warp_device: \"cuda:0\" (was \"cpu\")"]
+        );
+        let mut gl = config(64);
+        gl.warp.device = "cuda:0".into();
+        assert_eq!(OutputSettings::of(&gl, task()).warp_device, None);
     }
 
     #[test]

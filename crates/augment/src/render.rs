@@ -78,7 +78,7 @@ pub(crate) fn preload_renderer(
         config.unit_render_settings(),
         |renderer| {
             let device = renderer.device();
-            opened(&format!("{} ({})", device.index, device.label()));
+            opened(&format!("EGL device {} ({})", device.index, device.label()));
             for r in 0..WARM_UP_VIEWS {
                 let sample = assets.sample(config.seed, "warm-up", r);
                 renderer.update_scene(&mut data, sample.camera.view());

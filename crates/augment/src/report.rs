@@ -274,6 +274,7 @@ pub(crate) fn write_report(out: &Path, report: &AugmentReport) -> Result<(), Aug
     push_replays(&mut md, report);
     push_dynamics(&mut md, report);
     push_made_on(&mut md, report);
+    push_renderers(&mut md, report);
     dexjoco_formats::write_atomic(&out.join(REPORT_MD), md.as_bytes())?;
     Ok(())
 }
@@ -452,6 +453,29 @@ fn push_dynamics(md: &mut String, report: &AugmentReport) {
                 cells.join("; ")
             ));
         }
+    }
+}
+
+/// A warning when the replays were drawn by more than one renderer or device (a Warp
+/// run resumed on another machine with `--warp-device auto`).
+fn push_renderers(md: &mut String, report: &AugmentReport) {
+    let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
+    // Records made before the renderer was recorded, or dropped before rendering, name none.
+    for r in report.replays.iter().chain(&report.dropped) {
+        if !r.renderer.is_empty() {
+            *counts.entry(r.renderer.as_str()).or_default() += 1;
+        }
+    }
+    if counts.len() > 1 {
+        let list: Vec<String> = counts.iter().map(|(r, n)| format!("{n} by {r}")).collect();
+        let warning = format!(
+            "the replays were drawn by {} renderers ({}): their pixels differ in last bits; \
+             render a dataset on one device (--warp-device)",
+            counts.len(),
+            list.join(", ")
+        );
+        tracing::warn!("{warning}");
+        md.push_str(&format!("\n**Warning:** {warning}.\n"));
     }
 }
 

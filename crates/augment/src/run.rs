@@ -49,6 +49,8 @@ pub fn augment_with(
     let created = !out.exists();
     fs_err::create_dir_all(out).map_err(io_err("create", out))?;
     let lock = crate::staging::lock_output(out, config.shard)?;
+    // A resume writes into the folders it finds: none may be a link leading elsewhere.
+    dexjoco_formats::fs::refuse_links_within(out)?;
 
     // This run's share and what of it is on disk already (resume). When anything is left
     // to render, the renderer is probed (a machine that cannot render fails now, not after

@@ -82,7 +82,11 @@ pub(crate) fn preload(
     opened: &mut dyn FnMut(&str),
 ) -> Result<(), AugmentError> {
     with_warp(assets, config, |warp| {
-        opened(&warp.info().describe());
+        opened(&format!(
+            "{} ({})",
+            dexjoco_workers::WARP_WORDS,
+            warp.info().describe()
+        ));
         let model = &assets.scene.model;
         let mut data = dexjoco_sim::mujoco_rs::prelude::MjData::new(model.clone());
         data.forward();

@@ -325,7 +325,7 @@ fn write_merged(
     let had = parts
         .iter()
         .any(|p| p.ds.root.join(dexjoco_formats::openpi::NORM_STATS).exists());
-    crate::restat::carry_norm_stats(had, &files, dir)?;
+    crate::restat::carry_norm_stats(had, &merged.meta, &files, dir)?;
     let text = serde_json::to_string_pretty(&Value::Object(info)).expect("json");
     fs_err::write(meta.join("info.json"), text + "\n")?;
     Ok(report)
@@ -586,7 +586,7 @@ fn copy_videos(
             });
         }
     }
-    Ok((places, files as usize))
+    Ok((places, files))
 }
 
 /// Every source's episode rows, renamed, under the union of their columns (a column a

@@ -107,10 +107,22 @@ fn largest_difference(old: &Value, new: &Value) -> f64 {
 /// whose data files are `data`, when the source had one: an edit keeps it true.
 pub(crate) fn carry_norm_stats(
     source_had: bool,
+    meta: &dexjoco_formats::dataset::lerobot_meta::InfoMeta,
     data: &[PathBuf],
     dir: &Path,
 ) -> Result<(), EditError> {
     if !source_had {
+        return Ok(());
+    }
+    if let Some(gone) = ["observation.state", "action"]
+        .into_iter()
+        .find(|k| meta.feature(k).is_none())
+    {
+        tracing::warn!(
+            "'{}' has no {gone} feature: openpi's norm_stats.json (of observation.state and \
+             action) is not written",
+            dir.display()
+        );
         return Ok(());
     }
     let norm = stats::norm_stats_of(data, NormStatsOptions::default())?;

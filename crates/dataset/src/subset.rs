@@ -145,7 +145,7 @@ pub fn write_subset(
     write_tasks(ds, &task_names, &meta)?;
     stats::write_stats(ds, &data.files, &episodes, dir)?;
     let had = ds.root.join(dexjoco_formats::openpi::NORM_STATS).exists();
-    crate::restat::carry_norm_stats(had, &data.files, dir)?;
+    crate::restat::carry_norm_stats(had, &ds.meta, &data.files, dir)?;
     let mut info = ds.info.clone();
     info.insert("total_episodes".into(), json!(rows.len()));
     info.insert("total_frames".into(), json!(report.frames));

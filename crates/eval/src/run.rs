@@ -136,6 +136,8 @@ pub fn evaluate(
     let metadata = client.metadata().clone();
     fs_err::create_dir_all(out).map_err(io_err("create", out))?;
     let _lock = DirLock::acquire(out)?;
+    // A resume writes into the folders it finds: none may be a link leading elsewhere.
+    dexjoco_formats::fs::refuse_links_within(out)?;
     let staging = out.join(STAGING);
     if staging.exists() {
         fs_err::remove_dir_all(&staging).map_err(io_err("remove", &staging))?;

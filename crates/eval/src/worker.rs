@@ -60,7 +60,7 @@ fn prepare(hello: WorkerHello, output: &mut dyn Write) -> Result<Ready, EvalErro
     let device = stage.renderer.device();
     tell(
         output,
-        &Message::Device(format!("{} ({})", device.index, device.label())),
+        &Message::Device(format!("EGL device {} ({})", device.index, device.label())),
     );
     if let Err(e) = stage.warm_up() {
         tell(output, &Message::CannotRender(one_line(&e)));

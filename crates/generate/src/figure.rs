@@ -64,9 +64,15 @@ fn panels(spec: &TaskSpec, sources: &[Vec<f64>], attempts: &[&AttemptRecord]) ->
         .collect()
 }
 
-/// The extent of a panel's axis: its range and points, with a margin.
+/// The extent of a panel's axis: its range and points, with a margin. Points further
+/// than twice the range's width from it (a record's nonsense) do not widen it: they are
+/// left outside the picture.
 fn extent(range: (f64, f64), values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values.fold(range, |(lo, hi), v| (lo.min(v), hi.max(v)));
+    let reach = 2.0 * (range.1 - range.0).abs().max(0.01);
+    let near = |v: &f64| v.is_finite() && *v >= range.0 - reach && *v <= range.1 + reach;
+    let (lo, hi) = values
+        .filter(near)
+        .fold(range, |(lo, hi), v| (lo.min(v), hi.max(v)));
     let pad = ((hi - lo) * 0.1).max(0.01);
     (lo - pad, hi + pad)
 }

@@ -204,11 +204,13 @@ fn check_record(
         return Err(format!("its seed {} is not the run's {seed}", r.seed));
     }
     let width = spec.state_layout().width();
-    if r.reset.len() != width || r.reset.iter().any(|x| !x.is_finite()) {
+    // Positions in metres, quaternions, joint angles: a value past 1000 is no state.
+    let plausible = |x: &f64| x.is_finite() && x.abs() <= 1e3;
+    if r.reset.len() != width || !r.reset.iter().all(plausible) {
         return Err(format!(
-            "its reset holds {} values (finite: {}), the task's state has {width}",
+            "its reset holds {} values (each within 1000: {}), the task's state has {width}",
             r.reset.len(),
-            r.reset.iter().all(|x| x.is_finite())
+            r.reset.iter().all(plausible)
         ));
     }
     let spans_end = r
@@ -435,4 +437,193 @@ pub(crate) fn remove_staging(out: &Path) -> Result<(), GenerateError> {
         fs_err::remove_dir_all(&staging)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    use dexjoco_testkit::hostile::{apply_bytes, apply_json, byte_edits, json_edits, run_cases};
+    use proptest::prelude::*;
+
+    use super::*;
+
+    /// A folder holding attempt 3's record and, for a success, its episode's record and
+    /// the `.zarray` of its actions.
+    fn folder(root: &Path, record: &[u8], episode: Option<(&[u8], u64)>) {
+        fs_err::create_dir_all(root.join(ATTEMPTS)).unwrap();
+        fs_err::write(root.join(ATTEMPTS).join("attempt_000003.json"), record).unwrap();
+        if let Some((json, rows)) = episode {
+            let data = root.join(episode_name(3)).join("replay.zarr/data/action");
+            fs_err::create_dir_all(&data).unwrap();
+            fs_err::write(root.join(episode_name(3)).join(GENERATE_RECORD), json).unwrap();
+            let zarray = serde_json::json!({"shape": [rows, 23]});
+            fs_err::write(data.join(".zarray"), zarray.to_string()).unwrap();
+        }
+    }
+
+    fn valid(spec: &TaskSpec) -> serde_json::Value {
+        serde_json::json!({
+            "written_by": "dexjoco-data generate",
+            "attempt": 3,
+            "seed": 11,
+            "success": true,
+            "success_step": 99,
+            "steps": 100,
+            "failure": null,
+            "subtasks": [{"id": "a", "text": "", "start": 0, "end": 60}],
+            "provenance": [],
+            "reset": vec![0.5; spec.state_layout().width()],
+        })
+    }
+
+    /// Mutated records (and episode folders that lack, or disagree with, them): reading
+    /// the resume log never panics, and every record it trusts is one the figure, the
+    /// report and the count can use (the task's reset width, a whole episode folder).
+    #[test]
+    fn hostile_resume_logs_are_checked_never_a_panic() {
+        static TRUSTED: AtomicUsize = AtomicUsize::new(0);
+        static REDONE: AtomicUsize = AtomicUsize::new(0);
+        let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
+        let doc = valid(spec);
+        let tmp = Arc::new(tempfile::tempdir().unwrap());
+        let case = Arc::new(AtomicUsize::new(0));
+        let strategy = (
+            json_edits(3),
+            prop::option::weighted(0.2, byte_edits(3)),
+            prop::option::weighted(
+                0.8,
+                (
+                    any::<bool>(),
+                    prop_oneof![3 => Just(100u64), 1 => 98u64..102],
+                ),
+            ),
+        );
+        let took = run_cases(
+            "resume log",
+            800,
+            strategy,
+            move |(edits, bytes, episode)| {
+                let text = apply_json(&doc, &edits).to_string();
+                let record = match &bytes {
+                    Some(e) => apply_bytes(text.as_bytes(), e),
+                    None => text.clone().into_bytes(),
+                };
+                let root = tmp
+                    .path()
+                    .join(case.fetch_add(1, Ordering::Relaxed).to_string());
+                // The episode's record: this one, or the valid one (which may disagree).
+                let ep = episode.map(|(same, rows)| {
+                    (
+                        if same {
+                            record.clone()
+                        } else {
+                            doc.to_string().into_bytes()
+                        },
+                        rows,
+                    )
+                });
+                folder(&root, &record, ep.as_ref().map(|(j, r)| (j.as_slice(), *r)));
+                let log = finished(&root, spec, 11).map_err(|e| e.to_string())?;
+                TRUSTED.fetch_add(log.done.len(), Ordering::Relaxed);
+                REDONE.fetch_add(log.untrusted.len(), Ordering::Relaxed);
+                for r in log.done.values() {
+                    if r.reset.len() != spec.state_layout().width() {
+                        return Err(format!("a reset of {} values trusted", r.reset.len()));
+                    }
+                    if r.success
+                        && !root
+                            .join(episode_name(r.attempt))
+                            .join("replay.zarr")
+                            .is_dir()
+                    {
+                        return Err("a success without its episode trusted".into());
+                    }
+                }
+                let records: Vec<&AttemptRecord> = log.done.values().collect();
+                if !records.is_empty() {
+                    crate::figure::write_pose_figure(&root.join("poses.png"), spec, &[], &records)
+                        .map_err(|e| e.to_string())?;
+                }
+                forget(&root, &log).map_err(|e| e.to_string())?;
+                fs_err::remove_dir_all(&root).unwrap();
+                Ok(())
+            },
+        );
+        assert!(took.as_secs() < 120, "{took:?}");
+        let trusted = TRUSTED.load(Ordering::Relaxed);
+        assert!(trusted > 20, "some records are trusted: {trusted}");
+        assert!(REDONE.load(Ordering::Relaxed) > 100, "some are not");
+    }
+
+    /// The cases that crashed or fooled a resumed run: a record with an empty reset (the
+    /// figure indexed it), a success whose episode folder was deleted (counted as made).
+    #[test]
+    fn the_records_a_resume_once_trusted_are_redone() {
+        let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let mut empty = valid(spec);
+        empty["reset"] = serde_json::json!([]);
+        let text = empty.to_string();
+        folder(tmp.path(), text.as_bytes(), Some((text.as_bytes(), 100)));
+        let log = finished(tmp.path(), spec, 11).unwrap();
+        assert!(log.done.is_empty(), "{:?}", log.done);
+        assert!(
+            log.untrusted[0].why.contains("reset holds 0 values"),
+            "{:?}",
+            log.untrusted
+        );
+        forget(tmp.path(), &log).unwrap();
+        assert!(!tmp.path().join(episode_name(3)).exists());
+        let gone = tmp.path().join("gone");
+        let text = valid(spec).to_string();
+        folder(&gone, text.as_bytes(), None);
+        let log = finished(&gone, spec, 11).unwrap();
+        assert!(
+            log.untrusted[0].why.contains("missing or incomplete"),
+            "{:?}",
+            log.untrusted
+        );
+    }
+
+    /// A run's settings fingerprint its scene by content: a resume after a file the scene
+    /// includes changed is refused, naming it (the path alone once let two scenes' episodes
+    /// share a folder).
+    #[test]
+    fn a_changed_scene_file_refuses_the_resume() {
+        let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let scenes = tmp.path().join("xmls");
+        fs_err::create_dir_all(&scenes).unwrap();
+        fs_err::write(
+            scenes.join(&spec.scene),
+            "<mujoco><include file=\"mouse.xml\"/></mujoco>",
+        )
+        .unwrap();
+        fs_err::write(scenes.join("mouse.xml"), "<mujoco/>").unwrap();
+        let config = GenerateConfig {
+            out: tmp.path().join("out"),
+            seed: 0,
+            count: 1,
+            max_attempts: 1,
+            workers: 1,
+            keep_failed: false,
+            overwrite: false,
+            shard: None,
+            options: crate::AttemptOptions::default(),
+            scene: SceneSource::Dir(scenes.clone()),
+        };
+        fs_err::create_dir_all(&config.out).unwrap();
+        let before = settings(&config, spec, &[]).unwrap();
+        check_settings(&config.out, &before, false).unwrap();
+        check_settings(&config.out, &before, false).unwrap();
+        fs_err::write(scenes.join("mouse.xml"), "<mujoco><!-- moved --></mujoco>").unwrap();
+        let after = settings(&config, spec, &[]).unwrap();
+        assert_eq!(before["scene"], after["scene"], "the same folder");
+        let e = check_settings(&config.out, &after, false)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("scene_content"), "{e}");
+    }
 }

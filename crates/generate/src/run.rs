@@ -106,6 +106,8 @@ pub fn generate(
     let out = &config.out;
     fs_err::create_dir_all(out.join(".attempts"))?;
     let _lock = dexjoco_formats::lock::lock_output(out, config.shard)?;
+    // A resume writes into the folders it finds: none may be a link leading elsewhere.
+    dexjoco_formats::fs::refuse_links_within(out)?;
     folder::check_settings(
         out,
         &folder::settings(config, spec, sources)?,

@@ -125,6 +125,8 @@ impl Store {
         let root = root.into();
         fs_err::create_dir_all(&root).map_err(io_err("create", &root))?;
         let lock = DirLock::acquire(&root)?;
+        // The store is written into where it is: no link in it may lead elsewhere.
+        dexjoco_formats::fs::refuse_links_within(&root)?;
         // A run killed while replacing a folder (under force) left its old copy aside;
         // one killed in an atomic write (the manifest) left its temporary file.
         fs_replace::recover_replaced_in(&root)?;

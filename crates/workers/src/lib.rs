@@ -29,5 +29,5 @@ mod spec;
 pub use error::PoolError;
 pub use process::WorkerPool;
 pub use protocol::{Failure, FromWorker, SLOT_ENV, ToWorker};
-pub use schedule::{JobResult, JobSet, run_jobs};
+pub use schedule::{JobResult, JobSet, WARP_WORDS, run_jobs};
 pub use spec::{DEFAULT_FIRST_FRAME_TIMEOUT, WorkerProcesses, probe_renderer};

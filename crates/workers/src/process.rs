@@ -189,12 +189,13 @@ impl Worker {
         }
     }
 
-    /// Which EGL device, in words.
+    /// Which device, in words (the worker names the renderer it opened: an EGL device,
+    /// or the Warp renderer and its device).
     fn device_words(&self) -> String {
         match (&self.device, self.assigned) {
-            (Some(d), _) => format!("on EGL device {d}"),
+            (Some(d), _) => format!("on {d}"),
             (None, Some(i)) => format!("assigned EGL device {i}, which it had not opened yet"),
-            (None, None) => "before its EGL renderer opened".to_owned(),
+            (None, None) => "before its renderer opened".to_owned(),
         }
     }
 

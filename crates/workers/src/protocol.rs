@@ -32,7 +32,8 @@ pub enum FromWorker<D> {
     /// A renderer is about to open: its first frame is due within the first-frame
     /// deadline.
     Opening,
-    /// The renderer opened on this EGL device (its label).
+    /// The renderer opened, on this device, in words (`EGL device 0 (NVIDIA H200)`,
+    /// `the Warp renderer (warp 3.17.0 on cuda:0 (NVIDIA H200))`).
     Device(String),
     /// The renderer drew its first frame.
     Ready,

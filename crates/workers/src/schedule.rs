@@ -64,6 +64,15 @@ const STALL_HINT: &str = "several processes opening EGL contexts on one GPU have
 hang on their first render (mujoco issue 3444): run fewer workers per GPU (-j), spread them over \
 GPUs with --egl-devices, check `dexjoco-data doctor`, or allow more time with --first-frame-timeout";
 
+/// How a worker rendering with the Warp batch renderer names its device
+/// ([`crate::FromWorker::Device`]).
+pub const WARP_WORDS: &str = "the Warp renderer";
+
+/// What to do when no worker can render with the Warp renderer.
+const WARP_STALL_HINT: &str = "a Warp worker compiles its kernels on its first render (minutes on \
+a new machine, cached after) and may hang in its GPU driver: allow more time with \
+--first-frame-timeout, check `dexjoco-data doctor`, or render with --renderer opengl";
+
 /// The queue and what the slots are doing, under one lock.
 struct Schedule<D> {
     /// (job index, attempt) still to run.
@@ -146,9 +155,14 @@ pub fn run_jobs<J: JobSet>(
         return Err(e);
     }
     if !s.queue.is_empty() {
+        let why = s.retired.join("; ");
+        let hint = if why.contains(WARP_WORDS) {
+            WARP_STALL_HINT
+        } else {
+            STALL_HINT
+        };
         return Err(PoolError::NoRenderer(format!(
-            "no worker process could render ({}); hint: {STALL_HINT}",
-            s.retired.join("; ")
+            "no worker process could render ({why}); hint: {hint}"
         )));
     }
     Ok(s.results

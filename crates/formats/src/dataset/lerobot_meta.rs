@@ -276,84 +276,6 @@ impl InfoMeta {
             field: field.to_owned(),
             message,
         };
-        let codebase_version = match info.get("codebase_version") {
-            Some(Value::String(v)) => v.clone(),
-            None => {
-                return Err(at(
-                    "codebase_version",
-                    "missing: a LeRobot dataset states its version (\"v3.0\")".into(),
-                ));
-            }
-            Some(other) => {
-                return Err(at(
-                    "codebase_version",
-                    format!("{} is no text", short(other)),
-                ));
-            }
-        };
-        let fps = info
-            .get("fps")
-            .and_then(Value::as_f64)
-            .filter(|f| f.is_finite() && *f > 0.0 && *f <= MAX_FPS)
-            .ok_or_else(|| {
-                at(
-                    "fps",
-                    format!(
-                        "{}: a positive number of frames per second (at most {MAX_FPS}) is needed",
-                        info.get("fps").map_or("missing".into(), short)
-                    ),
-                )
-            })?;
-        let robot_type = match info.get("robot_type") {
-            None | Some(Value::Null) => None,
-            Some(Value::String(r)) => Some(r.clone()),
-            Some(other) => return Err(at("robot_type", format!("{} is no text", short(other)))),
-        };
-        let chunks_size = match info.get("chunks_size") {
-            None | Some(Value::Null) => DEFAULT_CHUNKS_SIZE,
-            Some(v) => v
-                .as_u64()
-                .filter(|n| (1..=MAX_CHUNKS_SIZE).contains(n))
-                .ok_or_else(|| {
-                    at(
-                        "chunks_size",
-                        format!(
-                            "{}: files per chunk folder, 1 to {MAX_CHUNKS_SIZE} (lerobot's default \
-                             is {DEFAULT_CHUNKS_SIZE})",
-                            short(v)
-                        ),
-                    )
-                })?,
-        };
-        let splits = match info.get("splits") {
-            None | Some(Value::Null) => BTreeMap::new(),
-            Some(Value::Object(m)) => m
-                .iter()
-                .map(|(k, v)| match v {
-                    Value::String(s) => Ok((k.clone(), s.clone())),
-                    other => Err(at(
-                        "splits",
-                        format!(
-                            "split {k:?} is {}, not a range text as \"0:10\"",
-                            short(other)
-                        ),
-                    )),
-                })
-                .collect::<Result<_, _>>()?,
-            Some(other) => {
-                return Err(at(
-                    "splits",
-                    format!("{} is no object of name -> \"from:to\"", short(other)),
-                ));
-            }
-        };
-        let total_episodes = match info.get("total_episodes") {
-            None | Some(Value::Null) => None,
-            Some(v) => Some(
-                v.as_u64()
-                    .ok_or_else(|| at("total_episodes", format!("{} is no count", short(v))))?,
-            ),
-        };
         let features = features_of(info.get("features"), &at)?;
         let data_path = template(info, "data_path", &DATA_FIELDS, &at)?.unwrap_or_else(|| {
             PathTemplate::parse(DEFAULT_DATA_PATH, "data_path", &DATA_FIELDS).expect("valid")
@@ -367,28 +289,34 @@ impl InfoMeta {
             ),
             None => None,
         };
-        info.insert("chunks_size".into(), chunks_size.into());
-        info.insert("data_path".into(), data_path.as_str().into());
+        let meta = Self {
+            codebase_version: version_of(info, &at)?,
+            fps: fps_of(info, &at)?,
+            robot_type: text_or_null(info, "robot_type", &at)?,
+            chunks_size: chunks_size_of(info, &at)?,
+            data_path,
+            video_path,
+            splits: splits_of(info, &at)?,
+            total_episodes: match info.get("total_episodes") {
+                None | Some(Value::Null) => None,
+                Some(v) => Some(
+                    v.as_u64()
+                        .ok_or_else(|| at("total_episodes", format!("{} is no count", short(v))))?,
+                ),
+            },
+            features,
+        };
+        info.insert("chunks_size".into(), meta.chunks_size.into());
+        info.insert("data_path".into(), meta.data_path.as_str().into());
+        let video = meta.video_path.as_ref();
         info.insert(
             "video_path".into(),
-            video_path
-                .as_ref()
-                .map_or(Value::Null, |t| t.as_str().into()),
+            video.map_or(Value::Null, |t| t.as_str().into()),
         );
         info.entry("splits")
             .or_insert_with(|| Value::Object(Map::new()));
         info.entry("robot_type").or_insert(Value::Null);
-        Ok(Self {
-            codebase_version,
-            fps,
-            robot_type,
-            chunks_size,
-            data_path,
-            video_path,
-            splits,
-            total_episodes,
-            features,
-        })
+        Ok(meta)
     }
 
     /// The feature `key`.
@@ -406,12 +334,106 @@ impl InfoMeta {
     }
 }
 
+/// A field's error: the field and what is wrong with it.
+type At<'a> = &'a dyn Fn(&str, String) -> DatasetError;
+
+/// `codebase_version`: required, a text.
+fn version_of(info: &Map<String, Value>, at: At<'_>) -> Result<String, DatasetError> {
+    match info.get("codebase_version") {
+        Some(Value::String(v)) => Ok(v.clone()),
+        None => Err(at(
+            "codebase_version",
+            "missing: a LeRobot dataset states its version (\"v3.0\")".into(),
+        )),
+        Some(other) => Err(at(
+            "codebase_version",
+            format!("{} is no text", short(other)),
+        )),
+    }
+}
+
+/// `fps`: required, finite, positive, at most [`MAX_FPS`].
+fn fps_of(info: &Map<String, Value>, at: At<'_>) -> Result<f64, DatasetError> {
+    info.get("fps")
+        .and_then(Value::as_f64)
+        .filter(|f| f.is_finite() && *f > 0.0 && *f <= MAX_FPS)
+        .ok_or_else(|| {
+            at(
+                "fps",
+                format!(
+                    "{}: a positive number of frames per second (at most {MAX_FPS}) is needed",
+                    info.get("fps").map_or("missing".into(), short)
+                ),
+            )
+        })
+}
+
+/// A text field that may be absent or null.
+fn text_or_null(
+    info: &Map<String, Value>,
+    field: &str,
+    at: At<'_>,
+) -> Result<Option<String>, DatasetError> {
+    match info.get(field) {
+        None | Some(Value::Null) => Ok(None),
+        Some(Value::String(r)) => Ok(Some(r.clone())),
+        Some(other) => Err(at(field, format!("{} is no text", short(other)))),
+    }
+}
+
+/// `chunks_size`: absent or null is lerobot's default.
+fn chunks_size_of(info: &Map<String, Value>, at: At<'_>) -> Result<u64, DatasetError> {
+    match info.get("chunks_size") {
+        None | Some(Value::Null) => Ok(DEFAULT_CHUNKS_SIZE),
+        Some(v) => v
+            .as_u64()
+            .filter(|n| (1..=MAX_CHUNKS_SIZE).contains(n))
+            .ok_or_else(|| {
+                at(
+                    "chunks_size",
+                    format!(
+                        "{}: files per chunk folder, 1 to {MAX_CHUNKS_SIZE} (lerobot's default \
+                         is {DEFAULT_CHUNKS_SIZE})",
+                        short(v)
+                    ),
+                )
+            }),
+    }
+}
+
+/// `splits`: name -> "from:to"; absent or null is none.
+fn splits_of(
+    info: &Map<String, Value>,
+    at: At<'_>,
+) -> Result<BTreeMap<String, String>, DatasetError> {
+    match info.get("splits") {
+        None | Some(Value::Null) => Ok(BTreeMap::new()),
+        Some(Value::Object(m)) => m
+            .iter()
+            .map(|(k, v)| match v {
+                Value::String(s) => Ok((k.clone(), s.clone())),
+                other => Err(at(
+                    "splits",
+                    format!(
+                        "split {k:?} is {}, not a range text as \"0:10\"",
+                        short(other)
+                    ),
+                )),
+            })
+            .collect(),
+        Some(other) => Err(at(
+            "splits",
+            format!("{} is no object of name -> \"from:to\"", short(other)),
+        )),
+    }
+}
+
 /// The template `field` of `info` (`None`: absent or null, the default applies).
 fn template(
     info: &Map<String, Value>,
     field: &str,
     needed: &[Placeholder],
-    at: &dyn Fn(&str, String) -> DatasetError,
+    at: At<'_>,
 ) -> Result<Option<PathTemplate>, DatasetError> {
     match info.get(field) {
         None | Some(Value::Null) => Ok(None),
@@ -426,7 +448,7 @@ fn template(
 /// is bounded, and video keys that can be folder names.
 fn features_of(
     features: Option<&Value>,
-    at: &dyn Fn(&str, String) -> DatasetError,
+    at: At<'_>,
 ) -> Result<Vec<(String, FeatureMeta)>, DatasetError> {
     let Some(Value::Object(features)) = features else {
         return Err(at(

@@ -24,8 +24,8 @@ mod write;
 mod zarr_read;
 
 pub use record::{
-    EvalRollout, PLAN_RECORD, REPLAY_RECORD, RenderCheck, RenderFlag, ReplayLabel,
-    read_eval_rollout, read_replay_label, read_subtask_spans, replay_success,
+    EvalRollout, MAX_RECORD_STEPS, PLAN_RECORD, REPLAY_RECORD, RenderCheck, RenderFlag,
+    ReplayLabel, read_eval_rollout, read_replay_label, read_subtask_spans, replay_success,
 };
 use write::ATTRIBUTES_FILE;
 pub use write::{own_instruction, write_raw_episode, write_replay_zarr};

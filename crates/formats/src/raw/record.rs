@@ -288,7 +288,7 @@ pub fn read_replay_label(dir: &Path) -> Result<Option<ReplayLabel>> {
     }
     for name in ["steps", "recorded_steps"] {
         if let Some(n) = v.get(name)
-            && !n.as_u64().is_some_and(|n| n <= MAX_RECORD_STEPS)
+            && n.as_u64().is_none_or(|n| n > MAX_RECORD_STEPS)
         {
             return Err(FormatError::input(
                 ProblemCode::Corrupt,

@@ -109,7 +109,7 @@ impl WarpRenderer {
             SceneXml::Path(p) => request["xml_path"] = p.display().to_string().into(),
             SceneXml::Text(t) => request["xml"] = t.clone().into(),
         }
-        let (reply, _) = worker.call(&request, &[])?;
+        let (reply, _) = worker.call(&request, &[], 0)?;
         let open_seconds = reply
             .get("open_seconds")
             .and_then(serde_json::Value::as_f64)
@@ -189,7 +189,8 @@ impl WarpRenderer {
             "worlds": n,
             "table_geom": self.table_geom,
         });
-        let (reply, data) = self.worker.call(&request, &payload)?;
+        let expect = self.reply_bytes(n);
+        let (reply, data) = self.worker.call(&request, &payload, expect)?;
         let got = Instant::now();
         let reply: RenderReply = serde_json::from_value(reply)
             .map_err(|e| SimError::Warp(format!("unexpected render reply: {e}")))?;
@@ -208,12 +209,18 @@ impl WarpRenderer {
         Ok(frames)
     }
 
+    /// The bytes of `n` images as the worker packs them: 4 per pixel, twice with depth.
+    fn reply_bytes(&self, n: usize) -> usize {
+        let pixels = self.settings.width as usize * self.settings.height as usize;
+        n * pixels * 4 * if self.settings.depth { 2 } else { 1 }
+    }
+
     /// RGB (and depth) frames from the reply's packed pixels.
     fn unpack(&self, n: usize, worlds: usize, data: &[u8]) -> Result<Vec<Frame>, SimError> {
         let (w, h) = (self.settings.width, self.settings.height);
         let pixels = w as usize * h as usize;
         let depth = self.settings.depth;
-        let expect = n * pixels * 4 * if depth { 2 } else { 1 };
+        let expect = self.reply_bytes(n);
         if worlds != n || data.len() != expect {
             return Err(SimError::Warp(format!(
                 "the worker answered {worlds} images in {} bytes, expected {n} in {expect}",

@@ -150,12 +150,15 @@ impl WarpWorker {
                     ))
                 })?,
         };
-        let mut child = Command::new(&python)
+        let mut command = Command::new(&python);
+        command
             .args(["-u", "-c", WORKER_SCRIPT])
             .env("PYTHONUNBUFFERED", "1")
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
+            .stderr(Stdio::piped());
+        dies_with_parent(&mut command);
+        let mut child = command
             .spawn()
             .map_err(|e| SimError::Warp(format!("cannot start {}: {e}", python.display())))?;
         let stderr = Arc::new(Mutex::new(VecDeque::new()));
@@ -191,6 +194,7 @@ impl WarpWorker {
             .call(
                 &serde_json::json!({"op": "hello", "device": options.device}),
                 &[],
+                0,
             )
             .map_err(|e| {
                 SimError::Warp(format!(
@@ -235,14 +239,17 @@ impl WarpWorker {
         Ok(())
     }
 
-    /// One request and its reply: JSON header and payload each way.
+    /// One request and its reply: JSON header and payload each way; a reply whose
+    /// payload would be larger than `expect` bytes (what was asked for) is refused before
+    /// any of it is read.
     pub(super) fn call(
         &mut self,
         request: &serde_json::Value,
         payload: &[u8],
+        expect: usize,
     ) -> Result<(serde_json::Value, Vec<u8>), SimError> {
         let sent = self.send(request, payload);
-        let reply = sent.and_then(|()| self.receive());
+        let reply = sent.and_then(|()| read_reply(&mut self.stdout, expect as u64));
         let (header, data) = reply.map_err(|e| self.died(&e))?;
         if header.get("ok") != Some(&serde_json::Value::Bool(true)) {
             let error = header
@@ -268,29 +275,6 @@ impl WarpWorker {
         self.stdin.flush()
     }
 
-    fn receive(&mut self) -> std::io::Result<(serde_json::Value, Vec<u8>)> {
-        let mut head = [0u8; 12];
-        self.stdout.read_exact(&mut head)?;
-        let json_len = u32::from_le_bytes(head[..4].try_into().expect("4"));
-        let payload_len = u64::from_le_bytes(head[4..].try_into().expect("8"));
-        if json_len > MAX_HEADER {
-            return Err(std::io::Error::other(format!(
-                "a reply header of {json_len} bytes"
-            )));
-        }
-        let mut body = vec![0u8; json_len as usize];
-        self.stdout.read_exact(&mut body)?;
-        let header = serde_json::from_slice(&body).map_err(std::io::Error::other)?;
-        let mut data = Vec::new();
-        (&mut self.stdout)
-            .take(payload_len)
-            .read_to_end(&mut data)?;
-        if data.len() as u64 != payload_len {
-            return Err(std::io::Error::other("the reply ended early"));
-        }
-        Ok((header, data))
-    }
-
     /// The error of a broken pipe: the worker's last words.
     fn died(&mut self, e: &std::io::Error) -> SimError {
         let status = self.child.try_wait().ok().flatten();
@@ -313,6 +297,70 @@ impl Drop for WarpWorker {
     }
 }
 
+/// Reads one framed reply (12-byte header: u32 JSON length, u64 payload length; the JSON
+/// object; the payload) from `r`, refusing a header of more than 16 MiB, a payload of more
+/// than `max_payload` bytes (both before reading them) and a JSON header that is not an
+/// object: the worker is another program, its bytes are checked like a file's.
+pub fn read_reply<R: Read>(
+    r: &mut R,
+    max_payload: u64,
+) -> std::io::Result<(serde_json::Value, Vec<u8>)> {
+    let mut head = [0u8; 12];
+    r.read_exact(&mut head)?;
+    let json_len = u32::from_le_bytes(head[..4].try_into().expect("4"));
+    let payload_len = u64::from_le_bytes(head[4..].try_into().expect("8"));
+    if json_len > MAX_HEADER {
+        return Err(std::io::Error::other(format!(
+            "the Warp worker's reply has a header of {json_len} bytes (at most {MAX_HEADER})"
+        )));
+    }
+    if payload_len > max_payload {
+        return Err(std::io::Error::other(format!(
+            "the Warp worker's reply claims {payload_len} bytes of images where at most \
+             {max_payload} were asked for"
+        )));
+    }
+    let mut body = vec![0u8; json_len as usize];
+    r.read_exact(&mut body)?;
+    let header: serde_json::Value = serde_json::from_slice(&body).map_err(std::io::Error::other)?;
+    if !header.is_object() {
+        return Err(std::io::Error::other(
+            "the Warp worker's reply header is not a JSON object",
+        ));
+    }
+    let mut data = vec![0u8; payload_len as usize];
+    r.read_exact(&mut data)?;
+    Ok((header, data))
+}
+
+/// Makes the worker die with this process (Linux's parent-death signal, SIGKILL): a
+/// worker left behind by a killed augment process would hold its GPU. The signal follows
+/// the thread that starts the worker, which owns it until it ends (each render thread
+/// keeps its own worker).
+fn dies_with_parent(command: &mut Command) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::process::CommandExt;
+        let parent = rustix::process::getpid();
+        // SAFETY: only async-signal-safe system calls run between fork and exec.
+        #[allow(unsafe_code)]
+        unsafe {
+            command.pre_exec(move || {
+                rustix::process::set_parent_process_death_signal(Some(
+                    rustix::process::Signal::KILL,
+                ))?;
+                // The parent may have died before the signal was asked for.
+                if rustix::process::getppid() != Some(parent) {
+                    return Err(std::io::Error::other("dexjoco-data ended"));
+                }
+                Ok(())
+            });
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = command;
+}
+
 #[derive(Deserialize)]
 struct HelloReply {
     device: String,
@@ -333,6 +381,73 @@ fn has_warp(python: &Path) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A framed reply as the worker writes it.
+    fn frame(header: &serde_json::Value, payload: &[u8]) -> Vec<u8> {
+        let body = serde_json::to_vec(header).unwrap();
+        let mut out = (body.len() as u32).to_le_bytes().to_vec();
+        out.extend((payload.len() as u64).to_le_bytes());
+        out.extend(body);
+        out.extend(payload);
+        out
+    }
+
+    /// The reply that once made augment read 2^60 bytes into memory: refused from its
+    /// header, before any of the payload is read.
+    #[test]
+    fn a_reply_larger_than_asked_is_refused_before_it_is_read() {
+        let mut bytes = frame(&serde_json::json!({"ok": true}), &[]);
+        bytes[4..12].copy_from_slice(&(1u64 << 60).to_le_bytes());
+        // An endless stream of zeros after it: reading it would never end.
+        let mut r = std::io::Read::chain(&bytes[..], std::io::repeat(0));
+        let e = read_reply(&mut r, 4096).unwrap_err().to_string();
+        assert!(
+            e.contains("Warp worker") && e.contains("1152921504606846976"),
+            "{e}"
+        );
+        let (h, d) =
+            read_reply(&mut &frame(&serde_json::json!({"ok": 1}), &[7; 16])[..], 16).unwrap();
+        assert_eq!((h["ok"].as_i64(), d.len()), (Some(1), 16));
+    }
+
+    /// Replies of arbitrary bytes, and valid replies edited byte by byte: each is read or
+    /// refused, never a panic, never more payload than asked for.
+    #[test]
+    fn hostile_replies_are_bounded_by_what_was_asked() {
+        use dexjoco_testkit::hostile::{apply_bytes, byte_edits, run_cases};
+        use proptest::prelude::*;
+        let valid = [
+            frame(
+                &serde_json::json!({"ok": true, "worlds": 2, "times": {"render": 0.1}}),
+                &[9; 64],
+            ),
+            frame(&serde_json::json!({"ok": false, "error": "boom"}), &[]),
+        ];
+        let strategy = (
+            0..valid.len(),
+            byte_edits(4),
+            prop::collection::vec(any::<u8>(), 0..64),
+            any::<bool>(),
+        );
+        run_cases(
+            "warp replies",
+            3000,
+            strategy,
+            move |(v, edits, raw, use_raw)| {
+                let bytes = if use_raw {
+                    raw
+                } else {
+                    apply_bytes(&valid[v], &edits)
+                };
+                match read_reply(&mut &bytes[..], 64) {
+                    Ok((h, d)) if !h.is_object() || d.len() > 64 => {
+                        Err(format!("read {} bytes, header {h}", d.len()))
+                    }
+                    _ => Ok(()),
+                }
+            },
+        );
+    }
 
     #[test]
     fn the_pins_are_those_setup_and_the_wheel_install() {
