@@ -512,15 +512,16 @@ fn features_of(
     Ok(out)
 }
 
-/// A shape: a list of 1 to 8 positive sizes (absent: `[1]`, as lerobot's scalars).
+/// A shape: a list of at most 8 positive sizes (absent: `[1]`, as lerobot's scalars; an
+/// empty list is a scalar too, as numpy's `()`).
 fn shape_of(v: Option<&Value>) -> Result<Vec<u64>, String> {
     let Some(v) = v else {
         return Ok(vec![1]);
     };
     let dims = v
         .as_array()
-        .filter(|a| (1..=8).contains(&a.len()))
-        .ok_or_else(|| format!("{} is no list of 1 to 8 sizes", short(v)))?;
+        .filter(|a| a.len() <= 8)
+        .ok_or_else(|| format!("{} is no list of at most 8 sizes", short(v)))?;
     dims.iter()
         .map(|d| {
             d.as_u64().filter(|n| *n >= 1).ok_or_else(|| {

@@ -168,6 +168,9 @@ impl LeRobotDataset {
             .ok_or_else(|| bad(&path, "no task_index column"))?;
         let index = arrow_cast::cast(index, &DataType::Int64)
             .map_err(|e| bad(&path, &format!("task_index: {e}")))?;
+        if index.null_count() > 0 {
+            return Err(bad(&path, "task_index has a null"));
+        }
         let index = index.as_any().downcast_ref::<Int64Array>().expect("int64");
         // pandas writes the index (the task string) as `task` or `__index_level_0__`.
         let names = ["task", "__index_level_0__"]
@@ -186,6 +189,9 @@ impl LeRobotDataset {
                         &format!("task_index {} out of range", index.value(i)),
                     )
                 })?;
+            if !by_index[at].is_empty() {
+                return Err(bad(&path, &format!("task_index {at} is given twice")));
+            }
             by_index[at] = name;
         }
         Ok(by_index)
