@@ -5,7 +5,8 @@
 first, then answers every observation
 
     {<policy image key>: uint8 (224, 224, 3), ..., "state": float64 (23,) or (46,),
-     "prompt": str, ["dexjoco/...": extra keys, ignored here]}
+     "prompt": str, ["environment_state": float64 with eval --environment-state],
+     ["dexjoco/...": extra keys, ignored here]}
 
 with ``{"actions": (chunk_len, 22 or 44)}`` (per arm: xyz, rotation vector, 16 hand joints).
 This script loads a LeRobot checkpoint folder (the ``pretrained_model`` folder that
@@ -77,6 +78,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OPENPI_SRC = REPO_ROOT.parent / "shared" / "third_party" / "dexjoco-8d23b0f" / "openpi" / "src"
 IMAGE_PREFIX = "observation.images."
 STATE_KEY = "observation.state"
+ENV_KEY = "observation.environment_state"  # eval sends it as environment_state (--environment-state)
 EVAL_IMAGE_SIZE = 224  # eval pads and resizes every camera to 224x224
 
 
@@ -158,8 +160,8 @@ class LeRobotPolicy:
             postprocessor_overrides={"device_processor": device_override},
         )
 
-        if config.env_state_feature is not None:
-            raise SystemExit("policies with an environment-state input (observation.environment_state) are not supported")
+        env_ft = config.env_state_feature
+        self.env_dim = int(env_ft.shape[0]) if env_ft is not None else None
         state_ft = config.robot_state_feature
         self.state_dim = int(state_ft.shape[0]) if state_ft is not None else None
         action_ft = config.action_feature
@@ -226,6 +228,16 @@ class LeRobotPolicy:
                     "(eval --pad-state-dim46 pads a one-arm state to 46)"
                 )
             raw[STATE_KEY] = np.array(state, copy=True)
+        if self.env_dim is not None:
+            if "environment_state" not in obs:
+                raise KeyError(
+                    "the policy takes observation.environment_state, but the observation has no "
+                    "environment_state: run eval with --environment-state"
+                )
+            env = np.asarray(obs["environment_state"], dtype=np.float32).reshape(-1)
+            if env.shape[0] != self.env_dim:
+                raise ValueError(f"environment_state has {env.shape[0]} values, the policy expects {self.env_dim}")
+            raw[ENV_KEY] = np.array(env, copy=True)
 
         prompt = obs.get("prompt")
         batch = prepare_observation_for_inference(raw, self.device, task=prompt if isinstance(prompt, str) else None)
@@ -271,6 +283,8 @@ class LeRobotPolicy:
         }
         if self.state_dim is not None:
             obs["state"] = np.zeros(self.state_dim, dtype=np.float64)
+        if self.env_dim is not None:
+            obs["environment_state"] = np.zeros(self.env_dim, dtype=np.float64)
         obs["prompt"] = ""
         return obs
 

@@ -13,6 +13,9 @@ export DEXJOCO_DIFFUSION_POLICY="${DEXJOCO_DIFFUSION_POLICY:-$(cat "$ROOT/.deps/
 export DEXJOCO_REFERENCE_PYTHON="$(cat "$ROOT/.deps/reference-python-path")"
 export DEXJOCO_WARP_PYTHON="$(cat "$ROOT/.deps/warp-python-path")"
 
+# A clean build gains nothing from incremental compilation's caches (gigabytes of them).
+export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
+
 echo "== cargo fmt --check" >&2
 cargo fmt --all -- --check
 echo "== cargo clippy -D warnings" >&2

@@ -806,3 +806,98 @@ fn evaluated_rollouts_convert_to_a_dataset_with_their_videos_and_verdicts() {
     assert_eq!(kept("outcome/subtasks_done == 0"), 1);
     assert_eq!(kept("outcome/first_success >= 0"), 1);
 }
+
+/// A state-only evaluation (`--environment-state --no-cameras --no-videos`) renders
+/// nothing (counted), and the environment state each observation carries is, bit for bit
+/// (as the float32 a dataset stores), the row `convert --environment-state` writes for
+/// the same step of the rollout: one function builds both. The plan's own environment
+/// state (recorded by `scripted`) agrees along the way. lerobot 0.6.1 loads the feature
+/// with its names and statistics, and ACT builds and trains with it as its only input
+/// beside the proprioception.
+#[test]
+fn a_state_only_evaluation_renders_nothing_and_sends_the_datasets_environment_state() {
+    let tmp = tempfile::tempdir().unwrap();
+    let plans = tmp.path().join("plans");
+    let plan = plan("hammer_nail", "5", &plans, None).expect("a plan that succeeds");
+    let log = tmp.path().join("answers.jsonl");
+    let server = Server::start(&[
+        "oracle",
+        "--plans",
+        plans.to_str().unwrap(),
+        "--log",
+        log.to_str().unwrap(),
+    ]);
+    let out = tmp.path().join("eval");
+    let o = run(dexjoco()
+        .args(["-q", "eval", "--task", "hammer_nail", "--host", "127.0.0.1"])
+        .args(["--port", &server.port.to_string()])
+        .args(["--privileged-keys", "--environment-state", "--no-cameras"])
+        .args(["--no-videos", "--server-wait", "0", "--episodes", "1"])
+        .arg("--resets-from")
+        .arg(&plan)
+        .arg("--output")
+        .arg(&out));
+    assert_eq!(o.status.code(), Some(0), "{}", said(&o));
+    let (dir, record) = episode(&out, 0);
+    assert_eq!(record["success"], true, "{record}");
+    assert_eq!(record["frames_rendered"], 0, "{record}");
+    assert_eq!(
+        dexjoco_testkit::file_tree(&dir)
+            .keys()
+            .filter(|k| k.ends_with(".mp4"))
+            .count(),
+        0
+    );
+
+    let ds = tmp.path().join("ds");
+    common::succeeds(
+        dexjoco()
+            .args([
+                "-q",
+                "convert",
+                "--no-skip-static",
+                "--environment-state",
+                "--out",
+            ])
+            .arg(&ds)
+            .arg(&out),
+    );
+    let rows = dexjoco_testkit::run_python_json("lerobot_env_state.py", &[ds.to_str().unwrap()]);
+    let column: Vec<Vec<f64>> = serde_json::from_value(rows["environment_state"].clone()).unwrap();
+    let names: Vec<String> = serde_json::from_value(rows["names"].clone()).unwrap();
+    let spec = dexjoco_core::TaskSpec::builtin("hammer_nail").unwrap();
+    assert_eq!(names, spec.environment_state_names());
+    let planned = dexjoco_formats::read_episode(&plan, TaskSet::builtin()).unwrap();
+    let planned = planned
+        .array("environment_state")
+        .expect("scripted records it");
+    let mut compared = 0;
+    for line in fs_err::read_to_string(&log).unwrap().lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let step = v["step"].as_u64().unwrap() as usize;
+        let sent: Vec<f64> = serde_json::from_value(v["environment_state"].clone()).unwrap();
+        let stored = &column[step];
+        for (a, b) in sent.iter().zip(stored) {
+            assert_eq!(
+                (*a as f32).to_bits(),
+                (*b as f32).to_bits(),
+                "step {step}: {sent:?} vs {stored:?}"
+            );
+        }
+        if step < planned.len() {
+            let close = planned
+                .row(step)
+                .iter()
+                .zip(&sent)
+                .all(|(p, s)| (p - s).abs() < 1e-6);
+            assert!(
+                close,
+                "step {step}: the plan's {:?} vs {sent:?}",
+                planned.row(step)
+            );
+        }
+        compared += 1;
+    }
+    assert!(compared >= 3, "{compared} observations");
+    assert_eq!(rows["act_trained"], true, "{rows}");
+}

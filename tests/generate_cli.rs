@@ -245,3 +245,49 @@ fn generate_dry_run_estimates_and_writes_nothing() {
         "a dry run writes nothing"
     );
 }
+
+/// A source whose recording ends before its success (as a recording made with another
+/// MuJoCo may: the reason for augment's `--extend-steps`) is left out with the strict
+/// replay, and accepted with the default extension, named in the report with the steps
+/// it went on.
+#[test]
+fn a_source_that_succeeds_only_past_its_end_is_extended_and_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let spec = dexjoco_core::TaskSpec::builtin("click_mouse").unwrap();
+    let sample =
+        dexjoco_testkit::workspace_root().join("datasets/demos/click_mouse/episode_000000");
+    let mut ep = dexjoco_formats::raw::read_raw_episode(&sample, spec)
+        .unwrap()
+        .episode;
+    let cut = ep.len() - 3;
+    for a in ep.arrays.values_mut() {
+        let w = a.width();
+        *a = dexjoco_core::FrameArray::new(w, a.as_slice()[..cut * w].to_vec()).unwrap();
+    }
+    let source = tmp.path().join("late/click_mouse/episode_000000");
+    dexjoco_formats::raw::write_raw_episode(&source, &ep, spec).unwrap();
+    let late = tmp.path().join("late/click_mouse");
+    let strict = generate(tmp.path(), &["--count", "1", "--extend-steps", "0"])
+        .arg(&late)
+        .output()
+        .unwrap();
+    let text = common::said(&strict);
+    assert_eq!(strict.status.code(), Some(1), "{text}");
+    assert!(text.contains("never ends when it is replayed"), "{text}");
+    ok(generate(tmp.path(), &["--count", "1"])
+        .arg(&late)
+        .output()
+        .unwrap());
+    let dir = tmp.path().join("generate/click_mouse");
+    let report: serde_json::Value =
+        serde_json::from_slice(&fs_err::read(dir.join("generate_report.json")).unwrap()).unwrap();
+    let extended = &report["sources_extended"];
+    assert_eq!(extended[0][0], "episode_000000", "{report}");
+    let steps = extended[0][1].as_u64().unwrap();
+    assert!((1..=30).contains(&steps), "{report}");
+    let md = fs_err::read_to_string(dir.join("generate_report.md")).unwrap();
+    assert!(
+        md.contains(&format!("episode_000000: {steps} step(s) past its end")),
+        "{md}"
+    );
+}

@@ -121,6 +121,15 @@ pub struct EvalArgs {
     /// drop keys they do not know).
     #[arg(long)]
     pub privileged_keys: bool,
+    /// Add `environment_state` (float64) to every observation: each of the task's state
+    /// objects' pose now, then the table offset dh, as `convert --environment-state`
+    /// exports it (`observation.environment_state`) for state-based policies.
+    #[arg(long)]
+    pub environment_state: bool,
+    /// The policy takes no camera: no image is sent and, with --no-videos, nothing is
+    /// rendered (the episode runs at the simulator's speed).
+    #[arg(long)]
+    pub no_cameras: bool,
     /// Seconds each wait for the server may last, in wall-clock time whatever the server
     /// sends meanwhile: the connection, the websocket handshake, its metadata, and each
     /// answer (sending the observation included). Past it: exit 1 naming the wait.

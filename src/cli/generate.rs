@@ -86,6 +86,13 @@ pub struct GenerateArgs {
     #[arg(long, default_value_t = dexjoco_generate::AttemptOptions::default().grace_steps,
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=10_000))]
     pub grace_steps: usize,
+    /// Steps a source's replay may go on past its recording, its last action repeated,
+    /// to reach its success (a recording made with another MuJoCo may succeed a few steps
+    /// late; as augment --extend-steps). Sources that needed it are named in the report;
+    /// 0: the strict replay.
+    #[arg(long, default_value_t = dexjoco_core::DEFAULT_EXTEND_STEPS, value_name = "N",
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=100_000))]
+    pub extend_steps: usize,
     /// Keep failed attempts' episodes (OUT/<task>/.failed/attempt_NNNNNN, with where
     /// they failed).
     #[arg(long)]

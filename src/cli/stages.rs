@@ -235,6 +235,14 @@ pub struct ConvertArgs {
     /// (Diffusion Policy), one name per column from the task spec.
     #[arg(long)]
     pub privileged_state: bool,
+    /// Also export the environment state at every frame (each of the task's state objects'
+    /// pose now, then the table offset dh, as augment, generate, scripted and eval record
+    /// it) as `observation.environment_state` (LeRobot's key: its ACT and Diffusion Policy
+    /// take it as input) or data/environment_state (Diffusion Policy), one name per column
+    /// from the task spec. An episode without it (a recording not replayed) is left out
+    /// and named.
+    #[arg(long)]
+    pub environment_state: bool,
     /// Also carry each camera's depth (augment --depth's videos/<camera>_depth.npz, float32
     /// metres): LeRobot v3.0 as lerobot 0.6.1 stores depth (video feature
     /// observation.images.<camera>_depth, 12-bit log-quantized, lossless HEVC), Diffusion

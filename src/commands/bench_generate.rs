@@ -101,7 +101,7 @@ fn scripted_sources(scene: &Scene, spec: &TaskSpec, n: usize) -> anyhow::Result<
         let id = format!("{}_scripted_seed1000_{k}", spec.id);
         let plan = scripted::plan(scene, spec, &s0, &id, Variant::Demo)?;
         if plan.success_at.is_some()
-            && let Ok(s) = SourceDemo::prepare(scene, spec, &plan.episode)
+            && let Ok(s) = SourceDemo::prepare(scene, spec, &plan.episode, 0)
         {
             sources.push(s);
         }

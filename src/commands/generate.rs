@@ -25,7 +25,7 @@ pub fn run(global: &GlobalArgs, args: GenerateArgs) -> anyhow::Result<ExitStatus
         quiet,
     } = GenerateSettings::resolve(args, global, super::augment::sample_data)?;
     let scene = load_task_scene(&scene, &task)?;
-    let (sources, left_out) = sources(&inputs, &tasks, &task, &scene)?;
+    let (sources, left_out) = sources(&inputs, &tasks, &task, &scene, config.extend_steps)?;
     for (name, why) in &left_out {
         errln!("source left out: {name}: {why}");
     }
@@ -105,6 +105,7 @@ fn sources(
     tasks: &TaskSet,
     spec: &TaskSpec,
     scene: &Scene,
+    extend_steps: usize,
 ) -> anyhow::Result<(Vec<SourceDemo>, Vec<LeftOut>)> {
     let found = dexjoco_formats::discover(inputs, None)?;
     if found.is_empty() {
@@ -134,7 +135,8 @@ fn sources(
                 let why = format!("an episode of '{}', not '{}'", read.episode.task, spec.id);
                 return (name, Err(why));
             }
-            let demo = SourceDemo::prepare(scene, spec, &read.episode).map_err(|e| e.to_string());
+            let demo = SourceDemo::prepare(scene, spec, &read.episode, extend_steps)
+                .map_err(|e| e.to_string());
             (name, demo)
         })
         .collect();

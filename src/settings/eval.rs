@@ -37,6 +37,8 @@ impl EvalSettings {
             quality,
             no_videos,
             privileged_keys,
+            environment_state,
+            no_cameras,
             deadline,
             server_wait,
             step_cap,
@@ -49,16 +51,14 @@ impl EvalSettings {
         } = args;
         let tasks_dir = tasks.tasks_dir.clone();
         let known = task_set(&tasks)?;
-        let mut eval_task = match (&config, &task) {
-            (Some(path), _) => EvalTask::load(path).map_err(eval_usage)?,
-            (None, Some(id)) => EvalTask::of_spec(known_task(&known, id)?, rand_full),
-            (None, None) => unreachable!("clap requires one"),
-        };
-        let spec = known_task(&known, &eval_task.task)?;
-        if let Some(p) = prompt {
-            eval_task.prompt = p;
-        }
-        eval_task.check(spec, rand_full).map_err(eval_usage)?;
+        let eval_task = eval_task_of(
+            config.as_deref(),
+            task.as_deref(),
+            prompt,
+            &known,
+            rand_full,
+            no_cameras,
+        )?;
         check_numbers(replan_ratio)?;
         let out = output.unwrap_or_else(|| default_out(global, &eval_task.task, rand_full));
         let read = reads(
@@ -92,6 +92,7 @@ impl EvalSettings {
             quality: quality.name().to_owned(),
             videos: !no_videos,
             privileged_keys,
+            environment_state,
             deadline_secs: deadline,
             server_wait_secs: server_wait,
             step_cap: step_cap.map(|n| n as usize),
@@ -203,4 +204,40 @@ fn initial_states_from(path: &Path, tasks: &TaskSet) -> anyhow::Result<Vec<Vec<f
         ));
     }
     Ok(states)
+}
+
+/// The task as the policy sees it: the config file's or `--task`'s, with `--prompt`, checked
+/// against the task; with `--no-cameras` no camera at all.
+fn eval_task_of(
+    config: Option<&Path>,
+    task: Option<&str>,
+    prompt: Option<String>,
+    known: &dexjoco_core::TaskSet,
+    rand_full: bool,
+    no_cameras: bool,
+) -> anyhow::Result<EvalTask> {
+    let mut eval_task = match (config, task) {
+        (Some(path), _) => EvalTask::load(path).map_err(eval_usage)?,
+        (None, Some(id)) => EvalTask::of_spec(known_task(known, id)?, rand_full),
+        (None, None) => unreachable!("clap requires one"),
+    };
+    let spec = known_task(known, &eval_task.task)?;
+    if let Some(p) = prompt {
+        eval_task.prompt = p;
+    }
+    if eval_task.camera_mapping.is_empty() && !no_cameras {
+        return Err(usage(
+            format!(
+                "{} ({}): camera_mapping is empty: the policy would see no image",
+                eval_task.task, eval_task.source
+            ),
+            "for a policy that takes no camera, pass --no-cameras",
+        ));
+    }
+    eval_task.check(spec, rand_full).map_err(eval_usage)?;
+    // The policy takes no camera: nothing is sent, nothing rendered.
+    if no_cameras {
+        eval_task.camera_mapping.clear();
+    }
+    Ok(eval_task)
 }

@@ -321,6 +321,7 @@ impl ConvertSettings {
             include_failed,
             include_flagged,
             privileged_state,
+            environment_state,
             depth,
             no_skip_static,
             merge_bimanual,
@@ -360,20 +361,7 @@ impl ConvertSettings {
                 ],
             ),
         )?;
-        let mut selection = match &config {
-            None => Selection::default(),
-            Some(p) if p.is_dir() => Selection::from_reference_dir(p)?,
-            Some(p) => Selection::load(p)?,
-        };
-        // The task set's own variants (a --tasks-dir spec's too), then the file's.
-        for spec in tasks.iter() {
-            (selection.prompt_variants)
-                .entry(spec.id.clone())
-                .or_insert_with(|| spec.prompt_variants.clone());
-        }
-        if let Some(path) = &instructions {
-            selection.load_prompt_variants(path)?;
-        }
+        let mut selection = selection_of(config.as_deref(), &tasks, instructions.as_deref())?;
         if no_skip_static {
             selection.skip_static_frames = false;
         }
@@ -386,7 +374,7 @@ impl ConvertSettings {
             options: ConvertOptions {
                 include_failed,
                 include_flagged,
-                privileged_state: privileged_state.then(|| tasks.clone()),
+                state_features: state_features(&tasks, environment_state, privileged_state),
                 depth,
                 protected_inputs: inputs.clone(),
                 protected_dirs: vec![global.work_dir.clone()],
@@ -555,4 +543,41 @@ fn language_options(
             JsBaseArg::E => dexjoco_stats::LogBase::E,
         },
     })
+}
+
+/// The state features `convert` exports beyond the proprioception, if any.
+fn state_features(
+    tasks: &dexjoco_core::TaskSet,
+    environment: bool,
+    privileged: bool,
+) -> Option<dexjoco_convert::StateFeatures> {
+    (environment || privileged).then(|| dexjoco_convert::StateFeatures {
+        tasks: tasks.clone(),
+        environment,
+        privileged,
+    })
+}
+
+/// The selection of a convert `--config` (a file, the reference's config folder, or the
+/// defaults), with the task set's prompt variants (a `--tasks-dir` spec's too), then an
+/// `--instructions` file's.
+fn selection_of(
+    config: Option<&Path>,
+    tasks: &dexjoco_core::TaskSet,
+    instructions: Option<&Path>,
+) -> anyhow::Result<Selection> {
+    let mut selection = match config {
+        None => Selection::default(),
+        Some(p) if p.is_dir() => Selection::from_reference_dir(p)?,
+        Some(p) => Selection::load(p)?,
+    };
+    for spec in tasks.iter() {
+        (selection.prompt_variants)
+            .entry(spec.id.clone())
+            .or_insert_with(|| spec.prompt_variants.clone());
+    }
+    if let Some(path) = instructions {
+        selection.load_prompt_variants(path)?;
+    }
+    Ok(selection)
 }

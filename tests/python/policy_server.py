@@ -16,7 +16,8 @@ imported in place from ../shared; reference venv, which has `openpi-client`):
   a small pattern of amplitude A that differs from chunk to chunk (positions and hands
   shifted, rotations turned by up to A rad), so that where chunks overlap the blend
   decides the executed action; `--log FILE` appends every answer (plan index, step, chunk)
-  as a JSON line, for `reference_chunk_merge.py` to merge as the reference client does.
+  as a JSON line, for `reference_chunk_merge.py` to merge as the reference client does
+  (with the observation's `environment_state` when it has one, eval --environment-state).
   With `--cut-after-first-subtask` each plan stops where its first subtask ended (the
   `plan.json` `scripted` writes beside it): the last action of that subtask is repeated
   from then on, so the episode completes its first subtask and no other.
@@ -125,8 +126,12 @@ class Oracle:
                 if self.perturb:
                     chunk = perturbed(chunk, step, self.perturb)
                 if self.log is not None:
+                    line = {"plan": index, "step": step, "chunk": chunk.tolist()}
+                    if "environment_state" in obs:
+                        # repr of a float64 round-trips exactly
+                        line["environment_state"] = np.asarray(obs["environment_state"], dtype=np.float64).tolist()
                     with open(self.log, "a") as f:
-                        f.write(json.dumps({"plan": index, "step": step, "chunk": chunk.tolist()}) + "\n")
+                        f.write(json.dumps(line) + "\n")
                 return {"actions": chunk}
         return {"actions": held_chunk(obs)}
 

@@ -27,7 +27,7 @@ pub const CONTACT_SHEET: &str = "contact_sheet.png";
 /// The default of `--replays`.
 pub const DEFAULT_REPLAYS: usize = 10;
 /// The default of `--extend-steps`: one second at DexJoCo's 30 Hz.
-pub const DEFAULT_EXTEND_STEPS: usize = 30;
+pub const DEFAULT_EXTEND_STEPS: usize = dexjoco_core::DEFAULT_EXTEND_STEPS;
 /// Records of replays that failed under `--dynamics` and were not kept
 /// (`.dropped/<task>/<replay>.json`), so a resumed run does not simulate them again and
 /// the report can list them.

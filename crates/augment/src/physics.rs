@@ -20,6 +20,8 @@ use crate::inputs::Source;
 pub(crate) struct Physics {
     /// The state before every replayed step.
     pub(crate) states: FrameArray,
+    /// The environment state (objects now, dh) before every replayed step.
+    pub(crate) environment: FrameArray,
     /// What the rest of the run needs to know of it.
     pub(crate) summary: PhysicsSummary,
 }
@@ -98,12 +100,14 @@ pub(crate) fn replay(
     let recorded = recorded_frames(src, config);
     let limit = recorded + extension(src, config);
     let mut rows = Vec::with_capacity(recorded);
+    let mut environment = Vec::with_capacity(recorded);
     let mut first_success = None;
     for k in 0..limit {
         if k >= recorded && first_success.is_some() {
             break;
         }
         rows.push(env.state());
+        environment.push(env.environment_state());
         before_step(env, k)?;
         let v = env.step(action_row(actions, k)).map_err(sim_err(id))?;
         if v.success && first_success.is_none() {
@@ -111,6 +115,8 @@ pub(crate) fn replay(
         }
     }
     let states = FrameArray::from_rows(&rows).map_err(|e| AugmentError::Input(e.to_string()))?;
+    let environment =
+        FrameArray::from_rows(&environment).map_err(|e| AugmentError::Input(e.to_string()))?;
     let recorded_states = src.episode.array(Episode::STATE).expect("checked");
     let (deviation, deviation_at) = deviation(&states, recorded_states, recorded);
     let summary = PhysicsSummary {
@@ -122,7 +128,11 @@ pub(crate) fn replay(
         states_hash: states_hash(&states),
         subtasks: env.subtask_spans(),
     };
-    Ok(Physics { states, summary })
+    Ok(Physics {
+        states,
+        environment,
+        summary,
+    })
 }
 
 /// The physics-only replay of an episode on its task's scene.

@@ -490,7 +490,7 @@ fn commit_replays(
             d.finish()?;
         }
         let name = replay_name(id, p.index);
-        let mut ep = replay_episode(src, &name, &rendered.states, cameras, config.depth)?;
+        let mut ep = replay_episode(src, &name, rendered, cameras, config.depth)?;
         p.defects.episode(&mut ep);
         let mut record = record_of(job, p.index, p.sample, p.dynamics, expected);
         renderer.clone_into(&mut record.renderer);

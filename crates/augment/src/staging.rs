@@ -72,14 +72,15 @@ pub(crate) fn write_dropped(out: &Path, record: &ReplayRecord) -> Result<(), Aug
 }
 
 /// The episode a replay folder holds: the source's actions (and timestamps) for the
-/// replayed frames, the replayed states, and the cameras written.
+/// replayed frames, the replayed states and environment states, and the cameras written.
 pub(crate) fn replay_episode(
     src: &Source,
     name: &str,
-    states: &FrameArray,
+    physics: &crate::physics::Physics,
     cameras: &[String],
     depth: bool,
 ) -> Result<Episode, AugmentError> {
+    let states = &physics.states;
     let id = &src.episode.id;
     let n = states.len();
     let mut ep = Episode {
@@ -115,6 +116,10 @@ pub(crate) fn replay_episode(
         .collect();
     ep.arrays.insert(Episode::ACTION.into(), action);
     ep.arrays.insert(Episode::STATE.into(), states.clone());
+    ep.arrays.insert(
+        Episode::ENVIRONMENT_STATE.into(),
+        physics.environment.clone(),
+    );
     ep.arrays.insert(
         Episode::TIMESTAMP.into(),
         FrameArray::new(1, ts).map_err(|e| AugmentError::Input(e.to_string()))?,

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use dexjoco_core::{Progress, TaskSet};
+use dexjoco_core::Progress;
 use dexjoco_formats::dataset::language::subtask_rows;
 use dexjoco_formats::dataset::{
     DatasetWriter, PreparedEpisode, V3Options, V3Writer, V21Writer, VideoLayout, ZarrWriter,
@@ -82,10 +82,9 @@ pub struct ConvertOptions {
     /// Also convert replays a render check flagged (their record's `flags`); by default
     /// they are left out and named with their flags.
     pub include_flagged: bool,
-    /// Export each task's privileged state (its spec's state columns after the
-    /// proprioception: objects' reset-time poses, `dh`) under its own key, the specs
-    /// taken from this task set.
-    pub privileged_state: Option<TaskSet>,
+    /// The state features to export beyond the proprioception (`--environment-state`,
+    /// `--privileged-state`), with the task specs that name their columns.
+    pub state_features: Option<crate::StateFeatures>,
     /// Carry each camera's depth (augment's `videos/<camera>_depth.npz`): LeRobot v3.0
     /// as lerobot 0.6.1 stores depth, Diffusion Policy as `data/<camera>_depth`; refused
     /// for LeRobot v2.1.
@@ -279,7 +278,7 @@ fn layout_leader(prepared: &[Result<PreparedEpisode, ConvertError>]) -> Option<&
             p.action.width(),
             p.state.width(),
             videos,
-            p.privileged_names.clone(),
+            p.vector_layout(),
         )
     };
     let keys: Vec<_> = ok.iter().map(|p| key(p)).collect();
@@ -375,8 +374,8 @@ where
                 if options.depth {
                     crate::depth::add_depth(&mut p, input, &options.selection, layout, &work, *i)?;
                 }
-                if let Some(tasks) = &options.privileged_state {
-                    crate::privileged::add_privileged(&mut p, input, tasks)?;
+                if let Some(features) = &options.state_features {
+                    crate::vectors::add_state_features(&mut p, input, features)?;
                 }
                 Ok(p)
             })

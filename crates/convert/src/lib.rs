@@ -9,8 +9,8 @@
 //!   reference converter's config folder.
 //! - [`prepare`]: one episode made ready for writing (selected arrays, trimmed start,
 //!   per-camera video parts stream-copied or encoded, statistics), in parallel.
-//! - `privileged`: `--privileged-state`, the task spec's privileged state columns
-//!   (objects' poses, `dh`) named after its state layout; each replay's record
+//! - `vectors`: `--environment-state` and `--privileged-state`, the state features
+//!   (objects' poses, `dh`) named after the task spec's layout; each replay's record
 //!   (`replay.json`) is carried into the episode as its label.
 //! - [`merge`]: several tasks in one dataset (task table from the instructions);
 //!   one-arm episodes laid into the right-arm slots of the two-arm layout.
@@ -28,7 +28,7 @@ mod depth;
 mod error;
 pub mod merge;
 mod prepare;
-mod privileged;
+mod vectors;
 
 pub use config::{ActionSource, ColumnSlice, Selection, TaskSelection, first_moving_frame};
 pub use convert::{
@@ -40,3 +40,4 @@ pub use dexjoco_formats::dataset::{PreparedEpisode, V3Options};
 pub use dexjoco_formats::openpi::NormStatsOptions;
 pub use error::ConvertError;
 pub use prepare::{InputEpisode, VideoCodec, VideoOptions, prepare};
+pub use vectors::StateFeatures;

@@ -23,6 +23,18 @@ const SEED0: u64 = 18_000_000_000_000_000_001;
 fn labelled_fixture() -> Fixture {
     let mut fx = fixture();
     fx.inputs[1].episode.task = "click_mouse".into();
+    // The environment state a simulating stage records: the privileged columns made
+    // current (here: moved by the frame index, so every row differs from the reset).
+    for input in &mut fx.inputs {
+        let st = input.episode.array(Episode::STATE).unwrap().clone();
+        let rows: Vec<Vec<f64>> = (0..st.len())
+            .map(|f| st.row(f)[23..31].iter().map(|v| v + f as f64).collect())
+            .collect();
+        input
+            .episode
+            .insert_rows(Episode::ENVIRONMENT_STATE, &rows)
+            .unwrap();
+    }
     let sample = |seed: u64, cam: usize, az: f64, table: &str| {
         json!({
             "seed": seed, "camera_index": cam,
@@ -82,7 +94,11 @@ fn options(format: OutputFormat) -> ConvertOptions {
         batch: 2,
         include_failed: true,
         include_flagged: true,
-        privileged_state: Some(TaskSet::builtin().clone()),
+        state_features: Some(dexjoco_convert::StateFeatures {
+            tasks: TaskSet::builtin().clone(),
+            environment: true,
+            privileged: true,
+        }),
         ..ConvertOptions::default()
     }
 }
@@ -109,6 +125,15 @@ fn readme_snippet(n: usize) -> String {
         .and_then(|b| b.split("```").next())
         .expect("the python block")
         .to_owned()
+}
+
+/// The environment state of episode `e` at source frame `src`.
+fn environment_row(fx: &Fixture, e: usize, src: usize) -> Vec<f64> {
+    let a = fx.inputs[e]
+        .episode
+        .array(Episode::ENVIRONMENT_STATE)
+        .unwrap();
+    a.row(src).to_vec()
 }
 
 /// The privileged values of episode `e` frame `f` (source frame `src`): state columns
@@ -285,11 +310,33 @@ fn lerobot_v3_loads_the_outcomes_and_privileged_state() {
         got["policy_inputs"],
         json!([
             "action",
+            "observation.environment_state",
             "observation.images.front",
             "observation.images.wrist",
             "observation.state"
         ])
     );
+    // The environment state: LeRobot's key, a policy input, float32 with names, per frame.
+    assert_eq!(got["environment_feature"]["names"], json!(PRIVILEGED_NAMES));
+    assert_eq!(got["v21_environment"], got["environment"]);
+    let items = got["environment"].as_array().unwrap();
+    let mut row = 0;
+    for (e, input) in fx.inputs.iter().enumerate() {
+        for src in fx.starts[e]..input.episode.len() {
+            let got: Vec<f32> = items[row]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap() as f32)
+                .collect();
+            let want: Vec<f32> = environment_row(&fx, e, src)
+                .iter()
+                .map(|v| *v as f32)
+                .collect();
+            assert_eq!(got, want, "episode {e} frame {src}");
+            row += 1;
+        }
+    }
     assert_eq!(got["stats_count"], json!([32]));
     assert_eq!(got["episode_stats_columns"], got["state_stats_columns"]);
     let items = got["privileged"].as_array().unwrap();
@@ -344,6 +391,9 @@ print(json.dumps({
     "episode_stats_columns": len([c for c in ep_file.column_names if c.startswith("stats/privileged.state/")]),
     "state_stats_columns": len([c for c in ep_file.column_names if c.startswith("stats/observation.state/")]),
     "privileged": [[float(x) for x in row] for row in full.hf_dataset["privileged.state"]],
+    "environment_feature": full.meta.features["observation.environment_state"],
+    "environment": [[float(x) for x in row] for row in full.hf_dataset["observation.environment_state"]],
+    "v21_environment": [[float(x) for x in row] for row in v21.hf_dataset["observation.environment_state"]],
     "v21_episodes": v21_episodes,
     "v21_privileged": [[float(x) for x in row] for row in v21.hf_dataset["privileged.state"]],
     "readme_keep": readme_keep,
@@ -422,6 +472,16 @@ fn diffusion_policy_store_carries_the_outcomes_and_privileged_state() {
             row += 1;
         }
     }
+    assert_eq!(got["environment_names"], json!(PRIVILEGED_NAMES));
+    let rows = got["environment"].as_array().unwrap();
+    let mut row = 0;
+    for (e, input) in fx.inputs.iter().enumerate() {
+        for src in fx.starts[e]..input.episode.len() {
+            let got: Vec<f64> = serde_json::from_value(rows[row].clone()).unwrap();
+            assert_eq!(got, environment_row(&fx, e, src), "episode {e} frame {src}");
+            row += 1;
+        }
+    }
 }
 
 /// Opens the store with Diffusion Policy's ReplayBuffer (both backends), prints the label
@@ -453,6 +513,8 @@ print(json.dumps({
     "privileged": mem["privileged_state"].tolist(),
     "privileged_dtype": str(mem["privileged_state"].dtype),
     "privileged_names": zarr.open(path, mode="r")["data/privileged_state"].attrs["names"],
+    "environment": mem["environment_state"].tolist(),
+    "environment_names": zarr.open(path, mode="r")["data/environment_state"].attrs["names"],
     "readme_keep": keep,
     "readme_records": len(records),
 }))

@@ -181,6 +181,12 @@ impl Episode {
     pub const STATE: &'static str = "state";
     /// Name of the timestamp array.
     pub const TIMESTAMP: &'static str = "timestamp";
+    /// The objects' state at every frame, as the simulator has it before the frame's
+    /// action: each of the task spec's state objects' pose (or position), then the table
+    /// offset `dh` ([`crate::TaskSpec::environment_state_names`]): the privileged columns
+    /// of `state`, which hold the reset-time values, made current. Recorded by the stages
+    /// that simulate (augment, generate, scripted, eval).
+    pub const ENVIRONMENT_STATE: &'static str = "environment_state";
 
     /// Number of frames (of `action`, or of any array when there is no action).
     pub fn len(&self) -> usize {
@@ -235,6 +241,18 @@ impl Episode {
         };
         ep.compute_action_rotvec(spec.setup)?;
         Ok(ep)
+    }
+
+    /// Stores `rows` (one per frame, all of one width) as the array `name`, replacing any
+    /// present; no rows store an empty array of width 0.
+    pub fn insert_rows(&mut self, name: &str, rows: &[Vec<f64>]) -> Result<(), CoreError> {
+        let array = if rows.is_empty() {
+            FrameArray::zeros(0, 0)
+        } else {
+            FrameArray::from_rows(rows)?
+        };
+        self.arrays.insert(name.to_owned(), array);
+        Ok(())
     }
 
     /// Computes `action_rotvec` from `action` (per arm, normalized quaternion to rotation

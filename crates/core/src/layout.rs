@@ -13,6 +13,12 @@ pub const ROTVEC_POSE_DIM: usize = 6;
 /// Frames per second DexJoCo data is labelled with.
 pub const DEXJOCO_FPS: f64 = 30.0;
 
+/// Steps a replay of a recording may go on past its end, repeating its last action, to
+/// reach its success (`--extend-steps` of augment and generate): one second at 30 Hz. The
+/// DexJoCo recorder stops on the step that first succeeds, so a replay that drifts by a
+/// step or two (MuJoCo versions, CPUs) would otherwise never succeed within it.
+pub const DEFAULT_EXTEND_STEPS: usize = 30;
+
 /// The table height offset range (m) the reset draws dh from.
 pub const TABLE_OFFSET_RANGE: (f64, f64) = (0.0, 0.05);
 

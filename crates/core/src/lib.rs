@@ -30,8 +30,8 @@ mod task_spec;
 pub use episode::{CameraStream, Episode, FrameArray, first_moving_frame, possible_cuts};
 pub use error::{CoreError, Location};
 pub use layout::{
-    ArmSetup, ArrayLayout, DEXJOCO_FPS, FieldSlice, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM,
-    ROTVEC_POSE_DIM, TABLE_OFFSET_RANGE,
+    ArmSetup, ArrayLayout, DEFAULT_EXTEND_STEPS, DEXJOCO_FPS, FieldSlice, HAND_CTRL_RANGES,
+    HAND_DOF, POSE_DIM, ROTVEC_POSE_DIM, TABLE_OFFSET_RANGE,
 };
 pub use names::{MAX_NAME_BYTES, UnsafeName, safe_name};
 pub use parallelism::available_cores;

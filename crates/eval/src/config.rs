@@ -117,14 +117,10 @@ impl EvalTask {
 
     /// Checks the mapping against the task: every env image key is a camera of the
     /// task (or `random_camera` with `--rand-full`), and every key is a name, not a path
-    /// (env keys name the episode's videos). `robot_type` must match the task's setup.
+    /// (env keys name the episode's videos). `robot_type` must match the task's setup. An
+    /// empty mapping is a policy that takes no camera (`--no-cameras`).
     pub fn check(&self, spec: &TaskSpec, rand_full: bool) -> Result<(), EvalError> {
         let usage = |m: String| EvalError::Usage(format!("{} ({}): {m}", self.task, self.source));
-        if self.camera_mapping.is_empty() {
-            return Err(usage(
-                "camera_mapping is empty: the policy would see no image".into(),
-            ));
-        }
         for (policy, env) in &self.camera_mapping {
             for (what, name) in [("policy image key", policy), ("env image key", env)] {
                 dexjoco_core::safe_name(what, name).map_err(|e| usage(e.to_string()))?;
@@ -215,6 +211,10 @@ pub struct EvalOptions {
     /// observation (for oracle and privileged-information policies; real openpi policies
     /// drop keys they do not know).
     pub privileged_keys: bool,
+    /// Add `environment_state` (the objects' poses now and dh, float64) to every
+    /// observation, as datasets record it per frame (`--environment-state`).
+    #[serde(default)]
+    pub environment_state: bool,
     /// Seconds a server may take to answer.
     pub deadline_secs: f64,
     /// Seconds to keep retrying a refused connection at the start.
@@ -242,6 +242,7 @@ impl Default for EvalOptions {
             quality: "paper".into(),
             videos: true,
             privileged_keys: false,
+            environment_state: false,
             deadline_secs: 120.0,
             server_wait_secs: 10.0,
             step_cap: None,

@@ -56,6 +56,7 @@ const HZ: f64 = 30.0;
 struct Rollout {
     actions: Vec<Vec<f64>>,
     states: Vec<Vec<f64>>,
+    environment: Vec<Vec<f64>>,
     success_step: Option<usize>,
     steps: usize,
     ended_by: &'static str,
@@ -90,6 +91,7 @@ pub(crate) fn run_episode(
     };
     let env = TaskEnv::from_initial_state(&scene, &stage.spec, state0, EnvOptions::default())
         .map_err(sim_err(&what))?;
+    let rendered_before = stage.frames_rendered;
     let start = env.state();
     fs_err::create_dir_all(dir).map_err(crate::error::io_err("create", dir))?;
     let mut videos = if stage.config.options.videos {
@@ -134,6 +136,7 @@ pub(crate) fn run_episode(
         step_cap: opts.step_cap,
         chunks: rollout.chunks,
         held_steps: rollout.held,
+        frames_rendered: stage.frames_rendered - rendered_before,
         latency_steps: (!opts.real_time).then_some(opts.latency_steps),
         pressed_digits: rollout.pressed,
         reset: state0.to_vec(),
@@ -178,6 +181,7 @@ impl Loop<'_> {
         let mut out = Rollout {
             actions: Vec::new(),
             states: Vec::new(),
+            environment: Vec::new(),
             success_step: None,
             steps: 0,
             ended_by: "step_cap",
@@ -268,6 +272,7 @@ impl Loop<'_> {
     ) -> Result<dexjoco_sim::Verdict, EvalError> {
         let action = to_env_action(self.stage.spec.setup, policy_action);
         out.states.push(self.env.state());
+        out.environment.push(self.env.environment_state());
         let v = self.env.step(&action).map_err(sim_err(self.what))?;
         out.actions.push(action);
         (self.tick)();
@@ -297,7 +302,10 @@ impl Loop<'_> {
             images.push((policy.as_str(), img));
         }
         let state = self.env.state();
+        let opts = &self.stage.config.options;
+        let environment_state = opts.environment_state.then(|| self.env.environment_state());
         let obs = Observation {
+            environment_state,
             images,
             state: policy_state(
                 &state,
@@ -332,12 +340,17 @@ impl Loop<'_> {
                 .camera
                 .view(),
         };
-        let renderer: &mut Renderer = &mut self.stage.renderer;
+        let renderer: &mut Renderer = self
+            .stage
+            .renderer
+            .as_mut()
+            .expect("a renderer whenever a camera is mapped");
         renderer.update_scene(self.env.data_mut(), view);
         if let (Some(sample), Some(table)) = (&self.draws.visuals, &self.stage.table) {
             apply_visuals(renderer, sample, table);
         }
         let f = renderer.draw().map_err(sim_err(self.what))?;
+        self.stage.frames_rendered += 1;
         Ok(Rgb {
             width: f.width,
             height: f.height,
@@ -362,7 +375,9 @@ impl Loop<'_> {
 /// The rollout as a DexJoCo raw episode (`replay.zarr`: the executed actions, warm-up
 /// included, and the state before each).
 fn write_rollout(dir: &Path, spec: &TaskSpec, r: &Rollout, k: usize) -> Result<(), EvalError> {
-    let ep = Episode::from_rollout(format!("episode_{k:02}"), spec, &r.actions, &r.states)
+    let mut ep = Episode::from_rollout(format!("episode_{k:02}"), spec, &r.actions, &r.states)
+        .map_err(|e| EvalError::Worker(format!("episode {k}: {e}")))?;
+    ep.insert_rows(Episode::ENVIRONMENT_STATE, &r.environment)
         .map_err(|e| EvalError::Worker(format!("episode {k}: {e}")))?;
     dexjoco_formats::raw::write_replay_zarr(dir, &ep)?;
     Ok(())

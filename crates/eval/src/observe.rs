@@ -67,12 +67,17 @@ fn resize(img: &Rgb, width: u32, height: u32) -> Rgb {
     }
 }
 
+/// The observation key of the environment state (`--environment-state`).
+pub const ENVIRONMENT_STATE_KEY: &str = "environment_state";
+
 /// The parts of one observation.
 pub struct Observation<'a> {
     /// `(policy key, image)` in the config's order.
     pub images: Vec<(&'a str, Rgb)>,
     /// The proprioceptive state.
     pub state: Vec<f64>,
+    /// The environment state (`--environment-state`): the objects now, then dh.
+    pub environment_state: Option<Vec<f64>>,
     /// The prompt.
     pub prompt: &'a str,
     /// `dexjoco/...` keys for oracle and privileged policies (`--privileged-keys`).
@@ -108,6 +113,12 @@ impl Observation<'_> {
             Value::from("state"),
             NdArray::f64(vec![self.state.len()], &self.state).to_value(),
         ));
+        if let Some(e) = &self.environment_state {
+            map.push((
+                Value::from(ENVIRONMENT_STATE_KEY),
+                NdArray::f64(vec![e.len()], e).to_value(),
+            ));
+        }
         map.push((Value::from("prompt"), Value::from(self.prompt)));
         if let Some(p) = &self.privileged {
             map.push((

@@ -56,6 +56,10 @@ pub struct EpisodeRecord {
     pub chunks: usize,
     /// Steps with no buffered action (the pose held).
     pub held_steps: usize,
+    /// Camera frames drawn for this episode (policy images and videos): 0 when the
+    /// policy takes no camera and no video is recorded.
+    #[serde(default)]
+    pub frames_rendered: u64,
     /// The modelled latency (steps), or `None` in real time.
     pub latency_steps: Option<usize>,
     /// The digits pressed on the iPad, per step that pressed any.
@@ -221,6 +225,7 @@ mod tests {
             step_cap: None,
             chunks: 20,
             held_steps: 0,
+            frames_rendered: 0,
             latency_steps: Some(0),
             pressed_digits: vec![vec![1], vec![2, 3]],
             reset: vec![],

@@ -97,8 +97,12 @@ pub(crate) struct Stage {
     pub(crate) scene: Scene,
     pub(crate) pool: Option<CameraPool>,
     pub(crate) table: Option<TableLibrary>,
-    pub(crate) renderer: Renderer,
+    /// The renderer; `None` when nothing is drawn (the policy takes no camera): the
+    /// episodes then run at the simulator's speed.
+    pub(crate) renderer: Option<Renderer>,
     views: Vec<(String, View)>,
+    /// Frames drawn so far (the warm-up included).
+    pub(crate) frames_rendered: u64,
 }
 
 impl Stage {
@@ -143,7 +147,12 @@ impl Stage {
             quality,
             ..RenderSettings::default()
         };
-        let renderer = Renderer::new(&scene.model, settings).map_err(sim_err(&what))?;
+        // Videos and observations draw the mapped cameras only: none, no renderer.
+        let renderer = if views.is_empty() {
+            None
+        } else {
+            Some(Renderer::new(&scene.model, settings).map_err(sim_err(&what))?)
+        };
         Ok(Self {
             config: config.clone(),
             spec,
@@ -152,12 +161,27 @@ impl Stage {
             table,
             renderer,
             views,
+            frames_rendered: 0,
         })
+    }
+
+    /// The renderer's device in words, for the parent (`no renderer` without one).
+    pub(crate) fn device_words(&self) -> String {
+        match &self.renderer {
+            Some(r) => {
+                let device = r.device();
+                format!("EGL device {} ({})", device.index, device.label())
+            }
+            None => "no renderer (the policy takes no camera)".to_owned(),
+        }
     }
 
     /// Draws one frame of the scene as it loads, from its first camera (a worker tells
     /// its parent that the renderer works once this returns).
     pub(crate) fn warm_up(&mut self) -> Result<(), EvalError> {
+        let Some(renderer) = self.renderer.as_mut() else {
+            return Ok(());
+        };
         let mut data = dexjoco_sim::mujoco_rs::prelude::MjData::new(self.scene.model.clone());
         data.forward();
         let camera = self
@@ -168,9 +192,9 @@ impl Stage {
                 View::Random => None,
             })
             .unwrap_or(0);
-        self.renderer
-            .update_scene(&mut data, dexjoco_sim::CameraView::Fixed(camera));
-        self.renderer.draw().map_err(sim_err(&self.spec.id))?;
+        renderer.update_scene(&mut data, dexjoco_sim::CameraView::Fixed(camera));
+        renderer.draw().map_err(sim_err(&self.spec.id))?;
+        self.frames_rendered += 1;
         Ok(())
     }
 
@@ -219,7 +243,10 @@ impl Stage {
         &self,
         dir: &Path,
     ) -> Result<Vec<(String, VideoWriter)>, VideoError> {
-        let s = self.renderer.settings();
+        let Some(renderer) = &self.renderer else {
+            return Ok(Vec::new());
+        };
+        let s = renderer.settings();
         self.views
             .iter()
             .map(|(k, _)| {

@@ -57,11 +57,7 @@ fn prepare(hello: WorkerHello, output: &mut dyn Write) -> Result<Ready, EvalErro
         }
         Err(e) => return Err(e),
     };
-    let device = stage.renderer.device();
-    tell(
-        output,
-        &Message::Device(format!("EGL device {} ({})", device.index, device.label())),
-    );
+    tell(output, &Message::Device(stage.device_words()));
     if let Err(e) = stage.warm_up() {
         tell(output, &Message::CannotRender(one_line(&e)));
         return Err(e);

@@ -41,7 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             dexjoco_formats::raw::read_raw_episode(&demos.join(task).join("episode_000000"), spec)?;
         let mut ep = raw.episode;
         ep.id = format!("{task}_sample");
-        match SourceDemo::prepare(&scene, spec, &ep) {
+        match SourceDemo::prepare(&scene, spec, &ep, 0) {
             Ok(s) => sources.push(s),
             Err(e) => eprintln!("{task}: sample not usable: {e}"),
         }
@@ -56,7 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 Variant::Demo,
             )?;
             if p.success_at.is_some()
-                && let Ok(s) = SourceDemo::prepare(&scene, spec, &p.episode)
+                && let Ok(s) = SourceDemo::prepare(&scene, spec, &p.episode, 0)
             {
                 sources.push(s);
             }

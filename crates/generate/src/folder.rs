@@ -52,6 +52,7 @@ pub(crate) fn settings(
         "spec": format!("sha256:{}", sha256_json(spec)),
         "scene": label,
         "scene_content": {"scene": hashes.scene, "files": hashes.files},
+        "extend_steps": config.extend_steps,
         "seed": config.seed,
         "options": config.options,
         "sources": sources.iter().map(|s| [s.id.clone(), s.sha256.clone()]).collect::<Vec<_>>(),
@@ -613,6 +614,7 @@ mod tests {
             shard: None,
             options: crate::AttemptOptions::default(),
             scene: SceneSource::Dir(scenes.clone()),
+            extend_steps: 0,
         };
         fs_err::create_dir_all(&config.out).unwrap();
         let before = settings(&config, spec, &[]).unwrap();

@@ -48,6 +48,9 @@ pub struct GenerateConfig {
     /// The scene the sources and attempts run on (built-in or a scene folder): named in
     /// the settings file, and fingerprinted there by the content of every file it loads.
     pub scene: dexjoco_sim::SceneSource,
+    /// Steps a source's replay may go on past its recording to reach its success
+    /// (`--extend-steps`; the sources were prepared with it).
+    pub extend_steps: usize,
 }
 
 /// An attempt's record (`.attempts/attempt_NNNNNN.json`, and a generated episode's
@@ -124,6 +127,10 @@ pub struct GenerateReport {
     pub subtasks: Vec<SubtaskOutcome>,
     /// The sources: id and SHA-256.
     pub sources: Vec<[String; 2]>,
+    /// The sources whose replay succeeded only past their recording's end, with the steps
+    /// it went on (`--extend-steps`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sources_extended: Vec<(String, usize)>,
 }
 
 impl GenerateReport {
@@ -151,6 +158,12 @@ impl GenerateReport {
                 "| {} | {} | {} | {} |",
                 o.subtask, o.started, o.completed, o.failed_at
             );
+        }
+        if !self.sources_extended.is_empty() {
+            s.push_str("\nSources that succeed only past their recording's end (replayed on with their last action, `--extend-steps`):\n\n");
+            for (id, steps) in &self.sources_extended {
+                let _ = writeln!(s, "- {id}: {steps} step(s) past its end");
+            }
         }
         s
     }

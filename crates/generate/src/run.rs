@@ -370,5 +370,10 @@ fn report(
             .iter()
             .map(|s| [s.id.clone(), s.sha256.clone()])
             .collect(),
+        sources_extended: sources
+            .iter()
+            .filter(|s| s.extended > 0)
+            .map(|s| (s.id.clone(), s.extended))
+            .collect(),
     }
 }

@@ -56,6 +56,9 @@ pub struct SourceDemo {
     pub reset_poses: Vec<Pose>,
     /// Its reset (`state[0]`), for the pose-spread figure.
     pub reset: Vec<f64>,
+    /// Steps its replay went on past the recording (its last action repeated) before it
+    /// succeeded: 0 for a source that succeeds within its recording.
+    pub extended: usize,
 }
 
 /// Hex SHA-256 of an episode's action and state values (little-endian f64 bits).
@@ -95,14 +98,72 @@ pub fn current_targets(env: &TaskEnv) -> Vec<ArmTarget> {
         .collect()
 }
 
+/// What a source's replay gives step by step: the subtasks' objects' poses before each
+/// step, the targets given by it.
+#[derive(Default)]
+struct Trace {
+    poses: Vec<Vec<Pose>>,
+    given: Vec<Vec<ArmTarget>>,
+}
+
+impl Trace {
+    /// Replays `actions` on `env` up to the task's success; without one, goes on with the
+    /// last action for up to `extend_steps` steps, kept only if they reach it. Returns the
+    /// trace, the subtask spans and the steps added past the recording.
+    fn replay(
+        env: &mut TaskEnv,
+        actions: &dexjoco_core::FrameArray,
+        objects: &[&str],
+        extend_steps: usize,
+    ) -> Result<(Self, Vec<dexjoco_core::SubtaskSpan>, usize), String> {
+        let mut trace = Self::default();
+        for row in actions.rows() {
+            if trace.step(env, row, objects)? {
+                return Ok((trace, env.subtask_spans(), 0));
+            }
+        }
+        let spans = env.subtask_spans();
+        let recorded = trace.given.len();
+        let last = actions.row(actions.len() - 1);
+        for _ in 0..extend_steps {
+            if trace.step(env, last, objects)? {
+                let extended = trace.given.len() - recorded;
+                return Ok((trace, env.subtask_spans(), extended));
+            }
+        }
+        trace.poses.truncate(recorded);
+        trace.given.truncate(recorded);
+        Ok((trace, spans, 0))
+    }
+
+    /// One step of `row`; whether the task succeeded on it.
+    fn step(&mut self, env: &mut TaskEnv, row: &[f64], objects: &[&str]) -> Result<bool, String> {
+        let poses = objects
+            .iter()
+            .map(|o| {
+                env.object_pose(o)
+                    .ok_or_else(|| format!("no state object '{o}' in the scene"))
+            })
+            .collect::<Result<_, _>>()?;
+        self.poses.push(poses);
+        let verdict = env.step(row).map_err(|e| e.to_string())?;
+        self.given.push(current_targets(env));
+        Ok(verdict.success)
+    }
+}
+
 impl SourceDemo {
     /// Replays `episode` of `spec` on `scene` up to the task's success and cuts it into
-    /// its subtasks' segments. Fails, naming the episode and the subtask, when a
-    /// subtask never ends in the replay (a source must show every subtask).
+    /// its subtasks' segments; a recording that ends before its success goes on for up
+    /// to `extend_steps` steps with its last action repeated (as augment's
+    /// `--extend-steps`: a recording made with another MuJoCo may succeed a few steps
+    /// late). Fails, naming the episode and the subtask, when a subtask never ends in the
+    /// replay (a source must show every subtask).
     pub fn prepare(
         scene: &Scene,
         spec: &TaskSpec,
         episode: &Episode,
+        extend_steps: usize,
     ) -> Result<Self, GenerateError> {
         let bad = |message: String| GenerateError::Source {
             episode: episode.id.clone(),
@@ -134,22 +195,8 @@ impl SourceDemo {
             .map(|o| pose_of(&env, o))
             .collect::<Result<Vec<_>, _>>()?;
         // Before each step: the subtasks' objects' poses; after it: the targets given.
-        let mut poses: Vec<Vec<Pose>> = Vec::with_capacity(actions.len());
-        let mut given: Vec<Vec<ArmTarget>> = Vec::with_capacity(actions.len());
-        for row in actions.rows() {
-            poses.push(
-                objects
-                    .iter()
-                    .map(|o| pose_of(&env, o))
-                    .collect::<Result<_, _>>()?,
-            );
-            let verdict = env.step(row).map_err(|e| bad(e.to_string()))?;
-            given.push(current_targets(&env));
-            if verdict.success {
-                break;
-            }
-        }
-        let spans = env.subtask_spans();
+        let (Trace { poses, given }, spans, extended) =
+            Trace::replay(&mut env, actions, &objects, extend_steps).map_err(&bad)?;
         let mut segments = Vec::with_capacity(spans.len());
         // Where each arm's next subtask starts after subtask i (the arm's motion until
         // then belongs to subtask i's segment).
@@ -196,6 +243,7 @@ impl SourceDemo {
             segments,
             reset_poses,
             reset: states.row(0).to_vec(),
+            extended,
         })
     }
 }

@@ -27,7 +27,7 @@ fn carrying_a_segment_is_exact() {
     let spec = TaskSpec::builtin("click_mouse").unwrap();
     let scene = load_task_scene(&SceneSource::BuiltIn, spec).unwrap();
     let ep = sample("click_mouse");
-    let demo = SourceDemo::prepare(&scene, spec, &ep).unwrap();
+    let demo = SourceDemo::prepare(&scene, spec, &ep, 0).unwrap();
     let actions = ep.array(Episode::ACTION).unwrap();
     for seg in &demo.segments {
         // In its own object frame, a segment is the source's targets: the pose part of
@@ -81,7 +81,7 @@ fn carrying_a_segment_is_exact() {
 fn a_subtask_whose_end_never_comes_is_a_named_failure() {
     let spec = TaskSpec::builtin("click_mouse").unwrap();
     let scene = load_task_scene(&SceneSource::BuiltIn, spec).unwrap();
-    let demo = SourceDemo::prepare(&scene, spec, &sample("click_mouse")).unwrap();
+    let demo = SourceDemo::prepare(&scene, spec, &sample("click_mouse"), 0).unwrap();
     // The same task, but its first subtask ends only when the mouse's button has moved
     // a metre: never.
     let text = std::fs::read_to_string(
@@ -123,7 +123,7 @@ fn an_attempt_depends_on_its_index_and_seed_only() {
     let spec = TaskSpec::builtin("click_mouse").unwrap();
     let scene = load_task_scene(&SceneSource::BuiltIn, spec).unwrap();
     let demos: Vec<SourceDemo> = (0..2)
-        .map(|_| SourceDemo::prepare(&scene, spec, &sample("click_mouse")).unwrap())
+        .map(|_| SourceDemo::prepare(&scene, spec, &sample("click_mouse"), 0).unwrap())
         .collect();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
     let reset = TaskEnv::sample_initial_state(&scene, spec, &mut || rng.random()).unwrap();

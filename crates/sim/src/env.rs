@@ -421,6 +421,20 @@ impl TaskEnv {
         s
     }
 
+    /// The environment state now ([`dexjoco_core::Episode::ENVIRONMENT_STATE`]): each
+    /// state object's pose (or position) read from the simulation as the reset reads it,
+    /// then dh. At the reset it equals the privileged part of [`Self::state`]; it is what
+    /// datasets record per frame and what `eval` sends a policy, from this one function.
+    pub fn environment_state(&self) -> Vec<f64> {
+        let model = self.data.model();
+        let mut out = Vec::with_capacity(self.privileged.len());
+        for o in &self.spec.state.objects {
+            read_pose(model, &self.data, &o.source, &mut out);
+        }
+        out.push(*self.privileged.last().expect("dh"));
+        out
+    }
+
     /// Applies one recorded action (23 or 46 values): targets, 10 substeps, then the
     /// task's mechanics and conditions.
     pub fn step(&mut self, action: &[f64]) -> Result<Verdict, SimError> {

@@ -75,6 +75,15 @@ impl TaskSpec {
         out
     }
 
+    /// The columns of the environment state ([`crate::Episode::ENVIRONMENT_STATE`]): the
+    /// privileged columns of `state` (`mouse.pose[0]` ... `dh[0]`), in their order.
+    pub fn environment_state_names(&self) -> Vec<String> {
+        let layout = self.state_layout();
+        (self.setup.proprio_dim()..layout.width())
+            .map(|c| layout.column_name(c))
+            .collect()
+    }
+
     /// Column of the table height offset dh in `state` (the last one).
     pub fn dh_column(&self) -> usize {
         self.state.width - 1

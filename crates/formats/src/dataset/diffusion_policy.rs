@@ -32,7 +32,7 @@ use zarrs::filesystem::FilesystemStore;
 
 use super::episode_labels::write_zarr_labels;
 use super::language::{SUBTASK_INDEX, SubtaskTexts};
-use super::{DatasetWriter, PreparedEpisode, VideoPart, place_video, write_json};
+use super::{DatasetWriter, PreparedEpisode, VectorFeature, VideoPart, place_video, write_json};
 use crate::error::{DatasetError, ZarrWriteError};
 use crate::raw::ReplayLabel;
 use crate::zarr_v2::{self, Blosc};
@@ -44,7 +44,13 @@ pub const REPLAY_BUFFER: &str = "replay_buffer.zarr";
 const CHUNK_BYTES: usize = 2_000_000;
 
 /// Array names the cameras may not take.
-const RESERVED: [&str; 4] = ["action", "state", "timestamp", "privileged_state"];
+const RESERVED: [&str; 5] = [
+    "action",
+    "state",
+    "timestamp",
+    "privileged_state",
+    "environment_state",
+];
 
 /// A zarrs error on the store at `path`, as [`DatasetError::Zarr`].
 fn zarr_err(path: &Path, e: impl Into<ZarrWriteError>) -> DatasetError {
@@ -146,8 +152,9 @@ pub struct ZarrWriter {
     action: Series,
     state: Series,
     timestamp: Series,
-    /// `data/privileged_state` (`--privileged-state`), with its column names.
-    privileged: Option<(Series, Vec<String>)>,
+    /// `data/environment_state`, `data/privileged_state` (`--environment-state`,
+    /// `--privileged-state`): per vector feature its array, key and column names.
+    vectors: Vec<(Series, String, Vec<String>)>,
     /// `data/subtask_index` (int64 per frame, -1 before an episode's first subtask) and
     /// the texts it indexes, when the episodes carry subtasks (as the first one does).
     subtasks: Option<(Series<i64>, SubtaskTexts)>,
@@ -231,18 +238,23 @@ impl ZarrWriter {
         };
         let images = image_arrays(&store, &zarr, first)?;
         let depth = DepthArray::all(&store, &zarr, first)?;
-        let privileged = match &first.privileged {
-            Some(p) => Some((
-                series("privileged_state", p.width(), false)?,
-                first.privileged_names.clone(),
-            )),
-            None => None,
-        };
+        let vectors = first
+            .vectors
+            .iter()
+            .map(|v| {
+                let name = VectorFeature::zarr_name(&v.key);
+                Ok((
+                    series(&name, v.values.width(), false)?,
+                    v.key.clone(),
+                    v.names.clone(),
+                ))
+            })
+            .collect::<Result<Vec<_>, DatasetError>>()?;
         Ok(Self {
             action: series("action", first.action.width(), false)?,
             state: series("state", first.state.width(), false)?,
             timestamp: series("timestamp", 1, true)?,
-            privileged,
+            vectors,
             subtasks,
             root,
             zarr: zarr.clone(),
@@ -518,7 +530,12 @@ impl DepthArray {
 impl DatasetWriter for ZarrWriter {
     /// Checks that `ep` can join this store (fps, widths, cameras).
     fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), DatasetError> {
-        ep.check_privileged(self.privileged.as_ref().map_or(&[], |(_, n)| n))?;
+        let layout: Vec<(String, Vec<String>)> = self
+            .vectors
+            .iter()
+            .map(|(_, k, n)| (k.clone(), n.clone()))
+            .collect();
+        ep.check_vectors(&layout)?;
         let want: Vec<&str> = self.images.iter().map(|c| c.name.as_str()).collect();
         ep.check_layout(self.fps, self.action.width, self.state.width, &want)?;
         DepthArray::check(&self.depth, ep)?;
@@ -551,8 +568,10 @@ impl DatasetWriter for ZarrWriter {
         let fps = f64::from(self.fps);
         let ts: Vec<f64> = (0..n).map(|k| k as f64 / fps).collect();
         self.timestamp.push(&ts, &self.codec).map_err(&err)?;
-        if let (Some((series, _)), Some(p)) = (self.privileged.as_mut(), &ep.privileged) {
-            series.push(p.as_slice(), &self.codec).map_err(&err)?;
+        for ((series, _, _), v) in self.vectors.iter_mut().zip(&ep.vectors) {
+            series
+                .push(v.values.as_slice(), &self.codec)
+                .map_err(&err)?;
         }
         if let Some((series, texts)) = self.subtasks.as_mut() {
             let idx = texts.frame_indices(&ep.subtasks, n);
@@ -597,7 +616,12 @@ impl DatasetWriter for ZarrWriter {
         let zarr = &this.zarr;
         let total = this.frames() as u64;
         let cameras: Vec<String> = this.images.iter().map(|i| i.name.clone()).collect();
-        let (privileged, names) = this.privileged.unzip();
+        let mut names = Vec::new();
+        let mut vectors = Vec::new();
+        for (series, key, columns) in this.vectors {
+            names.push((VectorFeature::zarr_name(&key), columns));
+            vectors.push(series);
+        }
         if let Some((series, texts)) = this.subtasks {
             series
                 .finish(&this.codec, &this.meta)
@@ -609,7 +633,7 @@ impl DatasetWriter for ZarrWriter {
         }
         let series = [this.action, this.state, this.timestamp]
             .into_iter()
-            .chain(privileged);
+            .chain(vectors);
         for s in series {
             s.finish(&this.codec, &this.meta)
                 .map_err(|e| zarr_err(zarr, e))?;
@@ -642,10 +666,10 @@ impl DatasetWriter for ZarrWriter {
                 .map_err(|e| zarr_err(zarr, e))?;
         }
         write_zarr_labels(zarr, &this.episode_ids, &this.labels)?;
-        if let Some(names) = names {
+        for (name, columns) in names {
             write_json(
-                &zarr.join("data/privileged_state/.zattrs"),
-                &json!({ "names": names }),
+                &zarr.join(format!("data/{name}/.zattrs")),
+                &json!({ "names": columns }),
             )?;
         }
         if this.videos {

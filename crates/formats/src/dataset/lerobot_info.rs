@@ -297,26 +297,26 @@ impl Features {
         self
     }
 
-    /// These features with the privileged state (`--privileged-state`, float32 with one
-    /// name per column) after `observation.state`; unchanged when `names` is empty.
+    /// These features with the vector features `layout` (`--environment-state`,
+    /// `--privileged-state`: float32 with one name per column) after `observation.state`,
+    /// in order.
     #[must_use]
-    pub fn with_privileged(mut self, names: &[String]) -> Self {
-        if names.is_empty() {
-            return self;
-        }
+    pub fn with_vectors(mut self, layout: &[(String, Vec<String>)]) -> Self {
         let at = self
             .0
             .iter()
             .position(|(k, _)| k == "observation.state")
             .map_or(self.0.len(), |i| i + 1);
-        let feature = Feature {
-            dtype: DType::Float32,
-            shape: vec![names.len() as u64],
-            names: Some(names.to_vec()),
-            info: None,
-        };
-        self.0
-            .insert(at, (super::PRIVILEGED_KEY.to_owned(), feature));
+        let added = layout.iter().map(|(key, names)| {
+            let feature = Feature {
+                dtype: DType::Float32,
+                shape: vec![names.len() as u64],
+                names: Some(names.clone()),
+                info: None,
+            };
+            (key.clone(), feature)
+        });
+        self.0.splice(at..at, added);
         self
     }
 }

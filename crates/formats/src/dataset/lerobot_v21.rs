@@ -27,7 +27,7 @@ use super::lerobot_v3::{CHUNKS_SIZE, data_columns, index_stats};
 use super::parquet as pq;
 use super::stats::column_stats;
 use super::stats::{FeatureStats, aggregate};
-use super::{DatasetWriter, PRIVILEGED_KEY, PreparedEpisode, place_video, write_json};
+use super::{DatasetWriter, PreparedEpisode, place_video, write_json};
 use crate::error::DatasetError;
 use crate::raw::ReplayLabel;
 
@@ -38,7 +38,8 @@ pub struct V21Writer {
     fps: u32,
     action_names: Vec<String>,
     state_names: Vec<String>,
-    privileged_names: Vec<String>,
+    /// The vector features' keys and column names (`--environment-state`, ...).
+    vectors: Vec<(String, Vec<String>)>,
     cameras: Vec<CameraSpec>,
     episodes: fs_err::File,
     episodes_stats: fs_err::File,
@@ -71,15 +72,20 @@ fn jsonl_line(file: &mut fs_err::File, value: &Value) -> Result<(), DatasetError
 }
 
 /// The `huggingface` schema metadata the v2.1 loader builds its features from.
-fn hf_metadata(action: usize, state: usize, privileged: usize, subtasks: bool) -> String {
+fn hf_metadata(
+    action: usize,
+    state: usize,
+    vectors: &[(String, Vec<String>)],
+    subtasks: bool,
+) -> String {
     let seq = |n: usize| json!({"feature": {"dtype": "float32", "_type": "Value"}, "length": n, "_type": "Sequence"});
     let value = |t: &str| json!({"dtype": t, "_type": "Value"});
     // serde_json keeps insertion order (its `preserve_order`, which zarrs turns on).
     let mut features = serde_json::Map::new();
     features.insert("action".into(), seq(action));
     features.insert("observation.state".into(), seq(state));
-    if privileged > 0 {
-        features.insert(PRIVILEGED_KEY.into(), seq(privileged));
+    for (key, names) in vectors {
+        features.insert(key.clone(), seq(names.len()));
     }
     features.insert("timestamp".into(), value("float32"));
     for k in ["frame_index", "episode_index", "index", "task_index"] {
@@ -111,7 +117,7 @@ impl V21Writer {
             fps: first.fps,
             action_names: first.action_names.clone(),
             state_names: first.state_names.clone(),
-            privileged_names: first.privileged_names.clone(),
+            vectors: first.vector_layout(),
             cameras: CameraSpec::of(first),
             root,
             stats: Vec::new(),
@@ -136,7 +142,7 @@ impl V21Writer {
                     has_audio: false,
                 })
             })
-            .with_privileged(&self.privileged_names)
+            .with_vectors(&self.vectors)
             .with_subtask_index(self.subtasks.is_some());
         let episodes = self.stats.len();
         Info {
@@ -188,7 +194,7 @@ impl V21Writer {
 impl DatasetWriter for V21Writer {
     /// Checks that `ep` can join this dataset (layout, video size, codec and pixel format).
     fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), DatasetError> {
-        ep.check_privileged(&self.privileged_names)?;
+        ep.check_vectors(&self.vectors)?;
         check_episode(
             ep,
             self.fps,
@@ -235,7 +241,7 @@ impl DatasetWriter for V21Writer {
                 hf_metadata(
                     self.action_names.len(),
                     self.state_names.len(),
-                    self.privileged_names.len(),
+                    &self.vectors,
                     self.subtasks.is_some(),
                 ),
             )]),

@@ -17,7 +17,7 @@ use super::lerobot_info::{
 };
 use super::parquet::{self as pq, parquet_err};
 use super::stats::{FeatureStats, aggregate, column_stats};
-use super::{DatasetWriter, PRIVILEGED_KEY, PreparedEpisode, write_json};
+use super::{DatasetWriter, PreparedEpisode, write_json};
 use crate::error::DatasetError;
 use crate::raw::ReplayLabel;
 
@@ -97,10 +97,10 @@ pub(crate) fn data_columns(
             pq::f32_vectors(ep.state.as_slice(), ep.state.width()),
         ),
     ];
-    if let Some(p) = &ep.privileged {
+    for v in &ep.vectors {
         cols.push((
-            PRIVILEGED_KEY.to_owned(),
-            pq::f32_vectors(p.as_slice(), p.width()),
+            v.key.clone(),
+            pq::f32_vectors(v.values.as_slice(), v.values.width()),
         ));
     }
     cols.extend([
@@ -164,7 +164,8 @@ pub struct V3Writer {
     fps: u32,
     action_names: Vec<String>,
     state_names: Vec<String>,
-    privileged_names: Vec<String>,
+    /// The vector features' keys and column names (`--environment-state`, ...).
+    vectors: Vec<(String, Vec<String>)>,
     /// The colour cameras, then the depth ones (`<camera>_depth`).
     cameras: Vec<CameraSpec>,
     /// How many of `cameras` are colour cameras.
@@ -221,7 +222,7 @@ impl V3Writer {
             fps: first.fps,
             action_names: first.action_names.clone(),
             state_names: first.state_names.clone(),
-            privileged_names: first.privileged_names.clone(),
+            vectors: first.vector_layout(),
             cameras,
             colour,
             data: None,
@@ -458,9 +459,7 @@ impl V3Writer {
             ("action".into(), false),
             ("observation.state".into(), false),
         ];
-        if !self.privileged_names.is_empty() {
-            v.push((PRIVILEGED_KEY.into(), false));
-        }
+        v.extend(self.vectors.iter().map(|(k, _)| (k.clone(), false)));
         v.extend(self.cameras.iter().map(|c| (c.key.clone(), true)));
         for k in [
             "timestamp",
@@ -499,7 +498,7 @@ impl V3Writer {
                     is_depth_map: false,
                 })
             })
-            .with_privileged(&self.privileged_names)
+            .with_vectors(&self.vectors)
             .with_language(self.language);
         Info {
             version: InfoVersion::V3 {
@@ -556,7 +555,7 @@ fn stats_columns(
 impl DatasetWriter for V3Writer {
     /// Checks that `ep` can join this dataset (layout, and videos that stream-copy).
     fn check_compatible(&self, ep: &PreparedEpisode) -> Result<(), DatasetError> {
-        ep.check_privileged(&self.privileged_names)?;
+        ep.check_vectors(&self.vectors)?;
         check_episode(
             ep,
             self.fps,

@@ -47,6 +47,32 @@ pub use lerobot_v21::V21Writer;
 /// `observation.*`, so lerobot's policies do not take it as an input.
 pub const PRIVILEGED_KEY: &str = "privileged.state";
 
+/// The LeRobot feature key of the environment state (`--environment-state`): LeRobot's own
+/// key, which its ACT and Diffusion Policy take as an input.
+pub const ENVIRONMENT_STATE_KEY: &str = "observation.environment_state";
+
+/// A float feature of an episode beyond its action and state, one row per kept frame and
+/// one name per column: the environment state ([`ENVIRONMENT_STATE_KEY`]), the
+/// privileged state ([`PRIVILEGED_KEY`]). Every writer stores them the same way (float32
+/// columns in LeRobot, float64 arrays in Diffusion Policy's store).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VectorFeature {
+    /// The LeRobot feature key.
+    pub key: String,
+    /// Column names (`mouse.pose[0]` ... `dh[0]`).
+    pub names: Vec<String>,
+    /// The rows.
+    pub values: FrameArray,
+}
+
+impl VectorFeature {
+    /// The array name in Diffusion Policy's store: the key without `observation.`, dots
+    /// as underscores (`environment_state`, `privileged_state`).
+    pub fn zarr_name(key: &str) -> String {
+        key.trim_start_matches("observation.").replace('.', "_")
+    }
+}
+
 /// A dataset being written: episodes of one layout appended in order, then finished.
 pub trait DatasetWriter: std::fmt::Debug {
     /// Checks that `ep` can join this dataset (fps, widths, cameras and their videos).
@@ -139,11 +165,11 @@ pub struct PreparedEpisode {
     /// The replay's record (outcome, render flags, randomization draw) for a replay
     /// made by augment; `None` for a recording.
     pub label: Option<ReplayLabel>,
-    /// With `--privileged-state`: the task spec's non-proprioceptive state columns
-    /// (objects' reset-time poses, `dh`), from the first kept frame.
-    pub privileged: Option<FrameArray>,
-    /// Column names of `privileged`, from the task spec (`mouse.pos[0]` ...).
-    pub privileged_names: Vec<String>,
+    /// Float features beyond action and state, in the order they are written: the
+    /// environment state (`--environment-state`), then the privileged state
+    /// (`--privileged-state`: the task spec's non-proprioceptive state columns, objects'
+    /// reset-time poses and `dh`).
+    pub vectors: Vec<VectorFeature>,
     /// With `--depth`: per output camera, in name order, its depth archive.
     pub depth: Vec<DepthPart>,
     /// Where the running subtasks change (from the replay's subtask spans); empty for an
@@ -206,20 +232,37 @@ impl PreparedEpisode {
         Ok(())
     }
 
-    /// Checks that this episode's privileged state (`--privileged-state`) has the
-    /// dataset's columns `names` (empty: the dataset has none).
-    pub fn check_privileged(&self, names: &[String]) -> Result<(), DatasetError> {
-        if self.privileged_names != names {
-            return Err(DatasetError::episode(
-                &self.id,
-                format!(
-                    "privileged state columns {:?} differ from the dataset's {names:?} \
-                     (--privileged-state needs tasks with the same state objects)",
-                    self.privileged_names
-                ),
-            ));
+    /// The key and column names of each of its vector features, in order.
+    pub fn vector_layout(&self) -> Vec<(String, Vec<String>)> {
+        self.vectors
+            .iter()
+            .map(|v| (v.key.clone(), v.names.clone()))
+            .collect()
+    }
+
+    /// Checks that this episode's vector features (`--environment-state`,
+    /// `--privileged-state`) have the dataset's keys and columns `layout`.
+    pub fn check_vectors(&self, layout: &[(String, Vec<String>)]) -> Result<(), DatasetError> {
+        let mine = self.vector_layout();
+        if mine == layout {
+            return Ok(());
         }
-        Ok(())
+        let (key, _) = layout
+            .iter()
+            .chain(&mine)
+            .find(|x| !(layout.contains(x) && mine.contains(x)))
+            .expect("the layouts differ");
+        let names =
+            |l: &[(String, Vec<String>)]| l.iter().find(|(k, _)| k == key).map(|(_, n)| n.clone());
+        Err(DatasetError::episode(
+            &self.id,
+            format!(
+                "{key}: columns {:?} differ from the dataset's {:?} (the episodes of one \
+                 dataset need tasks with the same state objects)",
+                names(&mine),
+                names(layout)
+            ),
+        ))
     }
 
     /// Frames kept.

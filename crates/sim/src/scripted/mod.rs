@@ -35,6 +35,8 @@ use kin::{Q, V3};
 pub struct Recorder {
     env: TaskEnv,
     states: Vec<Vec<f64>>,
+    /// The environment state before each step.
+    environment: Vec<Vec<f64>>,
     actions: Vec<Vec<f64>>,
     success_at: Option<usize>,
     failed: bool,
@@ -69,6 +71,7 @@ impl Recorder {
             hands,
             env,
             states: Vec::new(),
+            environment: Vec::new(),
             actions: Vec::new(),
             success_at: None,
             failed: false,
@@ -106,6 +109,7 @@ impl Recorder {
             }
         }
         self.states.push(self.env.state());
+        self.environment.push(self.env.environment_state());
         let v = self.env.step(&action)?;
         self.actions.push(action);
         if v.success {
@@ -339,8 +343,12 @@ impl Recorder {
 
     /// The recorded episode (frames up to and including the success step).
     pub fn into_episode(self, id: &str) -> Result<Episode, SimError> {
-        Episode::from_rollout(id.to_owned(), self.env.spec(), &self.actions, &self.states)
-            .map_err(|e| SimError::Spec(e.to_string()))
+        let mut ep =
+            Episode::from_rollout(id.to_owned(), self.env.spec(), &self.actions, &self.states)
+                .map_err(|e| SimError::Spec(e.to_string()))?;
+        ep.insert_rows(Episode::ENVIRONMENT_STATE, &self.environment)
+            .map_err(|e| SimError::Spec(e.to_string()))?;
+        Ok(ep)
     }
 }
 
