@@ -7,7 +7,10 @@ BC (an MLP of two 1,024-unit layers, Adam 1e-4, batch 100) in plain PyTorch, fro
 proprioception (``observation.state``) and the objects' state (``observation.environment_state``,
 ``convert --environment-state``) to the next ``--horizon`` actions (``action``, per arm xyz,
 rotation vector, 16 hand targets: what eval executes), inputs and outputs normalized by the
-dataset's mean and std. Trained on the CPU in minutes.
+dataset's mean and std. Every rotation goes through the network as Diffusion Policy's
+continuous 6D (see ``Layout``): a gripper pointing down sits where a rotation vector jumps
+from +pi to -pi, and regressed as numbers the two average to a wrong orientation. Trained on
+the CPU in minutes.
 
     # train: writes OUT/model.pt and OUT/curve.csv (step, loss, held-out loss)
     python examples/bc_policy.py train DATASET OUT [--steps 20000] [--horizon 10] [--seed 0]
@@ -41,6 +44,11 @@ DEFAULT_OPENPI_SRC = REPO_ROOT.parent / "shared" / "third_party" / "dexjoco-8d23
 STATE, ENV, ACTION = "observation.state", "observation.environment_state", "action"
 
 
+def env_names(root: Path) -> list[str]:
+    info = json.loads((root / "meta" / "info.json").read_text())
+    return list(info["features"][ENV]["names"])
+
+
 def read_dataset(root: Path) -> dict[str, np.ndarray]:
     """Every frame's state, environment state, action and episode index (float64)."""
     import pyarrow.parquet as pq
@@ -59,6 +67,77 @@ def read_dataset(root: Path) -> dict[str, np.ndarray]:
     out = {k: np.concatenate(v) for k, v in cols.items()}
     out["episode_index"] = out["episode_index"].reshape(-1).astype(np.int64)
     return out
+
+
+def rot6d_from_matrix(m: np.ndarray) -> np.ndarray:
+    """Diffusion Policy's (pytorch3d's) 6D rotation: the matrix's first two rows."""
+    return m[..., :2, :].reshape(*m.shape[:-2], 6)
+
+
+def matrix_from_rot6d(d6: np.ndarray) -> np.ndarray:
+    """pytorch3d's ``rotation_6d_to_matrix``: Gram-Schmidt on the two rows."""
+    a1, a2 = d6[..., :3], d6[..., 3:]
+    b1 = a1 / np.linalg.norm(a1, axis=-1, keepdims=True)
+    b2 = a2 - (b1 * a2).sum(-1, keepdims=True) * b1
+    b2 = b2 / np.linalg.norm(b2, axis=-1, keepdims=True)
+    return np.stack([b1, b2, np.cross(b1, b2)], axis=-2)
+
+
+class Layout:
+    """How the network sees the data: every rotation as Diffusion Policy's continuous 6D.
+
+    A rotation vector jumps between +pi and -pi about an axis as an orientation crosses a
+    half turn (a gripper pointing down is right there), and a quaternion and its negative
+    are one rotation: regressed as numbers, both average two equal targets into a third,
+    wrong one. So the proprioception's TCP quaternions, the environment state's object
+    quaternions and the actions' rotation vectors go in and out as 6D (the first two rows of
+    the rotation matrix), positions and hands as they are.
+    """
+
+    def __init__(self, state_dim: int, env_names: list[str], action_dim: int):
+        from scipy.spatial.transform import Rotation as R
+
+        self.R = R
+        self.arms = action_dim // 22
+        self.state_dim, self.action_dim = state_dim, action_dim
+        # Environment columns: each "<object>.pose[0..6]" run is a position + quaternion.
+        self.env_quats = []
+        for i, name in enumerate(env_names):
+            if name.endswith(".pose[3]") and i + 3 < len(env_names) and env_names[i + 3].endswith(".pose[6]"):
+                self.env_quats.append(i)
+
+    def _quats_to_6d(self, x: np.ndarray, starts: list[int]) -> np.ndarray:
+        parts, at = [], 0
+        for q in starts:
+            parts.append(x[:, at:q])
+            m = self.R.from_quat(x[:, q : q + 4], scalar_first=True).as_matrix()
+            parts.append(rot6d_from_matrix(m))
+            at = q + 4
+        parts.append(x[:, at:])
+        return np.concatenate(parts, axis=1)
+
+    def inputs(self, state: np.ndarray, env: np.ndarray) -> np.ndarray:
+        """The network's input rows from proprioception and environment state rows."""
+        tcp = [a * 7 + 3 for a in range(self.arms)]  # per arm xyz, quaternion wxyz, then the hands
+        return np.concatenate([self._quats_to_6d(state, tcp), self._quats_to_6d(env, self.env_quats)], axis=1)
+
+    def actions_to_net(self, a: np.ndarray) -> np.ndarray:
+        """(n, action_dim) rotation-vector actions -> (n, 25 per arm)."""
+        out = []
+        for arm in range(self.arms):
+            o = arm * 22
+            m = self.R.from_rotvec(a[:, o + 3 : o + 6]).as_matrix()
+            out += [a[:, o : o + 3], rot6d_from_matrix(m), a[:, o + 6 : o + 22]]
+        return np.concatenate(out, axis=1)
+
+    def actions_from_net(self, y: np.ndarray) -> np.ndarray:
+        """(n, 25 per arm) -> (n, action_dim) rotation-vector actions, as eval executes them."""
+        out = []
+        for arm in range(self.arms):
+            o = arm * 25
+            m = matrix_from_rot6d(y[:, o + 3 : o + 9])
+            out += [y[:, o : o + 3], self.R.from_matrix(m).as_rotvec(), y[:, o + 9 : o + 25]]
+        return np.concatenate(out, axis=1)
 
 
 def chunks(actions: np.ndarray, episodes: np.ndarray, horizon: int) -> np.ndarray:
@@ -113,8 +192,10 @@ def train(args) -> None:
     rng = np.random.default_rng(args.seed)
     torch.set_num_threads(args.threads)
     d = read_dataset(Path(args.dataset))
-    x = np.concatenate([d[STATE], d[ENV]], axis=1)
-    y = chunks(d[ACTION], d["episode_index"], args.horizon)
+    names = env_names(Path(args.dataset))
+    layout = Layout(d[STATE].shape[1], names, d[ACTION].shape[1])
+    x = layout.inputs(d[STATE], d[ENV])
+    y = chunks(layout.actions_to_net(d[ACTION]), d["episode_index"], args.horizon)
     n, action_dim = len(x), y.shape[2]
     y = y.reshape(n, -1)
     episodes = np.unique(d["episode_index"])
@@ -153,6 +234,8 @@ def train(args) -> None:
             "inputs": x.shape[1],
             "state_dim": d[STATE].shape[1],
             "env_dim": d[ENV].shape[1],
+            "env_names": names,
+            "dataset_action_dim": d[ACTION].shape[1],
             "horizon": args.horizon,
             "action_dim": action_dim,
             "hidden": args.hidden,
@@ -182,17 +265,18 @@ class BCPolicy:
         self.model.eval()
         self.c = c
         self.xn, self.yn = Normalizer.from_dict(c["x_norm"]), Normalizer.from_dict(c["y_norm"])
+        self.layout = Layout(c["state_dim"], c["env_names"], c["dataset_action_dim"])
 
     def infer(self, obs: dict) -> dict:
         if "environment_state" not in obs:
             raise ValueError("no environment_state in the observation: run eval with --environment-state")
-        state = np.asarray(obs["state"], dtype=np.float64)[: self.c["state_dim"]]
-        env = np.asarray(obs["environment_state"], dtype=np.float64)
-        x = np.concatenate([state, env])[None]
+        state = np.asarray(obs["state"], dtype=np.float64)[None, : self.c["state_dim"]]
+        env = np.asarray(obs["environment_state"], dtype=np.float64)[None]
+        x = self.layout.inputs(state, env)
         with self._torch.no_grad():
             y = self.model(self._torch.tensor(self.xn(x), dtype=self._torch.float32)).numpy()
-        actions = self.yn.undo(y.astype(np.float64)).reshape(self.c["horizon"], self.c["action_dim"])
-        return {"actions": actions}
+        y = self.yn.undo(y.astype(np.float64)).reshape(self.c["horizon"], self.c["action_dim"])
+        return {"actions": self.layout.actions_from_net(y)}
 
     @property
     def metadata(self) -> dict:

@@ -122,7 +122,8 @@ pub struct EvalArgs {
     #[arg(long)]
     pub privileged_keys: bool,
     /// Add `environment_state` (float64) to every observation: each of the task's state
-    /// objects' pose now, then the table offset dh, as `convert --environment-state`
+    /// objects' pose now, the targets its success derives from the reset, then the table
+    /// offset dh, as `convert --environment-state`
     /// exports it (`observation.environment_state`) for state-based policies.
     #[arg(long)]
     pub environment_state: bool,

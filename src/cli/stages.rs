@@ -236,7 +236,8 @@ pub struct ConvertArgs {
     #[arg(long)]
     pub privileged_state: bool,
     /// Also export the environment state at every frame (each of the task's state objects'
-    /// pose now, then the table offset dh, as augment, generate, scripted and eval record
+    /// pose now, the targets its success derives from the reset, then the table offset dh,
+    /// as augment, generate, scripted and eval record
     /// it) as `observation.environment_state` (LeRobot's key: its ACT and Diffusion Policy
     /// take it as input) or data/environment_state (Diffusion Policy), one name per column
     /// from the task spec. An episode without it (a recording not replayed) is left out

@@ -69,7 +69,7 @@ pub(crate) fn add_state_features(
         push(p, ENVIRONMENT_STATE_KEY, names, values);
     }
     if let Some(values) = privileged {
-        push(p, PRIVILEGED_KEY, spec.environment_state_names(), &values);
+        push(p, PRIVILEGED_KEY, spec.privileged_names(), &values);
     }
     Ok(())
 }

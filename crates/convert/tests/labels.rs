@@ -23,12 +23,19 @@ const SEED0: u64 = 18_000_000_000_000_000_001;
 fn labelled_fixture() -> Fixture {
     let mut fx = fixture();
     fx.inputs[1].episode.task = "click_mouse".into();
-    // The environment state a simulating stage records: the privileged columns made
-    // current (here: moved by the frame index, so every row differs from the reset).
-    for input in &mut fx.inputs {
-        let st = input.episode.array(Episode::STATE).unwrap().clone();
-        let rows: Vec<Vec<f64>> = (0..st.len())
-            .map(|f| st.row(f)[23..31].iter().map(|v| v + f as f64).collect())
+    // The environment state a simulating stage records, as wide as the task's (here: made
+    // up, every row and column different).
+    let width = dexjoco_core::TaskSpec::builtin("click_mouse")
+        .unwrap()
+        .environment_state_names()
+        .len();
+    for (e, input) in fx.inputs.iter_mut().enumerate() {
+        let rows: Vec<Vec<f64>> = (0..input.episode.len())
+            .map(|f| {
+                (0..width)
+                    .map(|c| (e * 1000 + f * 10 + c) as f64 * 0.125)
+                    .collect()
+            })
             .collect();
         input
             .episode
@@ -317,7 +324,10 @@ fn lerobot_v3_loads_the_outcomes_and_privileged_state() {
         ])
     );
     // The environment state: LeRobot's key, a policy input, float32 with names, per frame.
-    assert_eq!(got["environment_feature"]["names"], json!(PRIVILEGED_NAMES));
+    let env_names = dexjoco_core::TaskSpec::builtin("click_mouse")
+        .unwrap()
+        .environment_state_names();
+    assert_eq!(got["environment_feature"]["names"], json!(env_names));
     assert_eq!(got["v21_environment"], got["environment"]);
     let items = got["environment"].as_array().unwrap();
     let mut row = 0;
@@ -472,7 +482,10 @@ fn diffusion_policy_store_carries_the_outcomes_and_privileged_state() {
             row += 1;
         }
     }
-    assert_eq!(got["environment_names"], json!(PRIVILEGED_NAMES));
+    let env_names = dexjoco_core::TaskSpec::builtin("click_mouse")
+        .unwrap()
+        .environment_state_names();
+    assert_eq!(got["environment_names"], json!(env_names));
     let rows = got["environment"].as_array().unwrap();
     let mut row = 0;
     for (e, input) in fx.inputs.iter().enumerate() {

@@ -182,10 +182,11 @@ impl Episode {
     /// Name of the timestamp array.
     pub const TIMESTAMP: &'static str = "timestamp";
     /// The objects' state at every frame, as the simulator has it before the frame's
-    /// action: each of the task spec's state objects' pose (or position), then the table
-    /// offset `dh` ([`crate::TaskSpec::environment_state_names`]): the privileged columns
-    /// of `state`, which hold the reset-time values, made current. Recorded by the stages
-    /// that simulate (augment, generate, scripted, eval).
+    /// action: each of the task spec's state objects' pose (or position), then the poses
+    /// its reset derives from them (a mouse pad, Hanoi's disks), then the table offset `dh`
+    /// ([`crate::TaskSpec::environment_state_names`]): what `state`'s privileged columns
+    /// hold at reset, made current and complete. Recorded by the stages that simulate
+    /// (augment, generate, scripted, eval).
     pub const ENVIRONMENT_STATE: &'static str = "environment_state";
 
     /// Number of frames (of `action`, or of any array when there is no action).

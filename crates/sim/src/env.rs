@@ -421,15 +421,17 @@ impl TaskEnv {
         s
     }
 
-    /// The environment state now ([`dexjoco_core::Episode::ENVIRONMENT_STATE`]): each
-    /// state object's pose (or position) read from the simulation as the reset reads it,
-    /// then dh. At the reset it equals the privileged part of [`Self::state`]; it is what
-    /// datasets record per frame and what `eval` sends a policy, from this one function.
+    /// The environment state now ([`dexjoco_core::Episode::ENVIRONMENT_STATE`]): each of
+    /// the task's [`TaskSpec::environment_poses`] (its state objects, then the poses its
+    /// reset derives from them) read from the simulation as the reset reads them, then dh.
+    /// At the reset its state objects' part equals the privileged part of [`Self::state`];
+    /// it is what datasets record per frame and what `eval` sends a policy, from this one
+    /// function.
     pub fn environment_state(&self) -> Vec<f64> {
         let model = self.data.model();
-        let mut out = Vec::with_capacity(self.privileged.len());
-        for o in &self.spec.state.objects {
-            read_pose(model, &self.data, &o.source, &mut out);
+        let mut out = Vec::with_capacity(self.privileged.len() + 14);
+        for (_, source) in self.spec.environment_poses() {
+            read_pose(model, &self.data, source, &mut out);
         }
         out.push(*self.privileged.last().expect("dh"));
         out

@@ -75,13 +75,46 @@ impl TaskSpec {
         out
     }
 
-    /// The columns of the environment state ([`crate::Episode::ENVIRONMENT_STATE`]): the
-    /// privileged columns of `state` (`mouse.pose[0]` ... `dh[0]`), in their order.
-    pub fn environment_state_names(&self) -> Vec<String> {
+    /// The columns of the privileged part of `state` (`mouse.pose[0]` ... `dh[0]`), in
+    /// their order.
+    pub fn privileged_names(&self) -> Vec<String> {
         let layout = self.state_layout();
         (self.setup.proprio_dim()..layout.width())
             .map(|c| layout.column_name(c))
             .collect()
+    }
+
+    /// The poses the environment state holds, in order: each state object's, then each
+    /// pose the reset derives from them that is not itself a state object (a mouse pad
+    /// placed from the mouse, Hanoi's disks from their base): named after the object, or
+    /// after the body, joint or geom for a derived one.
+    pub fn environment_poses(&self) -> Vec<(String, &super::PoseSource)> {
+        let objects = &self.state.objects;
+        let mut out: Vec<(String, &super::PoseSource)> = objects
+            .iter()
+            .map(|o| (o.name.clone(), &o.source))
+            .collect();
+        for d in &self.state.derived {
+            if !objects.iter().any(|o| o.source == d.target) {
+                out.push((d.target.name().to_owned(), &d.target));
+            }
+        }
+        out
+    }
+
+    /// The columns of the environment state ([`crate::Episode::ENVIRONMENT_STATE`]): the
+    /// [`Self::environment_poses`] now (`mouse.pose[0]` ... `mousepad.pose[6]`), then the
+    /// table offset `dh[0]`.
+    pub fn environment_state_names(&self) -> Vec<String> {
+        let mut names: Vec<String> = self
+            .environment_poses()
+            .into_iter()
+            .flat_map(|(name, source)| {
+                (0..source.width()).map(move |i| format!("{name}.pose[{i}]"))
+            })
+            .collect();
+        names.push("dh[0]".into());
+        names
     }
 
     /// Column of the table height offset dh in `state` (the last one).
