@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Sets up everything and runs the main job on the embedded sample data: the whole
-# pipeline ingest -> augment -> convert -> stats on the scripted demonstrations in
+# pipeline ingest -> generate -> augment -> convert -> stats on the scripted demonstrations in
 # datasets/demos, on the built-in scenes (nothing outside the repository is needed),
 # with real MuJoCo physics, EGL rendering and ffmpeg. Outputs land in ./dexjoco-work/.
 set -euo pipefail
@@ -20,7 +20,11 @@ BIN="$ROOT/target/release/dexjoco-data"
 "$BIN" render --video --steps 1000 --camera front --quality fast --overwrite
 # The embedded sample demonstrations (datasets/demos: one scripted demonstration per task
 # (all 11 tasks), made by `dexjoco-data scripted` on the built-in scenes): the first
-# episode of each task validated into the episode store; replayed 4 times each under
+# episode of each task validated into the episode store. From the stored click_mouse and
+# hammer_nail demonstrations, new ones at new object poses (MimicGen-style: subtask
+# segments carried to the objects' new poses, run and checked; the report, a figure of
+# where the objects were and a sheet of the resets in dexjoco-work/generate/<task>/).
+# The stored and the generated episodes are then replayed 4 times each under
 # camera/light/table randomization (224 px, fast preset, so it takes minutes on a 2-core
 # CPU; `--replays 10` is the reference's count, about 2.5 times as long; drop the size and
 # quality flags for the reference's 640 px multisampled look); the contact sheet has one
@@ -28,7 +32,9 @@ BIN="$ROOT/target/release/dexjoco-data"
 # openpi norm stats; dataset statistics of the augmented set, with the replay success
 # rates from the augment report.
 "$BIN" ingest datasets/demos/*/episode_000000
-"$BIN" augment dexjoco-work/ingest --replays 4 --size 224 --quality fast
+"$BIN" generate dexjoco-work/ingest/click_mouse --task click_mouse --count 4 --overwrite
+"$BIN" generate dexjoco-work/ingest/hammer_nail --task hammer_nail --count 2 --overwrite
+"$BIN" augment dexjoco-work/ingest dexjoco-work/generate --replays 4 --size 224 --quality fast
 "$BIN" convert --overwrite --merge-bimanual
 "$BIN" convert --format diffusion-policy --norm-stats --overwrite --merge-bimanual
 # The LeRobot dataset managed: its successful replays kept (augment keeps successes, so
@@ -46,4 +52,4 @@ BIN="$ROOT/target/release/dexjoco-data"
 # The language-generalization analysis and success tables on the shipped EXAMPLE
 # evaluation outputs (made up by a script, not results).
 "$BIN" stats --language-eval --success-table
-echo "done: see dexjoco-work/augment/ (augment_report.md, contact_sheet.png), dexjoco-work/convert/, dexjoco-work/dataset/, dexjoco-work/stats/, dexjoco-work/cameras/ and dexjoco-work/render/" >&2
+echo "done: see dexjoco-work/generate/ (generate_report.md, generate_poses.png), dexjoco-work/augment/ (augment_report.md, contact_sheet.png), dexjoco-work/convert/, dexjoco-work/dataset/, dexjoco-work/stats/, dexjoco-work/cameras/ and dexjoco-work/render/" >&2

@@ -262,7 +262,8 @@ pub fn job_with_checkout_hidden(script: &str, work: &Path, what: &str) -> String
 
 /// The sample job as a user runs it from an installed `dexjoco-data` (`prefix/bin` or a
 /// link to it in `bin`, first on PATH), in `work`, with the checkout hidden and the
-/// environment cleared: doctor, ingest of two demos, augment, convert --merge-bimanual,
+/// environment cleared: doctor, ingest of two demos, generate from the shipped sample,
+/// augment of both, convert --merge-bimanual,
 /// stats --dataset, stats --language-eval. Asserts that it finished, that doctor found
 /// MuJoCo in `prefix/lib` and the sample data in `prefix/share/dexjoco-data`, and that
 /// augment and the language analysis wrote their outputs; returns doctor's report.
@@ -279,7 +280,8 @@ pub fn sample_job_with_checkout_hidden(
         "set -e; export PATH='{bin}':$PATH; cd '{work}'
          dexjoco-data doctor > doctor.txt
          dexjoco-data -q ingest '{demos}/click_mouse' '{demos}/bimanual_unlock_ipad'
-         dexjoco-data -q -j 2 augment dexjoco-work/ingest --replays 1 --size 32 --quality fast
+         dexjoco-data -q generate --task click_mouse --count 2
+         dexjoco-data -q -j 2 augment dexjoco-work/ingest dexjoco-work/generate --replays 1 --size 32 --quality fast
          dexjoco-data -q convert --merge-bimanual > convert.txt
          dexjoco-data -q stats --dataset dexjoco-work/augment > stats.txt
          dexjoco-data -q stats --language-eval > language.txt",
@@ -303,8 +305,21 @@ pub fn sample_job_with_checkout_hidden(
     let report = work.join("dexjoco-work/augment/augment_report.json");
     let report: serde_json::Value =
         serde_json::from_str(&fs_err::read_to_string(report).unwrap()).unwrap();
-    // click_mouse has two sample episodes, unlock_ipad one; one replay each.
-    assert_eq!(report["replays"].as_array().unwrap().len(), 3, "{report}");
+    // click_mouse has two sample episodes, unlock_ipad one, generate made two; one replay
+    // each, the generated ones among them.
+    let replays = report["replays"].as_array().unwrap();
+    assert_eq!(replays.len(), 5, "{report}");
+    let generated = work.join("dexjoco-work/generate/click_mouse/generate_report.json");
+    assert!(generated.is_file(), "generate's report from the {what}");
+    assert_eq!(
+        replays
+            .iter()
+            // ingest names episodes by their content's hash, generate by their number
+            .filter(|r| r["episode"].as_str().unwrap().starts_with("episode_"))
+            .count(),
+        2,
+        "the generated episodes replayed by augment: {report}"
+    );
     assert!(
         fs_err::read_to_string(work.join("language.txt"))
             .unwrap()
