@@ -3,7 +3,8 @@
 //! `meta/episodes` columns) and Diffusion Policy's `ReplayBuffer` opens (`meta/` arrays,
 //! `meta/.zattrs`); flagged replays are left out unless `include_flagged`; the task
 //! spec's privileged state columns go under `privileged.state` / `data/privileged_state`.
-//! The README's filtering snippets are run as they are written (only the path changed).
+//! The filtering snippets of docs/commands/convert.md are run as they are written (only the
+//! path changed).
 
 mod common;
 
@@ -117,15 +118,16 @@ fn run_python(dir: &Path, name: &str, code: &str, args: &[&str]) -> Value {
     dexjoco_testkit::run_python_json(path.to_str().unwrap(), args)
 }
 
-/// The `n`-th ```python block of the README's "Filtering on outcomes in Python" section.
+/// The `n`-th ```python block of docs/commands/convert.md's "Filtering on outcomes in
+/// Python" section.
 fn readme_snippet(n: usize) -> String {
-    let readme =
-        fs_err::read_to_string(dexjoco_testkit::workspace_root().join("README.md")).unwrap();
-    let section = readme
-        .split("## Filtering on outcomes in Python")
+    let page = dexjoco_testkit::workspace_root().join("docs/commands/convert.md");
+    let page = fs_err::read_to_string(page).unwrap();
+    let section = page
+        .split("### Filtering on outcomes in Python")
         .nth(1)
-        .expect("the README has the section");
-    let section = section.split("\n## ").next().unwrap();
+        .expect("docs/commands/convert.md has the section");
+    let section = section.split("\n##").next().unwrap();
     section
         .split("```python\n")
         .nth(n + 1)
