@@ -37,7 +37,9 @@ pub use names::{MAX_NAME_BYTES, UnsafeName, safe_name};
 pub use parallelism::available_cores;
 pub use pose::{Pose, Quat, Vec3};
 pub use progress::{NoProgress, Progress};
-pub use rotation::{ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};
+pub use rotation::{
+    ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_geodesic, rotvec_to_quat_wxyz,
+};
 pub use shard::Shard;
 pub use task_set::TaskSet;
 pub use task_spec::{

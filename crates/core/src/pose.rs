@@ -2,6 +2,9 @@
 //! quaternion): composition, inverse, the pose of one frame in another, interpolation.
 //! What object-centric demonstration generation needs to carry an end-effector target
 //! from one object pose to another: `new_object * source_object.inverse() * target`.
+//! The quaternion functions every crate uses live here (rotation vectors and the geodesic
+//! in [`crate::rotation`], SciPy's formulas); the planners' geometry and generate's
+//! transforms call them, nothing defines its own.
 
 use serde::{Deserialize, Serialize};
 
@@ -136,6 +139,45 @@ pub fn rotate(q: Quat, v: Vec3) -> Vec3 {
     let u = [q[1], q[2], q[3]];
     let t = scale(cross(u, v), 2.0);
     add(add(v, scale(t, q[0])), cross(u, t))
+}
+
+/// The rotation by `angle` (rad) about the unit `axis`.
+pub fn axis_angle(axis: Vec3, angle: f64) -> Quat {
+    let (s, c) = (angle / 2.0).sin_cos();
+    [c, axis[0] * s, axis[1] * s, axis[2] * s]
+}
+
+/// The rotation by `angle` (rad) about world z.
+pub fn yaw(angle: f64) -> Quat {
+    axis_angle([0.0, 0.0, 1.0], angle)
+}
+
+/// Normalized linear interpolation from `a` to `b` (the shorter way round).
+pub fn nlerp(a: Quat, b: Quat, t: f64) -> Quat {
+    let dot: f64 = (0..4).map(|i| a[i] * b[i]).sum();
+    let s = if dot < 0.0 { -1.0 } else { 1.0 };
+    normalize([
+        a[0] + (s * b[0] - a[0]) * t,
+        a[1] + (s * b[1] - a[1]) * t,
+        a[2] + (s * b[2] - a[2]) * t,
+        a[3] + (s * b[3] - a[3]) * t,
+    ])
+}
+
+/// The row-major rotation matrix of `q` (normalized first).
+pub fn to_matrix(q: Quat) -> [f64; 9] {
+    let [w, x, y, z] = normalize(q);
+    [
+        1.0 - 2.0 * (y * y + z * z),
+        2.0 * (x * y - w * z),
+        2.0 * (x * z + w * y),
+        2.0 * (x * y + w * z),
+        1.0 - 2.0 * (x * x + z * z),
+        2.0 * (y * z - w * x),
+        2.0 * (x * z - w * y),
+        2.0 * (y * z + w * x),
+        1.0 - 2.0 * (x * x + y * y),
+    ]
 }
 
 /// Spherical linear interpolation from `a` to `b` along the shorter arc.

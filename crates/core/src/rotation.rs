@@ -4,7 +4,7 @@
 //! `Rotation.from_rotvec(..).as_quat(scalar_first=True)` (including their Taylor
 //! expansions near zero angle), so values agree with SciPy to rounding.
 
-use nalgebra::{Quaternion, Vector3};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 use crate::layout::{HAND_DOF, POSE_DIM, ROTVEC_POSE_DIM};
 
@@ -74,6 +74,29 @@ pub fn action_to_rotvec(action: &[f64], out: &mut [f64]) {
         o[3..6].copy_from_slice(&quat_wxyz_to_rotvec([a[3], a[4], a[5], a[6]]));
         o[6..].copy_from_slice(&a[7..]);
     }
+}
+
+fn unit_quaternion(r: [f64; 3]) -> UnitQuaternion<f64> {
+    let [w, x, y, z] = rotvec_to_quat_wxyz(r);
+    UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z))
+}
+
+fn unit_rotvec(q: UnitQuaternion<f64>) -> [f64; 3] {
+    quat_wxyz_to_rotvec([q.w, q.i, q.j, q.k])
+}
+
+/// The rotation `t` of the way from `r0` to `r1` along the shorter geodesic, as SciPy
+/// computes it in the reference: `r0 * exp(t * log(r0^-1 * r1))`.
+pub fn rotvec_geodesic(r0: [f64; 3], r1: [f64; 3], t: f64) -> [f64; 3] {
+    if t <= 0.0 {
+        return r0;
+    }
+    if t >= 1.0 {
+        return r1;
+    }
+    let (q0, q1) = (unit_quaternion(r0), unit_quaternion(r1));
+    let rel = unit_rotvec(q0.inverse() * q1);
+    unit_rotvec(q0 * unit_quaternion(rel.map(|v| v * t)))
 }
 
 #[cfg(test)]

@@ -9,8 +9,10 @@
 
 use std::collections::VecDeque;
 
-use dexjoco_core::{ArmSetup, HAND_DOF, ROTVEC_POSE_DIM, quat_wxyz_to_rotvec, rotvec_to_quat_wxyz};
-use nalgebra::{Quaternion, UnitQuaternion};
+use dexjoco_core::{
+    ArmSetup, HAND_DOF, ROTVEC_POSE_DIM, quat_wxyz_to_rotvec, rotvec_geodesic as geodesic,
+    rotvec_to_quat_wxyz,
+};
 
 /// The actions to execute, by control step.
 #[derive(Debug, Clone)]
@@ -103,29 +105,6 @@ pub fn interpolate(setup: ArmSetup, old: &[f64], new: &[f64], t: f64) -> Vec<f64
         out[r..r + 3].copy_from_slice(&v);
     }
     out
-}
-
-fn unit(r: [f64; 3]) -> UnitQuaternion<f64> {
-    let [w, x, y, z] = rotvec_to_quat_wxyz(r);
-    UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z))
-}
-
-fn rotvec(q: UnitQuaternion<f64>) -> [f64; 3] {
-    quat_wxyz_to_rotvec([q.w, q.i, q.j, q.k])
-}
-
-/// The rotation `t` of the way from `r0` to `r1` along the shorter geodesic, as SciPy
-/// computes it in the reference: `r0 * exp(t * log(r0^-1 * r1))`.
-pub fn geodesic(r0: [f64; 3], r1: [f64; 3], t: f64) -> [f64; 3] {
-    if t <= 0.0 {
-        return r0;
-    }
-    if t >= 1.0 {
-        return r1;
-    }
-    let (q0, q1) = (unit(r0), unit(r1));
-    let rel = rotvec(q0.inverse() * q1);
-    rotvec(q0 * unit(rel.map(|v| v * t)))
 }
 
 /// A policy action (per arm `[xyz, rotvec, hand16]`) as the environment's action (per

@@ -1,5 +1,6 @@
-//! Geometry for the planners: wxyz quaternions, rotations, and the privileged poses
-//! (bodies, geoms, sites, joints, TCPs) read from the simulation.
+//! Geometry for the planners: vectors, and the privileged poses (bodies, geoms, sites,
+//! joints, TCPs) read from the simulation. Quaternion functions are core's `pose` module's,
+//! re-exported under the planners' short names.
 
 use dexjoco_core::NameKind;
 
@@ -12,60 +13,9 @@ pub(crate) type V3 = [f64; 3];
 /// A wxyz quaternion.
 pub(crate) type Q = [f64; 4];
 
-/// Hamilton product a * b of wxyz quaternions.
-pub(crate) fn qmul(a: Q, b: Q) -> Q {
-    [
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
-    ]
-}
-
-/// The rotation by `angle` (rad) about the unit `axis`.
-pub(crate) fn axis_angle(axis: V3, angle: f64) -> Q {
-    let (s, c) = (angle / 2.0).sin_cos();
-    [c, axis[0] * s, axis[1] * s, axis[2] * s]
-}
-
-/// The rotation by `angle` (rad) about world z.
-pub(crate) fn yaw(angle: f64) -> Q {
-    axis_angle([0.0, 0.0, 1.0], angle)
-}
-
-/// `q` normalized.
-pub(crate) fn qnorm(q: Q) -> Q {
-    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-    [q[0] / n, q[1] / n, q[2] / n, q[3] / n]
-}
-
-/// Normalized linear interpolation from `a` to `b` (the shorter way round).
-pub(crate) fn nlerp(a: Q, b: Q, t: f64) -> Q {
-    let dot: f64 = (0..4).map(|i| a[i] * b[i]).sum();
-    let s = if dot < 0.0 { -1.0 } else { 1.0 };
-    qnorm([
-        a[0] + (s * b[0] - a[0]) * t,
-        a[1] + (s * b[1] - a[1]) * t,
-        a[2] + (s * b[2] - a[2]) * t,
-        a[3] + (s * b[3] - a[3]) * t,
-    ])
-}
-
-/// The row-major rotation matrix of `q`.
-pub(crate) fn qmat(q: Q) -> [f64; 9] {
-    let [w, x, y, z] = qnorm(q);
-    [
-        1.0 - 2.0 * (y * y + z * z),
-        2.0 * (x * y - w * z),
-        2.0 * (x * z + w * y),
-        2.0 * (x * y + w * z),
-        1.0 - 2.0 * (x * x + z * z),
-        2.0 * (y * z - w * x),
-        2.0 * (x * z - w * y),
-        2.0 * (y * z + w * x),
-        1.0 - 2.0 * (x * x + y * y),
-    ]
-}
+pub(crate) use dexjoco_core::pose::{
+    axis_angle, nlerp, normalize as qnorm, qmul, to_matrix as qmat, yaw,
+};
 
 /// `m * v` for a row-major 3x3 matrix.
 pub(crate) fn mulv(m: &[f64; 9], v: V3) -> V3 {
