@@ -8,6 +8,7 @@
 
 use dexjoco_core::{HAND_DOF, NameKind};
 
+use super::hands::hammer_nail::{WRAP, WRAP_OPEN};
 use super::kin::{self, Q, V3};
 use super::{CLOSE, OPEN, Planned, Recorder, debug};
 use crate::checker::name_id;
@@ -22,16 +23,6 @@ const GRIP_ALONG: f64 = 0.045;
 /// A handle whose half sizes across and in height are both at least this (m) is wrapped,
 /// not pinched.
 const WRAP_MIN_HALF: f64 = 0.02;
-
-/// The wrap's approach: fingers nearly straight, the thumb turned under the palm, open.
-const WRAP_OPEN: [f64; HAND_DOF] = [
-    0.0, 0.2, 0.1, 0.1, 0.0, 0.2, 0.1, 0.1, 0.0, 0.2, 0.1, 0.1, 1.2, 0.0, 0.0, 0.0,
-];
-/// The wrap closed: fingers curled over and under the handle, the thumb pressing its
-/// near side.
-const WRAP: [f64; HAND_DOF] = [
-    0.0, 1.5, 1.5, 1.3, 0.0, 1.5, 1.5, 1.3, 0.0, 1.5, 1.5, 1.3, 1.3, 0.6, 1.0, 1.0,
-];
 
 /// The handle geom: world centre, rotation (row-major) and half sizes.
 struct Handle {

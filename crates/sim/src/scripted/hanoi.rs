@@ -10,6 +10,7 @@
 
 use dexjoco_core::HAND_DOF;
 
+use super::hands::hanoi_hand;
 use super::kin::{self, Q, V3};
 use super::{Goal, Planned, Recorder, Variant, debug};
 use crate::env::TaskEnv;
@@ -26,18 +27,10 @@ const GRIP_UP: f64 = 0.136;
 /// How high a disk is carried (centre above its resting height on the base).
 const LIFT: f64 = 0.215;
 
-/// Index and ring fingers bent down (base joints `j0`: + spreads them apart, - closes
-/// them on each other), the middle finger curled away, the thumb tucked under the palm
-/// (clear of the post and of the other hand).
-const fn hand(j0: f64) -> [f64; HAND_DOF] {
-    [
-        j0, 0.8, 0.8, 0.2, 0.0, 1.6, 1.7, 1.6, -j0, 0.8, 0.8, 0.2, 0.263, 1.1, 1.6, 1.7,
-    ]
-}
 /// Spread: the fingertips clear of the widest disk they straddle.
-const SPREAD: [f64; HAND_DOF] = hand(0.25);
+const SPREAD: [f64; HAND_DOF] = hanoi_hand(0.25);
 /// Closed on each other: the pinch (targets past contact give the squeeze).
-const PINCH: [f64; HAND_DOF] = hand(-0.47);
+const PINCH: [f64; HAND_DOF] = hanoi_hand(-0.47);
 
 fn disk_pos(e: &TaskEnv, disk: &str) -> Result<V3, SimError> {
     Ok(kin::body(e, &format!("hanoi_disk_{disk}"))?.0)

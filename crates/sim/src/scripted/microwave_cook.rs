@@ -11,6 +11,7 @@
 
 use dexjoco_core::{HAND_DOF, NameKind};
 
+use super::hands::microwave_cook::{CLAMP_OPEN, HOOK, PRESS, RELEASE, SHUT_HAND};
 use super::kin::{self, Q, V3};
 use super::{CLOSE, Goal, Planned, Recorder, debug};
 use crate::checker::name_id;
@@ -20,30 +21,6 @@ use crate::error::SimError;
 const RIGHT: usize = 0;
 const LEFT: usize = 1;
 
-/// The left hand hooking the handle: fingers almost straight, the thumb folded up
-/// under the palm.
-const HOOK: [f64; HAND_DOF] = [
-    0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 0.0, 0.1, 0.1, 0.1, 1.4, -0.1, 1.6, 1.6,
-];
-/// The left hand pushing the door shut: fingers curled a little so that their tips, not
-/// the palm, touch the door.
-const SHUT_HAND: [f64; HAND_DOF] = [
-    0.0, 0.5, 0.2, 0.1, 0.0, 0.5, 0.2, 0.1, 0.0, 0.5, 0.2, 0.1, 1.4, -0.1, 1.6, 1.6,
-];
-/// The clamp's approach: fingers half curled, the thumb already turned under the palm
-/// (closing is [`CLOSE`]: the same thumb, the fingers curled over the hot dog).
-const CLAMP_OPEN: [f64; HAND_DOF] = [
-    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 1.4, 0.5, 0.8, 0.8,
-];
-/// Letting go: straight fingers, the thumb folded up under the palm (its tip 5 cm below
-/// the TCP).
-const RELEASE: [f64; HAND_DOF] = [
-    0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.4, 0.5, 1.6, 1.6,
-];
-/// Straight index finger, middle and ring curled, the thumb folded up under the palm.
-const PRESS: [f64; HAND_DOF] = [
-    0.0, 0.0, 0.0, 0.0, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 1.4, 0.5, 1.6, 1.6,
-];
 /// The straight index fingertip (its collision geom's centre) from the TCP with the hand
 /// palm down, fingers along x (the robot's kinematics).
 const INDEX_TIP: V3 = [0.176, 0.054, -0.035];

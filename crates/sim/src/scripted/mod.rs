@@ -16,6 +16,7 @@ mod assembly;
 mod click_mouse;
 mod fold_glasses;
 mod hammer_nail;
+mod hands;
 mod hanoi;
 pub(crate) mod kin;
 mod microwave_cook;
@@ -28,6 +29,7 @@ mod water_plant;
 pub use click_mouse::click_mouse_demo;
 pub use unlock_ipad::unlock_ipad_demo;
 
+pub(crate) use hands::{CLOSE, FLAT_HAND, OPEN, POINT_HAND};
 use kin::{Q, V3};
 
 /// Steps an environment and records frames (state before the step, action applied).
@@ -358,25 +360,6 @@ pub(crate) fn geom_of_body(env: &TaskEnv, body: &str) -> Option<usize> {
     (0..m.ffi().ngeom as usize)
         .find(|&g| m.geom_bodyid()[g] as usize == b && m.geom_contype()[g] != 0)
 }
-
-/// The cage pinch's approach pose: fingers half curled, the thumb turned under the palm
-/// but open (hand targets ff, mf, rf, th).
-pub(crate) const OPEN: [f64; HAND_DOF] = [
-    0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.8, 0.0, 0.2, 0.2,
-];
-/// The cage pinch closed: fingers and thumb closed on each other, so an object between
-/// them is squeezed (targets past contact give the force).
-pub(crate) const CLOSE: [f64; HAND_DOF] = [
-    0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
-];
-/// Index finger curled to point down, the others tucked away, the thumb at home.
-pub(crate) const POINT_HAND: [f64; HAND_DOF] = [
-    0.0, 1.3, 0.9, 0.3, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 0.263, 0.0, 0.0, 0.0,
-];
-/// Hand targets (ff, mf, rf, th) with straight fingers and the thumb at home.
-pub(crate) const FLAT_HAND: [f64; HAND_DOF] = [
-    0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.263, 0.0, 0.0, 0.0,
-];
 
 /// One arm's goal in a [`Recorder::go_many`] motion; `None` keeps the current value.
 #[derive(Debug, Clone, Copy)]

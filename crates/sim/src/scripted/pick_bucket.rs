@@ -7,15 +7,12 @@
 
 use dexjoco_core::HAND_DOF;
 
+use super::hands::pick_bucket::{DOWN, HOOK, HOOK_DOWN};
 use super::kin::{self, Q, V3};
 use super::{CLOSE, OPEN, Planned, Recorder, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
-/// The fingers closed, the thumb still open.
-const HOOK: [f64; HAND_DOF] = [
-    0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 0.8, 0.0, 0.2, 0.2,
-];
 /// The food's centre from the TCP along the thumb-to-fingers axis, and below it.
 const FOOD_X: f64 = 0.07;
 const FOOD_DOWN: f64 = 0.13;
@@ -32,14 +29,6 @@ const FOLDED: f64 = 0.5;
 const FOOD_SPOT_UPRIGHT: f64 = -0.09;
 const FOOD_SPOT_FOLDED: f64 = 0.02;
 
-/// Fingers pointing straight down (the proximal links vertical), the thumb at home.
-const DOWN: [f64; HAND_DOF] = [
-    0.0, 1.4, 0.2, 0.0, 0.0, 1.4, 0.2, 0.0, 0.0, 1.4, 0.2, 0.0, 0.263, 0.0, 0.0, 0.0,
-];
-/// The fingers hooked (distal links curled back toward the palm), the thumb at home.
-const HOOK_DOWN: [f64; HAND_DOF] = [
-    0.0, 1.57, 1.0, 0.8, 0.0, 1.57, 1.0, 0.8, 0.0, 1.57, 1.0, 0.8, 0.263, 0.0, 0.0, 0.0,
-];
 /// The middle fingertip of [`DOWN`] from the TCP (palm down): along the fingers, below.
 const DOWN_TIP: (f64, f64) = (0.075, 0.14);
 /// The fingertips' distance inside the bar (toward the pivot) while raising it (m).

@@ -1,19 +1,15 @@
 //! The bimanual_unlock_ipad planner: the right index finger presses the password's
 //! digits on the screen with guarded moves along the screen normal.
 
-use dexjoco_core::{Episode, HAND_DOF, NameKind, TaskSpec};
+use dexjoco_core::{Episode, NameKind, TaskSpec};
 
+use super::hands::INDEX_HAND;
 use super::kin::qmul;
 use super::{Planned, Recorder, Variant};
 use crate::checker::name_id;
 use crate::env::{EnvOptions, TaskEnv};
 use crate::error::SimError;
 use crate::scene::Scene;
-
-/// Straight index finger, middle and ring curled away, thumb at home.
-const INDEX_HAND: [f64; HAND_DOF] = [
-    0.0, 0.0, 0.0, 0.0, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 0.263, 0.0, 0.0, 0.0,
-];
 
 /// A scripted bimanual_unlock_ipad demonstration with the right hand alone: the hand
 /// pitched 30 degrees down so the straight index finger is perpendicular to the screen;

@@ -11,25 +11,13 @@
 //! then the hand rests palm-down on the body with the index and middle fingers hooked in
 //! front of the trigger (the middle one near its free end) and curls them to pull it.
 
-use dexjoco_core::HAND_DOF;
 
+use super::hands::water_plant::{AIM, HOLD, OPEN, PRESS, PULL};
 use super::kin::{self, V3};
 use super::{Goal, Planned, Recorder, Variant, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
-/// Fingers half curled, thumb turned under the palm but open: the approach pose.
-const OPEN: [f64; HAND_DOF] = [
-    0.0, 0.0, 0.0, 0.0, 0.0, 0.4, 0.4, 0.3, 0.0, 0.4, 0.4, 0.3, 0.8, 0.0, 0.2, 0.2,
-];
-/// Middle, ring and thumb closed on the body; the index finger straight.
-const HOLD: [f64; HAND_DOF] = [
-    0.0, 0.0, 0.0, 0.0, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
-];
-/// As [`HOLD`], the index finger curled onto the trigger.
-const PULL: [f64; HAND_DOF] = [
-    0.0, 0.9, 0.1, 0.1, 0.0, 1.2, 1.2, 1.0, 0.0, 1.2, 1.2, 1.0, 1.4, 0.5, 0.8, 0.8,
-];
 /// Where the bottle's axis goes, from the TCP (home orientation, world axes): the
 /// thumb closes on its back at x ~ 0.04, the fingers on its front.
 const GRIP: V3 = [GRIP_X, 0.0, 0.0];
@@ -207,17 +195,6 @@ fn tips_debug(rec: &Recorder, what: &str) {
     }
 }
 
-/// Front-trigger press, fingers pointing along the spray direction: index and middle
-/// fingers hooked down (tips ~0.08 below and ~0.13 ahead of the TCP, measured), the ring
-/// finger lying over the body, the thumb at home.
-const AIM: [f64; HAND_DOF] = [
-    0.0, 0.0, 1.0, 0.6, 0.0, 0.0, 1.0, 0.6, 0.0, 0.2, 0.3, 0.2, 0.263, 0.0, 0.0, 0.0,
-];
-/// As [`AIM`], index and middle curled (mostly the two outer joints, so the tips sweep
-/// back toward the body at the trigger's height rather than down under it).
-const PRESS: [f64; HAND_DOF] = [
-    0.0, 0.4, 1.709, 1.618, 0.0, 0.4, 1.709, 1.618, 0.0, 0.2, 0.3, 0.2, 0.263, 0.0, 0.0, 0.0,
-];
 /// The TCP in the bottle's frame for the press (x down, y toward the head, z along the
 /// spray): the hand rests on the body's upper face (x; it stops ~1 cm above this and
 /// presses, so the bottle does not slide), the index tip at y ~0.04 and the middle one

@@ -9,23 +9,18 @@
 
 use std::f64::consts::FRAC_PI_2;
 
-use dexjoco_core::HAND_DOF;
 
 mod face_down;
 mod model;
 
 use self::face_down::{fold_face_down, temple_sags};
 use self::model::{body_box, box_centre, front, hinge_damped, joint_body, table_near_edge, temple};
+use super::hands::INDEX_HAND as POINT;
 use super::kin::{self, Q, V3};
 use super::{CLOSE, OPEN, Planned, Recorder, debug};
 use crate::env::TaskEnv;
 use crate::error::SimError;
 
-/// Straight index finger, the others curled away, the thumb at home: with the hand
-/// pitched fingers-down, the index fingertip is a probe well below the rest of the hand.
-const POINT: [f64; HAND_DOF] = [
-    0.0, 0.0, 0.0, 0.0, 0.0, 1.6, 1.7, 1.6, 0.0, 1.6, 1.7, 1.6, 0.263, 0.0, 0.0, 0.0,
-];
 /// Where the pinch closes on the front, from the TCP along the thumb-to-fingers axis.
 const PINCH_X: f64 = 0.08;
 /// The TCP's height above the table while pinching.
