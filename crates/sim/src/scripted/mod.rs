@@ -449,20 +449,48 @@ pub enum Variant {
     Wrong,
 }
 
-/// The tasks that have a scripted planner.
-pub const PLANNED_TASKS: &[&str] = &[
-    "bimanual_assembly",
-    "bimanual_hanoi",
-    "bimanual_microwave_cook",
-    "bimanual_photograph",
-    "bimanual_unlock_ipad",
-    "click_mouse",
-    "fold_glasses",
-    "hammer_nail",
-    "pick_bucket",
-    "pinch_tongs",
-    "water_plant",
+/// A planner: from the task's environment at its initial state, the episode id and the
+/// variant, the recorded plan.
+type PlanFn = fn(TaskEnv, &str, Variant) -> Result<Planned, SimError>;
+
+/// A planner that only plans demonstrations (its task has no failure condition).
+macro_rules! demo_only {
+    ($plan:path) => {
+        |env: TaskEnv, id: &str, variant: Variant| match variant {
+            Variant::Demo => $plan(env, id),
+            Variant::Wrong => Err(SimError::Spec(format!(
+                "'{}' has no failure condition to plan for",
+                env.spec().id
+            ))),
+        }
+    };
+}
+
+/// The planners by task id: the one list of what `scripted` can plan.
+const PLANNERS: [(&str, PlanFn); 11] = [
+    ("bimanual_assembly", demo_only!(assembly::plan)),
+    ("bimanual_hanoi", hanoi::plan),
+    ("bimanual_microwave_cook", demo_only!(microwave_cook::plan)),
+    ("bimanual_photograph", demo_only!(photograph::plan)),
+    ("bimanual_unlock_ipad", unlock_ipad::plan),
+    ("click_mouse", demo_only!(click_mouse::plan)),
+    ("fold_glasses", demo_only!(fold_glasses::plan)),
+    ("hammer_nail", demo_only!(hammer_nail::plan)),
+    ("pick_bucket", demo_only!(pick_bucket::plan)),
+    ("pinch_tongs", demo_only!(pinch_tongs::plan)),
+    ("water_plant", water_plant::plan),
 ];
+
+/// The tasks that have a scripted planner (the ids of [`PLANNERS`], in its order).
+pub const PLANNED_TASKS: &[&str] = &{
+    let mut ids = [""; PLANNERS.len()];
+    let mut i = 0;
+    while i < PLANNERS.len() {
+        ids[i] = PLANNERS[i].0;
+        i += 1;
+    }
+    ids
+};
 
 /// Plans and records a demonstration of `spec`'s task from the initial state `state0`
 /// (a `state[0]` row, e.g. from [`TaskEnv::sample_initial_state`]).
@@ -473,25 +501,19 @@ pub fn plan(
     id: &str,
     variant: Variant,
 ) -> Result<Planned, SimError> {
-    let env = || TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default());
-    match (spec.id.as_str(), variant) {
-        ("bimanual_assembly", Variant::Demo) => assembly::plan(env()?, id),
-        ("bimanual_hanoi", v) => hanoi::plan(env()?, id, v),
-        ("bimanual_microwave_cook", Variant::Demo) => microwave_cook::plan(env()?, id),
-        ("bimanual_photograph", Variant::Demo) => photograph::plan(env()?, id),
-        ("bimanual_unlock_ipad", v) => unlock_ipad::plan(env()?, id, v),
-        ("click_mouse", Variant::Demo) => click_mouse::plan(env()?, id),
-        ("fold_glasses", Variant::Demo) => fold_glasses::plan(env()?, id),
-        ("hammer_nail", Variant::Demo) => hammer_nail::plan(env()?, id),
-        ("water_plant", v) => water_plant::plan(env()?, id, v),
-        ("pick_bucket", Variant::Demo) => pick_bucket::plan(env()?, id),
-        ("pinch_tongs", Variant::Demo) => pinch_tongs::plan(env()?, id),
-        (task, Variant::Demo) => Err(SimError::Spec(format!(
-            "no scripted planner for '{task}' (planned: {})",
-            PLANNED_TASKS.join(", ")
-        ))),
-        (task, Variant::Wrong) => Err(SimError::Spec(format!(
-            "'{task}' has no failure condition to plan for"
-        ))),
-    }
+    let Some((_, planner)) = PLANNERS.iter().find(|(task, _)| *task == spec.id) else {
+        return Err(SimError::Spec(match variant {
+            Variant::Demo => format!(
+                "no scripted planner for '{}' (planned: {})",
+                spec.id,
+                PLANNED_TASKS.join(", ")
+            ),
+            Variant::Wrong => format!("'{}' has no failure condition to plan for", spec.id),
+        }));
+    };
+    planner(
+        TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default())?,
+        id,
+        variant,
+    )
 }
