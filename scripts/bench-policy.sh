@@ -12,7 +12,8 @@
 # evaluated by `dexjoco-data eval --environment-state --no-cameras` on the same EPISODES
 # rand_obj resets (seed EVAL_SEED; object poses drawn anew every episode) on the same
 # scenes. Reported, not asserted: OUT/results.md (table), OUT/results.json (one line per
-# run), OUT/results.svg (success against N per task), OUT/<task>/pol_*/curve.csv (training
+# run; every task in OUT, so runs for different TASKS may share it, one after the other or
+# side by side), OUT/results.svg (success against N per task), OUT/<task>/pol_*/curve.csv (training
 # curves). Everything already made in OUT is reused: rerun to resume.
 #
 #   scripts/bench-policy.sh [OUT]
@@ -58,7 +59,7 @@ EOF
 }
 
 # Trains the policy on dataset $2 into $1/pol_$3 (kept if there), serves it, evaluates
-# task $4 into $1/ev_$3; appends a line to results.json.
+# task $4 into $1/ev_$3; writes its line of results to $1/result_$3.json.
 train_and_eval() {
   local dir=$1 dataset=$2 name=$3 task=$4 arm=$5 n=$6
   local pol="$dir/pol_$name" ev="$dir/ev_$name"
@@ -80,7 +81,7 @@ train_and_eval() {
     wait "$server" 2>/dev/null || true
     touch "$ev/.done"
   fi
-  "$PY" - "$dir" "$name" "$task" "$arm" "$n" "$dataset" >>"$OUT/results.json" <<'EOF'
+  "$PY" - "$dir" "$name" "$task" "$arm" "$n" "$dataset" >"$dir/result_$name.json" <<'EOF'
 import json, sys, pathlib
 d, name, task, arm, n, dataset = sys.argv[1:7]
 ev = pathlib.Path(d) / f"ev_{name}"
@@ -99,7 +100,6 @@ print(json.dumps({
 EOF
 }
 
-: >"$OUT/results.json"
 for task in $TASKS; do
   dir="$OUT/$task"
   mkdir -p "$dir"
@@ -143,10 +143,13 @@ for task in $TASKS; do
   done
 done
 
+# The report covers every task in OUT (runs for other TASKS into the same OUT included).
 "$PY" - "$OUT" <<'EOF'
 import json, sys, pathlib
 out = pathlib.Path(sys.argv[1])
-rows = [json.loads(l) for l in (out / "results.json").read_text().splitlines() if l.strip()]
+rows = [json.loads(p.read_text()) for p in sorted(out.glob("*/result_*.json"))]
+rows.sort(key=lambda r: (r["task"], r["generated"]))
+(out / "results.json").write_text("".join(json.dumps(r) + "\n" for r in rows))
 md = ["| task | data | episodes | frames | success (of evaluated) | subtasks done | train s | loss (held out) |",
       "|---|---|---:|---:|---:|---:|---:|---:|"]
 for r in rows:
