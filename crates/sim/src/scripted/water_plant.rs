@@ -11,7 +11,6 @@
 //! then the hand rests palm-down on the body with the index and middle fingers hooked in
 //! front of the trigger (the middle one near its free end) and curls them to pull it.
 
-
 use super::hands::water_plant::{AIM, HOLD, OPEN, PRESS, PULL};
 use super::kin::{self, V3};
 use super::{Goal, Planned, Recorder, Variant, debug};

@@ -9,7 +9,6 @@
 
 use std::f64::consts::FRAC_PI_2;
 
-
 mod face_down;
 mod model;
 
