@@ -19,7 +19,8 @@
 #   scripts/bench-policy.sh [OUT]
 #
 # Environment: TASKS (default "click_mouse hammer_nail pick_bucket bimanual_unlock_ipad"),
-# NS (default "10 100 1000"), EPISODES (50), STEPS (50000), REPLAYS (1000, most source
+# NS (default "10 100 1000"), EPISODES (50), STEPS (20000), THREADS (2, torch's threads
+# for training: 1 where two runs share 2 cores, else they spin against each other), REPLAYS (1000, most source
 # replays for arm (a)), SOURCE_SEED (1), GEN_SEED (11), EVAL_SEED (0), SCENES (default
 # ../shared/dexjoco-upstream/xmls; "builtin" for the built-in scenes), BIN (default
 # target/release/dexjoco-data). Needs the test venv (scripts/setup.sh --python: torch,
@@ -30,7 +31,8 @@ OUT="$(mkdir -p "${1:-$ROOT/bench-policy}" && cd "${1:-$ROOT/bench-policy}" && p
 TASKS="${TASKS:-click_mouse hammer_nail pick_bucket bimanual_unlock_ipad}"
 NS="${NS:-10 100 1000}"
 EPISODES="${EPISODES:-50}"
-STEPS="${STEPS:-50000}"
+STEPS="${STEPS:-20000}"
+THREADS="${THREADS:-2}"
 REPLAYS="${REPLAYS:-1000}"
 SOURCE_SEED="${SOURCE_SEED:-1}"
 GEN_SEED="${GEN_SEED:-11}"
@@ -65,7 +67,8 @@ train_and_eval() {
   local pol="$dir/pol_$name" ev="$dir/ev_$name"
   if [ ! -f "$pol/model.pt" ]; then
     log "$task $name: training ($STEPS steps)"
-    "$PY" "$BC" train "$dataset" "$pol" --steps "$STEPS" --log-every 1000 >"$pol.train.log" 2>&1
+    "$PY" "$BC" train "$dataset" "$pol" --steps "$STEPS" --threads "$THREADS" --log-every 1000 \
+      >"$pol.train.log" 2>&1
   fi
   if [ ! -f "$ev/.done" ]; then
     local port
