@@ -13,7 +13,7 @@
 # rand_obj resets (seed EVAL_SEED; object poses drawn anew every episode) on the same
 # scenes. Reported, not asserted: OUT/results.md (table), OUT/results.json (one line per
 # run; every task in OUT, so runs for different TASKS may share it, one after the other or
-# side by side), OUT/results.svg (success against N per task), OUT/<task>/pol_*/curve.csv (training
+# side by side), OUT/results.svg (success and subtasks ended against N per task), OUT/<task>/pol_*/curve.csv (training
 # curves). Everything already made in OUT is reused: rerun to resume.
 #
 #   scripts/bench-policy.sh [OUT]
@@ -150,19 +150,26 @@ done
 "$PY" - "$OUT" <<'EOF'
 import json, sys, pathlib
 out = pathlib.Path(sys.argv[1])
-rows = [json.loads(p.read_text()) for p in sorted(out.glob("*/result_*.json"))]
+rows = []
+for p in sorted(out.glob("*/result_*.json")):
+    r = json.loads(p.read_text())
+    # The subtasks there were to end: from the evaluation's records beside the result.
+    ev = p.parent / ("ev_" + p.stem[len("result_"):])
+    r["subtasks_total"] = sum(len(json.loads(e.read_text())["subtasks"]) for e in ev.glob("episode_*/episode.json"))
+    rows.append(r)
 rows.sort(key=lambda r: (r["task"], r["generated"]))
 (out / "results.json").write_text("".join(json.dumps(r) + "\n" for r in rows))
-md = ["| task | data | episodes | frames | success (of evaluated) | subtasks done | train s | loss (held out) |",
+md = ["| task | data | episodes | frames | success (of evaluated) | subtasks ended | train s | loss (held out) |",
       "|---|---|---:|---:|---:|---:|---:|---:|"]
 for r in rows:
     data = "source alone (replays)" if r["arm"] == "source" else f"source + {r['generated']} generated"
     rate = 100.0 * r["successes"] / max(1, r["evaluated"])
     md.append(f"| {r['task']} | {data} | {r['episodes_in_data']} | {r['frames']} | {rate:.0f} % ({r['successes']}/{r['evaluated']}) | "
-              f"{r['subtasks_done']} | {r['train_seconds']:.0f} | {r['loss']:.4f} ({r['held_out_loss']:.4f}) |")
+              f"{r['subtasks_done']} of {r['subtasks_total']} | {r['train_seconds']:.0f} | {r['loss']:.1e} ({r['held_out_loss']:.1e}) |")
 (out / "results.md").write_text("\n".join(md) + "\n")
 print("\n".join(md))
-# The plot: success against the number of generated demonstrations (0: the source alone).
+# The plot: success (solid) and the share of subtasks ended (dashed) against the number of
+# generated demonstrations (0: the source alone).
 tasks = list(dict.fromkeys(r["task"] for r in rows))
 xs = sorted({r["generated"] for r in rows})
 W, H, L, B = 640, 400, 60, 50
@@ -174,7 +181,7 @@ def y_of(p):
 colors = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e"]
 svg = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-family="sans-serif" font-size="12">',
        f'<rect width="{W}" height="{H}" fill="white"/>',
-       f'<text x="{W/2}" y="18" text-anchor="middle" font-size="14">Policy success against generated demonstrations (state-based BC, {rows[0]["evaluated"] if rows else 0} episodes)</text>']
+       f'<text x="{W/2}" y="18" text-anchor="middle" font-size="14">State-based BC, {rows[0]["evaluated"] if rows else 0} episodes: success (solid), subtasks ended (dashed)</text>']
 for p in (0, 0.25, 0.5, 0.75, 1.0):
     svg.append(f'<line x1="{L}" y1="{y_of(p)}" x2="{W-20}" y2="{y_of(p)}" stroke="#ddd"/>')
     svg.append(f'<text x="{L-8}" y="{y_of(p)+4}" text-anchor="end">{int(p*100)} %</text>')
@@ -182,8 +189,10 @@ for n in xs:
     svg.append(f'<text x="{x_of(n)}" y="{H-B+18}" text-anchor="middle">{"source alone" if n == 0 else "+" + str(n)}</text>')
 for k, t in enumerate(tasks):
     pts = sorted((r["generated"], r["successes"] / max(1, r["evaluated"])) for r in rows if r["task"] == t)
+    ended = sorted((r["generated"], r["subtasks_done"] / max(1, r["subtasks_total"])) for r in rows if r["task"] == t)
     c = colors[k % len(colors)]
     svg.append('<polyline fill="none" stroke="%s" stroke-width="2" points="%s"/>' % (c, " ".join(f"{x_of(n)},{y_of(p)}" for n, p in pts)))
+    svg.append('<polyline fill="none" stroke="%s" stroke-width="1.5" stroke-dasharray="5,4" points="%s"/>' % (c, " ".join(f"{x_of(n)},{y_of(p)}" for n, p in ended)))
     for n, p in pts:
         svg.append(f'<circle cx="{x_of(n)}" cy="{y_of(p)}" r="4" fill="{c}"/>')
     svg.append(f'<text x="{L+10}" y="{40+16*k}" fill="{c}">{t}</text>')
