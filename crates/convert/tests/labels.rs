@@ -145,6 +145,25 @@ fn environment_row(fx: &Fixture, e: usize, src: usize) -> Vec<f64> {
     a.row(src).to_vec()
 }
 
+/// Asserts that `items` (one row per kept frame, as the reader returned them) hold `want`'s
+/// value for each kept frame `src` of each episode `e`, in order.
+fn assert_rows_read_back(fx: &Fixture, items: &Value, want: impl Fn(usize, usize) -> Vec<f32>) {
+    let items = items.as_array().unwrap();
+    let mut row = 0;
+    for (e, input) in fx.inputs.iter().enumerate() {
+        for src in fx.starts[e]..input.episode.len() {
+            let got: Vec<f32> = items[row]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap() as f32)
+                .collect();
+            assert_eq!(got, want(e, src), "episode {e} frame {src}");
+            row += 1;
+        }
+    }
+}
+
 /// The privileged values of episode `e` frame `f` (source frame `src`): state columns
 /// 23..31 of the fixture, as float32.
 fn privileged_row(fx: &Fixture, e: usize, src: usize) -> Vec<f32> {
@@ -331,41 +350,18 @@ fn lerobot_v3_loads_the_outcomes_and_privileged_state() {
         .environment_state_names();
     assert_eq!(got["environment_feature"]["names"], json!(env_names));
     assert_eq!(got["v21_environment"], got["environment"]);
-    let items = got["environment"].as_array().unwrap();
-    let mut row = 0;
-    for (e, input) in fx.inputs.iter().enumerate() {
-        for src in fx.starts[e]..input.episode.len() {
-            let got: Vec<f32> = items[row]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|v| v.as_f64().unwrap() as f32)
-                .collect();
-            let want: Vec<f32> = environment_row(&fx, e, src)
-                .iter()
-                .map(|v| *v as f32)
-                .collect();
-            assert_eq!(got, want, "episode {e} frame {src}");
-            row += 1;
-        }
-    }
+    assert_rows_read_back(&fx, &got["environment"], |e, src| {
+        environment_row(&fx, e, src)
+            .iter()
+            .map(|v| *v as f32)
+            .collect()
+    });
     assert_eq!(got["stats_count"], json!([32]));
     assert_eq!(got["episode_stats_columns"], got["state_stats_columns"]);
-    let items = got["privileged"].as_array().unwrap();
-    assert_eq!(items.len(), 32);
-    let mut row = 0;
-    for (e, input) in fx.inputs.iter().enumerate() {
-        for src in fx.starts[e]..input.episode.len() {
-            let got: Vec<f32> = items[row]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|v| v.as_f64().unwrap() as f32)
-                .collect();
-            assert_eq!(got, privileged_row(&fx, e, src), "episode {e} frame {src}");
-            row += 1;
-        }
-    }
+    assert_eq!(got["privileged"].as_array().unwrap().len(), 32);
+    assert_rows_read_back(&fx, &got["privileged"], |e, src| {
+        privileged_row(&fx, e, src)
+    });
     // The README's snippet keeps the episode that succeeded unflagged, and loads it.
     assert_eq!(got["readme_keep"], json!([0]));
     assert_eq!(got["readme_len"], 10);

@@ -88,15 +88,15 @@ impl TaskSpec {
     /// pose the reset derives from them that is not itself a state object (a mouse pad
     /// placed from the mouse, Hanoi's disks from their base): named after the object, or
     /// after the body, joint or geom for a derived one.
-    pub fn environment_poses(&self) -> Vec<(String, &super::PoseSource)> {
+    pub fn environment_poses(&self) -> Vec<(&str, &super::PoseSource)> {
         let objects = &self.state.objects;
-        let mut out: Vec<(String, &super::PoseSource)> = objects
+        let mut out: Vec<(&str, &super::PoseSource)> = objects
             .iter()
-            .map(|o| (o.name.clone(), &o.source))
+            .map(|o| (o.name.as_str(), &o.source))
             .collect();
         for d in &self.state.derived {
             if !objects.iter().any(|o| o.source == d.target) {
-                out.push((d.target.name().to_owned(), &d.target));
+                out.push((d.target.name(), &d.target));
             }
         }
         out

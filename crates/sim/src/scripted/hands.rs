@@ -15,17 +15,22 @@ pub(crate) type Finger = [f64; 4];
 /// The hand from its index, middle and ring fingers and its thumb.
 pub(crate) const fn hand(index: Finger, middle: Finger, ring: Finger, thumb: Finger) -> Hand {
     let mut h = [0.0; HAND_DOF];
-    let fingers = [index, middle, ring, thumb];
+    let all = [index, middle, ring, thumb];
     let mut f = 0;
     while f < 4 {
         let mut j = 0;
         while j < 4 {
-            h[4 * f + j] = fingers[f][j];
+            h[4 * f + j] = all[f][j];
             j += 1;
         }
         f += 1;
     }
     h
+}
+
+/// The hand whose three fingers all take `finger`, with `thumb`.
+pub(crate) const fn fingers(finger: Finger, thumb: Finger) -> Hand {
+    hand(finger, finger, finger, thumb)
 }
 
 /// A straight finger.
@@ -47,81 +52,64 @@ pub(crate) const THUMB_FOLDED_UP: Finger = [1.4, 0.5, 1.6, 1.6];
 
 /// The cage pinch's approach pose: fingers half curled, the thumb turned under the palm
 /// but open.
-pub(crate) const OPEN: Hand = hand(HALF_CURLED, HALF_CURLED, HALF_CURLED, THUMB_UNDER_OPEN);
+pub(crate) const OPEN: Hand = fingers(HALF_CURLED, THUMB_UNDER_OPEN);
 /// The cage pinch closed: fingers and thumb closed on each other, so an object between
 /// them is squeezed (targets past contact give the force).
-pub(crate) const CLOSE: Hand = hand(CLOSED, CLOSED, CLOSED, THUMB_UNDER_CLOSED);
+pub(crate) const CLOSE: Hand = fingers(CLOSED, THUMB_UNDER_CLOSED);
 /// Index finger curled to point down, the others tucked away, the thumb at home.
 pub(crate) const POINT_HAND: Hand = hand([0.0, 1.3, 0.9, 0.3], TUCKED, TUCKED, THUMB_AT_HOME);
 /// Straight fingers and the thumb at home.
-pub(crate) const FLAT_HAND: Hand = hand(STRAIGHT, STRAIGHT, STRAIGHT, THUMB_AT_HOME);
+pub(crate) const FLAT_HAND: Hand = fingers(STRAIGHT, THUMB_AT_HOME);
 /// Straight index finger, middle and ring tucked away, the thumb at home: with the hand
 /// pitched fingers-down, the index fingertip is a probe well below the rest of the hand.
 pub(crate) const INDEX_HAND: Hand = hand(STRAIGHT, TUCKED, TUCKED, THUMB_AT_HOME);
 
 /// hammer_nail's wrap grasp.
 pub(crate) mod hammer_nail {
-    use super::{Hand, hand};
+    use super::{Hand, fingers};
 
     /// The wrap's approach: fingers nearly straight, the thumb turned under the palm, open.
-    pub(crate) const WRAP_OPEN: Hand = {
-        let f = [0.0, 0.2, 0.1, 0.1];
-        hand(f, f, f, [1.2, 0.0, 0.0, 0.0])
-    };
+    pub(crate) const WRAP_OPEN: Hand = fingers([0.0, 0.2, 0.1, 0.1], [1.2, 0.0, 0.0, 0.0]);
     /// The wrap closed: fingers curled over and under the handle, the thumb pressing its
     /// near side.
-    pub(crate) const WRAP: Hand = {
-        let f = [0.0, 1.5, 1.5, 1.3];
-        hand(f, f, f, [1.3, 0.6, 1.0, 1.0])
-    };
+    pub(crate) const WRAP: Hand = fingers([0.0, 1.5, 1.5, 1.3], [1.3, 0.6, 1.0, 1.0]);
 }
 
 /// bimanual_microwave_cook's door and clamp hands.
 pub(crate) mod microwave_cook {
-    use super::{HALF_CURLED, Hand, STRAIGHT, THUMB_FOLDED_UP, THUMB_UNDER_CLOSED, TUCKED, hand};
+    use super::{
+        HALF_CURLED, Hand, STRAIGHT, THUMB_FOLDED_UP, THUMB_UNDER_CLOSED, TUCKED, fingers, hand,
+    };
 
     /// The thumb folded up under the palm and bent back at its base.
     const THUMB_FOLDED_BACK: [f64; 4] = [1.4, -0.1, 1.6, 1.6];
 
     /// The left hand hooking the handle: fingers almost straight, the thumb folded up
     /// under the palm.
-    pub(crate) const HOOK: Hand = {
-        let f = [0.0, 0.1, 0.1, 0.1];
-        hand(f, f, f, THUMB_FOLDED_BACK)
-    };
+    pub(crate) const HOOK: Hand = fingers([0.0, 0.1, 0.1, 0.1], THUMB_FOLDED_BACK);
     /// The left hand pushing the door shut: fingers curled a little so that their tips,
     /// not the palm, touch the door.
-    pub(crate) const SHUT_HAND: Hand = {
-        let f = [0.0, 0.5, 0.2, 0.1];
-        hand(f, f, f, THUMB_FOLDED_BACK)
-    };
+    pub(crate) const SHUT_HAND: Hand = fingers([0.0, 0.5, 0.2, 0.1], THUMB_FOLDED_BACK);
     /// The clamp's approach: fingers half curled, the thumb already turned under the palm
     /// (closing is [`super::CLOSE`]: the same thumb, the fingers curled over the hot dog).
-    pub(crate) const CLAMP_OPEN: Hand =
-        hand(HALF_CURLED, HALF_CURLED, HALF_CURLED, THUMB_UNDER_CLOSED);
+    pub(crate) const CLAMP_OPEN: Hand = fingers(HALF_CURLED, THUMB_UNDER_CLOSED);
     /// Letting go: straight fingers, the thumb folded up under the palm (its tip 5 cm below
     /// the TCP).
-    pub(crate) const RELEASE: Hand = hand(STRAIGHT, STRAIGHT, STRAIGHT, THUMB_FOLDED_UP);
+    pub(crate) const RELEASE: Hand = fingers(STRAIGHT, THUMB_FOLDED_UP);
     /// Straight index finger, middle and ring curled, the thumb folded up under the palm.
     pub(crate) const PRESS: Hand = hand(STRAIGHT, TUCKED, TUCKED, THUMB_FOLDED_UP);
 }
 
 /// pick_bucket's food pinch and handle hooks.
 pub(crate) mod pick_bucket {
-    use super::{CLOSED, Hand, THUMB_AT_HOME, THUMB_UNDER_OPEN, hand};
+    use super::{CLOSED, Hand, THUMB_AT_HOME, THUMB_UNDER_OPEN, fingers};
 
     /// The fingers closed, the thumb still open.
-    pub(crate) const HOOK: Hand = hand(CLOSED, CLOSED, CLOSED, THUMB_UNDER_OPEN);
+    pub(crate) const HOOK: Hand = fingers(CLOSED, THUMB_UNDER_OPEN);
     /// Fingers pointing straight down (the proximal links vertical), the thumb at home.
-    pub(crate) const DOWN: Hand = {
-        let f = [0.0, 1.4, 0.2, 0.0];
-        hand(f, f, f, THUMB_AT_HOME)
-    };
+    pub(crate) const DOWN: Hand = fingers([0.0, 1.4, 0.2, 0.0], THUMB_AT_HOME);
     /// The fingers hooked (distal links curled back toward the palm), the thumb at home.
-    pub(crate) const HOOK_DOWN: Hand = {
-        let f = [0.0, 1.57, 1.0, 0.8];
-        hand(f, f, f, THUMB_AT_HOME)
-    };
+    pub(crate) const HOOK_DOWN: Hand = fingers([0.0, 1.57, 1.0, 0.8], THUMB_AT_HOME);
 }
 
 /// water_plant's bottle grasp and trigger presses.
