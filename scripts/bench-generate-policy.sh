@@ -57,17 +57,7 @@ RENDER=(--size "$SIZE" --quality fast --camera handcam_rgb)  # + the randomized 
 MAX_N=0
 for n in $NS; do [ "$n" -gt "$MAX_N" ] && MAX_N=$n; done
 
-# Frames of the raw episodes under $1 (their action arrays' rows).
-frames() {
-  "$PY" - "$1" <<'EOF'
-import sys, pathlib, zarr
-n = 0
-for z in pathlib.Path(sys.argv[1]).rglob("replay.zarr"):
-    if not any(p.startswith(".") for p in z.relative_to(sys.argv[1]).parts):
-        n += zarr.open(str(z), mode="r")["data"]["action"].shape[0]
-print(n)
-EOF
-}
+. "$ROOT/scripts/bench-common.sh"
 
 # Trains ACT on dataset $2 into $1/act_$3 (kept if there), serves it, evaluates task $4
 # with --rand-full into $1/ev_$3; appends a line to results.json.
@@ -86,7 +76,7 @@ train_and_eval() {
   fi
   if [ ! -f "$ev/.done" ]; then
     local port
-    port="$("$PY" -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')"
+    port="$(free_port)"
     "$PY" "$ROOT/examples/serve_lerobot_policy.py" \
       --checkpoint "$train/checkpoints/last/pretrained_model" \
       --camera base=observation.images.third_person --camera wrist=observation.images.handcam_rgb \
@@ -119,15 +109,7 @@ EOF
 for task in $TASKS; do
   dir="$OUT/$task"
   mkdir -p "$dir"
-  if [ ! -d "$dir/source/$task/episode_000000" ]; then
-    for s in $(seq "$SOURCE_SEED" $((SOURCE_SEED + 9))); do
-      rm -rf "$dir/source"
-      if "$BIN" -q scripted --task "$task" --episodes 1 --seed "$s" "${SCENE_ARGS[@]}" --out "$dir/source" >/dev/null 2>&1; then
-        log "$task: source demonstration from scripted seed $s"
-        break
-      fi
-    done
-  fi
+  scripted_source "$task" "$dir"
   src="$dir/source/$task"
   log "$task: generating $MAX_N demonstrations"
   "$BIN" -q generate "$src" --task "$task" --count "$MAX_N" --seed "$GEN_SEED" "${SCENE_ARGS[@]}" \

@@ -48,17 +48,7 @@ SCENE_ARGS=()
 MAX_N=0
 for n in $NS; do [ "$n" -gt "$MAX_N" ] && MAX_N=$n; done
 
-# Frames of the raw episodes under $1 (their action arrays' rows).
-frames() {
-  "$PY" - "$1" <<'EOF'
-import sys, pathlib, zarr
-n = 0
-for z in pathlib.Path(sys.argv[1]).rglob("replay.zarr"):
-    if not any(p.startswith(".") for p in z.relative_to(sys.argv[1]).parts):
-        n += zarr.open(str(z), mode="r")["data"]["action"].shape[0]
-print(n)
-EOF
-}
+. "$ROOT/scripts/bench-common.sh"
 
 # Trains the policy on dataset $2 into $1/pol_$3 (kept if there), serves it, evaluates
 # task $4 into $1/ev_$3; writes its line of results to $1/result_$3.json.
@@ -72,7 +62,7 @@ train_and_eval() {
   fi
   if [ ! -f "$ev/.done" ]; then
     local port
-    port="$("$PY" -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')"
+    port="$(free_port)"
     "$PY" "$BC" serve "$pol/model.pt" --port "$port" >"$pol.serve.log" 2>&1 &
     local server=$!
     rm -rf "$ev"
@@ -107,15 +97,7 @@ for task in $TASKS; do
   dir="$OUT/$task"
   mkdir -p "$dir"
   # One source demonstration: the first seed from SOURCE_SEED whose plan succeeds.
-  if [ ! -d "$dir/source/$task/episode_000000" ]; then
-    for s in $(seq "$SOURCE_SEED" $((SOURCE_SEED + 9))); do
-      rm -rf "$dir/source"
-      if "$BIN" -q scripted --task "$task" --episodes 1 --seed "$s" "${SCENE_ARGS[@]}" --out "$dir/source" >/dev/null 2>&1; then
-        log "$task: source demonstration from scripted seed $s"
-        break
-      fi
-    done
-  fi
+  scripted_source "$task" "$dir"
   src="$dir/source/$task"
   # (b) the generated demonstrations, MAX_N of them (resumes where it stopped).
   log "$task: generating $MAX_N demonstrations"
