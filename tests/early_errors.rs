@@ -74,7 +74,7 @@ fn an_egl_device_the_machine_lacks_is_a_usage_error() {
     assert!(!out.exists(), "{stderr}");
 
     let mut c = augment(&out, &[]);
-    c.env(dexjoco_sim::EGL_DEVICE_ENV, "99");
+    c.env(dexjoco_render::EGL_DEVICE_ENV, "99");
     let stderr = fails_with(c, 2, Duration::from_secs(30));
     assert!(stderr.contains("DEXJOCO_EGL_DEVICE=99"), "{stderr}");
 }
@@ -84,7 +84,7 @@ fn a_egl_device_variable_that_is_not_an_index_is_an_error() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("aug");
     let mut c = augment(&out, &[]);
-    c.env(dexjoco_sim::EGL_DEVICE_ENV, "abc");
+    c.env(dexjoco_render::EGL_DEVICE_ENV, "abc");
     let stderr = fails_with(c, 2, Duration::from_secs(30));
     assert!(stderr.contains("DEXJOCO_EGL_DEVICE='abc'"), "{stderr}");
     assert!(!out.exists(), "{stderr}");
@@ -101,7 +101,7 @@ fn every_rendering_command_refuses_a_egl_device_variable_that_is_not_an_index() 
         let mut c = common::dexjoco();
         c.current_dir(tmp.path())
             .args(args)
-            .env(dexjoco_sim::EGL_DEVICE_ENV, "abc");
+            .env(dexjoco_render::EGL_DEVICE_ENV, "abc");
         let stderr = fails_with(c, 2, Duration::from_secs(30));
         assert!(
             stderr.contains("DEXJOCO_EGL_DEVICE='abc'"),

@@ -116,7 +116,7 @@ fn action_difference(rollout: &Path, plan: &Path, from: usize, warmup: usize) ->
 fn an_oracle_policy_succeeds_on_every_task_through_the_protocol() {
     let tmp = tempfile::tempdir().unwrap();
     let plans = tmp.path().join("plans");
-    let planned: Vec<(&str, Option<PathBuf>)> = dexjoco_sim::scripted::PLANNED_TASKS
+    let planned: Vec<(&str, Option<PathBuf>)> = dexjoco_scripted::PLANNED_TASKS
         .iter()
         .map(|t| (*t, plan(t, "3", &plans, None)))
         .collect();

@@ -156,11 +156,11 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
         v.trim()
             .parse::<u32>()
             .ok()
-            .filter(|v| *v > 0 && v % 2 == 0 && *v <= dexjoco_sim::MAX_IMAGE_SIDE)
+            .filter(|v| *v > 0 && v % 2 == 0 && *v <= dexjoco_render::MAX_IMAGE_SIDE)
             .ok_or_else(|| {
                 format!(
                     "'{v}' in '{s}' is not an even number of pixels from 2 to {}",
-                    dexjoco_sim::MAX_IMAGE_SIDE
+                    dexjoco_render::MAX_IMAGE_SIDE
                 )
             })
     };

@@ -197,14 +197,14 @@ pub struct WarpArgs {
 
 impl WarpArgs {
     /// The worker's options.
-    pub fn options(self) -> dexjoco_sim::warp::WarpOptions {
+    pub fn options(self) -> dexjoco_render::warp::WarpOptions {
         let Self {
             warp_device,
             warp_batch,
             warp_supersample,
             warp_python,
         } = self;
-        dexjoco_sim::warp::WarpOptions {
+        dexjoco_render::warp::WarpOptions {
             python: warp_python,
             device: warp_device,
             worlds: warp_batch,
@@ -224,11 +224,16 @@ pub enum RendererArg {
 
 impl RendererArgs {
     /// The renderer and the Warp worker's options.
-    pub fn resolve(self) -> (dexjoco_sim::RendererKind, dexjoco_sim::warp::WarpOptions) {
+    pub fn resolve(
+        self,
+    ) -> (
+        dexjoco_render::RendererKind,
+        dexjoco_render::warp::WarpOptions,
+    ) {
         let Self { renderer, warp } = self;
         let kind = match renderer {
-            RendererArg::Opengl => dexjoco_sim::RendererKind::Opengl,
-            RendererArg::Warp => dexjoco_sim::RendererKind::Warp,
+            RendererArg::Opengl => dexjoco_render::RendererKind::Opengl,
+            RendererArg::Warp => dexjoco_render::RendererKind::Warp,
         };
         (kind, warp.options())
     }
@@ -316,10 +321,10 @@ pub enum GeometryArg {
 
 impl GeometryArg {
     /// The renderer's setting.
-    pub fn geometry(self) -> dexjoco_sim::Geometry {
+    pub fn geometry(self) -> dexjoco_render::Geometry {
         match self {
-            Self::Full => dexjoco_sim::Geometry::Full,
-            Self::Light => dexjoco_sim::Geometry::Light,
+            Self::Full => dexjoco_render::Geometry::Full,
+            Self::Light => dexjoco_render::Geometry::Light,
         }
     }
 }

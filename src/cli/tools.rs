@@ -374,10 +374,10 @@ pub struct BenchIngestArgs {
     pub frames: usize,
 }
 
-/// An image side in pixels: 1 to the renderer's largest ([`dexjoco_sim::MAX_IMAGE_SIDE`]).
+/// An image side in pixels: 1 to the renderer's largest ([`dexjoco_render::MAX_IMAGE_SIDE`]).
 pub fn image_side() -> clap::builder::RangedU64ValueParser<u32> {
     clap::builder::RangedU64ValueParser::<u32>::new()
-        .range(1..=u64::from(dexjoco_sim::MAX_IMAGE_SIDE))
+        .range(1..=u64::from(dexjoco_render::MAX_IMAGE_SIDE))
 }
 
 /// A frame rate ffmpeg takes: 1 to 2^31 - 1 frames per second.

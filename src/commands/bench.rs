@@ -3,9 +3,9 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use dexjoco_render::{CameraView, RenderQuality, RenderSettings, Renderer};
 use dexjoco_sim::mujoco_rs::prelude::MjData;
 use dexjoco_sim::mujoco_rs::wrappers::mj_model::traits::ModelType;
-use dexjoco_sim::{CameraView, RenderQuality, RenderSettings, Renderer};
 use serde::Serialize;
 
 use crate::cli::{BenchCommand, GlobalArgs};

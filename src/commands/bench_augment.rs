@@ -14,7 +14,7 @@ use dexjoco_augment::{
     AugmentConfig, AugmentReport, Executor, GeometryDifference, StageTimes, WorkerProcesses,
     augment_with, geometry_difference, render_only,
 };
-use dexjoco_sim::RenderSettings;
+use dexjoco_render::RenderSettings;
 use dexjoco_sim::SceneSource;
 use serde::Serialize;
 
@@ -214,8 +214,8 @@ pub fn render_limit(
         seed: global.seed,
         quiet: global.quiet,
         out: PathBuf::new(),
-        renderer: dexjoco_sim::RendererKind::Opengl,
-        warp: dexjoco_sim::warp::WarpOptions::default(),
+        renderer: dexjoco_render::RendererKind::Opengl,
+        warp: dexjoco_render::warp::WarpOptions::default(),
     };
     let c = config(
         &bench,
@@ -271,8 +271,8 @@ fn bench_config(
         };
         let approach = match (args.threads, args.renderer) {
             (true, _) => OURS_THREADS,
-            (false, dexjoco_sim::RendererKind::Warp) => OURS_WARP,
-            (false, dexjoco_sim::RendererKind::Opengl) => OURS,
+            (false, dexjoco_render::RendererKind::Warp) => OURS_WARP,
+            (false, dexjoco_render::RendererKind::Opengl) => OURS,
         };
         runs.push(measured(look, approach, n, &report, s));
         bar.inc(1);
@@ -424,16 +424,16 @@ fn light_differences(
 /// Warp renderer, its worker's device too.
 fn render_device(args: &BenchAugmentSettings) -> anyhow::Result<String> {
     let settings = render_settings(args.sizes[0], args.qualities[0]);
-    let egl = dexjoco_sim::Renderer::new(
+    let egl = dexjoco_render::Renderer::new(
         &dexjoco_sim::Scene::from_xml_str(super::TABLETOP_XML, "probe")?.model,
         settings,
     )
     .map(|r| r.device().label())
     .unwrap_or_default();
-    if args.renderer != dexjoco_sim::RendererKind::Warp {
+    if args.renderer != dexjoco_render::RendererKind::Warp {
         return Ok(egl);
     }
-    let warp = dexjoco_sim::warp::WarpWorker::start(&args.warp)
+    let warp = dexjoco_render::warp::WarpWorker::start(&args.warp)
         .map_or_else(|e| format!("unavailable: {e}"), |w| w.info().describe());
     Ok(format!("{warp} (Warp rows); {egl} (OpenGL rows)"))
 }
@@ -552,7 +552,7 @@ fn print_runs(ctx: &BenchContext<'_>, runs: &[Run], device: &str, cores: usize) 
         );
     }
     print_checks_share(runs);
-    if args.renderer == dexjoco_sim::RendererKind::Warp {
+    if args.renderer == dexjoco_render::RendererKind::Warp {
         let batch = args.warp.worlds.map_or_else(
             || "the default: 2048 images on a GPU, 16 on the CPU".to_owned(),
             |n| format!("{n} images"),

@@ -8,12 +8,13 @@ use std::path::Path;
 
 use anyhow::Context;
 use dexjoco_core::{TaskSet, TaskSpec};
-use dexjoco_sim::fidelity::{Fidelity, compare};
-use dexjoco_sim::randomize::{
+use dexjoco_render::compare::{Fidelity, compare};
+use dexjoco_render::randomize::{
     CameraPool, TABLE_GEOM, TableLibrary, VisualSample, apply_visuals, warp_world,
 };
-use dexjoco_sim::warp::{SceneXml, WarpBatch, WarpRenderer, WarpWorker, view_fovy, view_slots};
-use dexjoco_sim::{CameraView, EnvOptions, Frame, Renderer, SceneSource, TaskEnv, load_task_scene};
+use dexjoco_render::warp::{SceneXml, WarpBatch, WarpRenderer, WarpWorker, view_fovy, view_slots};
+use dexjoco_render::{CameraView, Frame, Renderer};
+use dexjoco_sim::{EnvOptions, SceneSource, TaskEnv, load_task_scene};
 use serde::Serialize;
 
 use crate::cli::BenchFidelityArgs;
@@ -44,7 +45,7 @@ pub fn run(global: &GlobalArgs, args: &BenchFidelityArgs) -> anyhow::Result<Exit
         warp,
     } = args;
     let source = SceneSource::from_option(scene_dir.clone().or_else(super::reference_scene_dir));
-    let settings = dexjoco_sim::RenderSettings {
+    let settings = dexjoco_render::RenderSettings {
         depth: false,
         ..crate::settings::render_settings(*size, *quality)
     };
@@ -93,8 +94,8 @@ type Pairs = Vec<(String, Frame, Frame)>;
 fn render_both(
     source: &SceneSource,
     spec: &TaskSpec,
-    settings: dexjoco_sim::RenderSettings,
-    options: &dexjoco_sim::warp::WarpOptions,
+    settings: dexjoco_render::RenderSettings,
+    options: &dexjoco_render::warp::WarpOptions,
     views: usize,
     seed: u64,
 ) -> anyhow::Result<Pairs> {
@@ -190,7 +191,7 @@ fn save_pairs(pairs: &Pairs, path: &Path) -> anyhow::Result<()> {
     super::render::contact_sheet_in_columns(&tiles, 3, path)
 }
 
-fn print_table(rows: &[Row], source: &SceneSource, settings: dexjoco_sim::RenderSettings) {
+fn print_table(rows: &[Row], source: &SceneSource, settings: dexjoco_render::RenderSettings) {
     let scenes = match source {
         SceneSource::BuiltIn => "built-in scenes".to_owned(),
         SceneSource::Dir(d) => d.display().to_string(),

@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use dexjoco_core::{PoseSource, TaskSpec};
 use dexjoco_generate::{Attempt, AttemptOptions, SourceDemo, attempt, current_targets};
-use dexjoco_sim::scripted::{self, Variant};
+use dexjoco_scripted::{self as scripted, Variant};
 use dexjoco_sim::{EnvOptions, Scene, SceneSource, TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
 use serde::Serialize;

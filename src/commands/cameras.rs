@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use dexjoco_augment::build_pool;
 use dexjoco_formats::fs::StagedFiles;
-use dexjoco_sim::{EnvOptions, RenderQuality, RenderSettings, Renderer, TaskEnv, load_task_scene};
+use dexjoco_render::{RenderQuality, RenderSettings, Renderer};
+use dexjoco_sim::{EnvOptions, TaskEnv, load_task_scene};
 
 use crate::cli::{CamerasArgs, GlobalArgs};
 use crate::exit::{CliError, ExitStatus};
@@ -128,7 +129,7 @@ fn write_preview(
             height: 240,
             quality: RenderQuality::FAST,
             depth: false,
-            geometry: dexjoco_sim::Geometry::Full,
+            geometry: dexjoco_render::Geometry::Full,
         },
     )?;
     let n = built.kept.len();

@@ -37,13 +37,13 @@ const PY_MODULES: [&str; 9] = [
 struct Report {
     dexjoco_data: &'static str,
     mujoco: MujocoReport,
-    egl: Result<dexjoco_sim::EglProbe, String>,
+    egl: Result<dexjoco_render::EglProbe, String>,
     ffmpeg: Option<FfmpegReport>,
     python: Option<PythonReport>,
     sample_data: Option<Located>,
     reference_scenes: Option<Located>,
     /// The Warp batch renderer (optional): its worker's device and versions, or why not.
-    warp: Result<dexjoco_sim::warp::WorkerInfo, String>,
+    warp: Result<dexjoco_render::warp::WorkerInfo, String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -157,14 +157,15 @@ pub fn run(settings: DoctorSettings) -> anyhow::Result<ExitStatus> {
             library: dexjoco_sim::mujoco_library_path(),
             expected: EXPECTED_MUJOCO,
         },
-        egl: dexjoco_sim::probe_egl().map_err(|e| e.to_string()),
+        egl: dexjoco_render::probe_egl().map_err(|e| e.to_string()),
         ffmpeg: ffmpeg(),
         python: python_report(),
         sample_data: crate::locate::data_dir(),
         reference_scenes: crate::locate::reference_scenes(),
-        warp: dexjoco_sim::warp::WarpWorker::start(&dexjoco_sim::warp::WarpOptions::default())
-            .map(|w| w.info().clone())
-            .map_err(|e| e.to_string()),
+        warp:
+            dexjoco_render::warp::WarpWorker::start(&dexjoco_render::warp::WarpOptions::default())
+                .map(|w| w.info().clone())
+                .map_err(|e| e.to_string()),
     };
     let mujoco_ok = report.mujoco.version == EXPECTED_MUJOCO;
     let egl_ok = report.egl.as_ref().is_ok_and(|p| p.selected.is_some());
@@ -202,7 +203,7 @@ fn print_human(r: &Report, mujoco_ok: bool) {
 
 /// Whether `--renderer warp` can run, and on which device (optional: not part of the
 /// exit status).
-fn print_warp(warp: &Result<dexjoco_sim::warp::WorkerInfo, String>) {
+fn print_warp(warp: &Result<dexjoco_render::warp::WorkerInfo, String>) {
     outln!("Warp batch renderer (--renderer warp; optional)");
     match warp {
         Ok(info) => {
@@ -241,7 +242,7 @@ const INSTALL_EGL: &str = "sudo apt install libegl1 libegl-mesa0 libgl1-mesa-dri
      RHEL: dnf install mesa-libEGL mesa-dri-drivers), or the NVIDIA driver's EGL on GPU nodes";
 
 /// Each EGL device and whether it opens a context; a hint when none does.
-fn print_egl(egl: &Result<dexjoco_sim::EglProbe, String>) {
+fn print_egl(egl: &Result<dexjoco_render::EglProbe, String>) {
     outln!("Offscreen rendering (EGL)");
     match egl {
         Err(e) => {

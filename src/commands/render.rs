@@ -5,10 +5,9 @@ use std::path::Path;
 use anyhow::Context;
 use dexjoco_core::TaskSpec;
 use dexjoco_formats::fs::StagedFiles;
+use dexjoco_render::{CameraView, Frame, RenderSettings, Renderer};
 use dexjoco_sim::mujoco_rs::prelude::MjData;
-use dexjoco_sim::{
-    CameraView, EnvOptions, Frame, RenderSettings, Renderer, SceneSource, TaskEnv, load_task_scene,
-};
+use dexjoco_sim::{EnvOptions, SceneSource, TaskEnv, load_task_scene};
 use dexjoco_video::{Codec, VideoSpec, VideoWriter};
 
 use crate::exit::ExitStatus;
@@ -214,13 +213,13 @@ pub fn contact_sheet_in_columns(
         .iter()
         .map(|f| image::RgbImage::from_raw(f.width, f.height, f.rgb.clone()).context("frame size"))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let layout = dexjoco_sim::SheetLayout {
+    let layout = dexjoco_render::SheetLayout {
         columns: columns as u32,
         tile: None,
         gap: 4,
         background: [255, 255, 255],
     };
-    let sheet = dexjoco_sim::contact_sheet(&tiles, layout).context("no frames to tile")?;
+    let sheet = dexjoco_render::contact_sheet(&tiles, layout).context("no frames to tile")?;
     sheet
         .save(path)
         .with_context(|| format!("cannot write '{}'", path.display()))?;

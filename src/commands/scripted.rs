@@ -9,7 +9,7 @@ use anyhow::Context;
 use dexjoco_formats::fs::StagedDir;
 use dexjoco_formats::raw::RawFolder;
 use dexjoco_formats::{EpisodeContainer, EpisodeMeta, FormatError};
-use dexjoco_sim::scripted::{self, Variant};
+use dexjoco_scripted::{self as scripted, Variant};
 use dexjoco_sim::{TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
 

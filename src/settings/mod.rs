@@ -18,7 +18,8 @@ use dexjoco_core::{TaskSet, TaskSpec};
 use dexjoco_formats::EpisodeContainer;
 use dexjoco_formats::mcap::McapLog;
 use dexjoco_ingest::{IngestOptions, ValidationOptions};
-use dexjoco_sim::{RenderQuality, RenderSettings, SceneSource};
+use dexjoco_render::{RenderQuality, RenderSettings};
+use dexjoco_sim::SceneSource;
 
 use crate::cli::{
     AugmentArgs, BenchAugmentArgs, BenchIngestArgs, BenchRenderArgs, CamerasArgs, ConvertArgs,
@@ -145,7 +146,7 @@ pub fn render_settings(size: u32, quality: QualityArg) -> RenderSettings {
         height: size,
         quality: RenderQuality::from_name(quality.name()).expect("every QualityArg is a preset"),
         depth: false,
-        geometry: dexjoco_sim::Geometry::Full,
+        geometry: dexjoco_render::Geometry::Full,
     }
 }
 
@@ -158,8 +159,8 @@ pub const WORKERS_PER_GPU: usize = 8;
 /// of the node unless `--egl-devices` (or `DEXJOCO_EGL_DEVICE`) chooses.
 pub fn render_workers(jobs: Option<usize>, egl_devices: Vec<usize>) -> (usize, Vec<usize>) {
     let cores = dexjoco_core::available_cores();
-    let gpus = dexjoco_sim::gpu_devices().unwrap_or_default();
-    let requested: Option<usize> = dexjoco_sim::requested_egl_device().ok().flatten();
+    let gpus = dexjoco_render::gpu_devices().unwrap_or_default();
+    let requested: Option<usize> = dexjoco_render::requested_egl_device().ok().flatten();
     // The GPUs the workers will draw on.
     let used = if !egl_devices.is_empty() {
         egl_devices
@@ -191,10 +192,10 @@ pub fn render_workers(jobs: Option<usize>, egl_devices: Vec<usize>) -> (usize, V
 /// ones EGL lists here: a value that is not an index, or an index this machine does not
 /// have, is a usage error. When EGL lists nothing, the renderer's probe says so later.
 pub fn check_egl_choice(egl_devices: &[usize]) -> anyhow::Result<()> {
-    let env = dexjoco_sim::EGL_DEVICE_ENV;
-    let requested = dexjoco_sim::requested_egl_device().map_err(|e| {
+    let env = dexjoco_render::EGL_DEVICE_ENV;
+    let requested = dexjoco_render::requested_egl_device().map_err(|e| {
         let message = match e {
-            dexjoco_sim::SimError::Egl(why) => why,
+            dexjoco_render::RenderError::Egl(why) => why,
             e => e.to_string(),
         };
         usage(
@@ -202,7 +203,7 @@ pub fn check_egl_choice(egl_devices: &[usize]) -> anyhow::Result<()> {
             format!("unset {env}, or set it to an index that `dexjoco-data doctor` lists"),
         )
     })?;
-    let Some(listed) = dexjoco_sim::list_egl_devices()
+    let Some(listed) = dexjoco_render::list_egl_devices()
         .ok()
         .filter(|l| !l.is_empty())
     else {

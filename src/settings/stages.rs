@@ -187,7 +187,8 @@ impl AugmentSettings {
             renderer,
         } = args;
         let (renderer, warp) = renderer.resolve();
-        if renderer == dexjoco_sim::RendererKind::Warp && geometry != crate::cli::GeometryArg::Full
+        if renderer == dexjoco_render::RendererKind::Warp
+            && geometry != crate::cli::GeometryArg::Full
         {
             return Err(usage(
                 "--geometry light simplifies OpenGL's meshes; the Warp renderer traces the full ones".into(),

@@ -107,7 +107,7 @@ pub struct BenchRenderSettings {
     /// Camera (None: `front` when the scene has it, else the first).
     pub camera: Option<String>,
     /// The renderer's meshes.
-    pub geometries: Vec<dexjoco_sim::Geometry>,
+    pub geometries: Vec<dexjoco_render::Geometry>,
     /// Folder of the JSON results.
     pub out: PathBuf,
     /// No progress bar.
@@ -184,9 +184,9 @@ pub struct BenchAugmentSettings {
     /// Folder of the JSON results.
     pub out: PathBuf,
     /// The renderer of our runs.
-    pub renderer: dexjoco_sim::RendererKind,
+    pub renderer: dexjoco_render::RendererKind,
     /// The Warp worker's options.
-    pub warp: dexjoco_sim::warp::WarpOptions,
+    pub warp: dexjoco_render::warp::WarpOptions,
 }
 
 impl BenchAugmentSettings {
@@ -328,12 +328,12 @@ impl ScriptedSettings {
         // An unknown task is a usage error (exit 2), as in every command.
         let tasks = task_set(tasks)?;
         let spec = known_task(&tasks, task)?.clone();
-        if !dexjoco_sim::scripted::PLANNED_TASKS.contains(&spec.id.as_str()) {
+        if !dexjoco_scripted::PLANNED_TASKS.contains(&spec.id.as_str()) {
             return Err(CliError {
                 message: format!("no scripted planner for '{}'", spec.id),
                 hint: Some(format!(
                     "tasks with a planner: {}",
-                    dexjoco_sim::scripted::PLANNED_TASKS.join(", ")
+                    dexjoco_scripted::PLANNED_TASKS.join(", ")
                 )),
                 status: ExitStatus::Failure,
             }

@@ -2,12 +2,12 @@
 //! randomization draws from, loaded once and shared by every unit that renders the task.
 
 use dexjoco_core::TaskSpec;
-use dexjoco_sim::warp::SceneXml;
+use dexjoco_render::warp::SceneXml;
 use dexjoco_sim::{Scene, SceneSource, load_task_scene};
 
 use crate::config::AugmentConfig;
 use crate::error::{AugmentError, sim_err};
-use dexjoco_sim::randomize::{CameraPool, TABLE_GEOM, TableLibrary};
+use dexjoco_render::randomize::{CameraPool, TABLE_GEOM, TableLibrary};
 
 /// A task's scene and what randomization needs of it, shared by every worker thread.
 pub(crate) struct TaskAssets {
@@ -52,9 +52,9 @@ impl TaskAssets {
         seed: u64,
         key: &str,
         r: usize,
-    ) -> dexjoco_sim::randomize::VisualSample {
-        dexjoco_sim::randomize::VisualSample::sample(
-            dexjoco_sim::randomize::replay_seed(seed, key, r),
+    ) -> dexjoco_render::randomize::VisualSample {
+        dexjoco_render::randomize::VisualSample::sample(
+            dexjoco_render::randomize::replay_seed(seed, key, r),
             &self.pool,
             &self.table,
             self.nlight,

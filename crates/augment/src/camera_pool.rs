@@ -16,7 +16,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::error::AugmentError;
-use dexjoco_sim::randomize::{CameraPool, CameraPose};
+use dexjoco_render::randomize::{CameraPool, CameraPose};
 
 /// Geom groups that count as visible (MuJoCo's default rendering shows groups 0-2).
 const VISIBLE_GROUPS: [u8; 6] = [1, 1, 1, 0, 0, 0];

@@ -3,8 +3,9 @@
 
 use std::path::PathBuf;
 
-use dexjoco_sim::warp::WarpOptions;
-use dexjoco_sim::{RenderSettings, RendererKind, SceneSource};
+use dexjoco_render::warp::WarpOptions;
+use dexjoco_render::{RenderSettings, RendererKind};
+use dexjoco_sim::SceneSource;
 use dexjoco_video::{Codec, Keyframes, X264Preset};
 use serde::{Deserialize, Serialize};
 
@@ -170,7 +171,7 @@ impl AugmentConfig {
             camera_pool: None,
             cameras: Vec::new(),
             settings: RenderSettings {
-                quality: dexjoco_sim::RenderQuality::PAPER,
+                quality: dexjoco_render::RenderQuality::PAPER,
                 ..RenderSettings::default()
             },
             keep_failed: false,

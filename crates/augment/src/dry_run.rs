@@ -7,8 +7,8 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::time::Instant;
 
 use dexjoco_core::{Episode, TaskSet};
+use dexjoco_render::{CameraView, RenderSettings, Renderer};
 use dexjoco_sim::mujoco_rs::prelude::MjtState;
-use dexjoco_sim::{CameraView, RenderSettings, Renderer};
 use dexjoco_video::{VideoSpec, VideoWriter};
 use serde::Serialize;
 
@@ -20,7 +20,7 @@ use crate::inputs::{Source, read_sources};
 use crate::physics::{action_row, new_env, recorded_frames, replay};
 use crate::plan::{existing_replays, owned_replays};
 use crate::profile::{EncoderClock, StageTimes, timed};
-use dexjoco_sim::randomize::{VisualSample, apply_visuals};
+use dexjoco_render::randomize::{VisualSample, apply_visuals};
 
 /// One task's share of a planned run.
 #[derive(Debug, Clone, Serialize)]
@@ -142,7 +142,7 @@ pub fn dry_run(config: &AugmentConfig, calibration: usize) -> Result<DryRun, Aug
     }
     // The calibration draws with OpenGL one frame at a time; the Warp renderer's speed
     // is a batch's (`bench augment --renderer warp` measures it).
-    let calibration = if config.renderer == dexjoco_sim::RendererKind::Warp && calibration > 0 {
+    let calibration = if config.renderer == dexjoco_render::RendererKind::Warp && calibration > 0 {
         tracing::warn!(
             "no time estimate with --renderer warp: measure it with `bench augment --renderer warp`"
         );

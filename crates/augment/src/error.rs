@@ -14,7 +14,7 @@ pub enum AugmentError {
         /// Episode id.
         episode: String,
         /// The cause.
-        source: dexjoco_sim::SimError,
+        source: dexjoco_render::RenderError,
     },
     /// Encoding a video failed.
     #[error("episode '{episode}': {source}")]
@@ -65,7 +65,10 @@ pub enum AugmentError {
     /// The scene's randomization (its camera pool, table looks, dynamics entries) cannot
     /// be used.
     #[error(transparent)]
-    Randomization(#[from] dexjoco_sim::SimError),
+    Randomization(#[from] dexjoco_render::RenderError),
+    /// The task's dynamics randomization cannot be sampled or applied to the scene.
+    #[error(transparent)]
+    Dynamics(#[from] dexjoco_sim::SimError),
     /// The disk is full (ENOSPC, EDQUOT): the run stopped at the first write that failed.
     #[error(
         "the disk is full, the run stopped: {message}{}{}; what was written before is kept: free space \
@@ -131,10 +134,12 @@ pub(crate) fn io_err(
 }
 
 /// Maps a simulation error with the episode it concerns.
-pub(crate) fn sim_err(episode: &str) -> impl FnOnce(dexjoco_sim::SimError) -> AugmentError + '_ {
+pub(crate) fn sim_err<E: Into<dexjoco_render::RenderError>>(
+    episode: &str,
+) -> impl FnOnce(E) -> AugmentError + '_ {
     move |source| AugmentError::Sim {
         episode: episode.into(),
-        source,
+        source: source.into(),
     }
 }
 

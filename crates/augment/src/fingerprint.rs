@@ -10,16 +10,17 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use dexjoco_core::{Episode, TaskSpec};
+use dexjoco_render::warp::WarpOptions;
+use dexjoco_render::{Geometry, RenderQuality, RenderSettings, RendererKind};
+use dexjoco_sim::SceneSource;
 use dexjoco_sim::scene_files::SceneHashes;
-use dexjoco_sim::warp::WarpOptions;
-use dexjoco_sim::{Geometry, RenderQuality, RenderSettings, RendererKind, SceneSource};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::config::{AugmentConfig, SETTINGS_FILE, VideoEncoding};
 use crate::error::AugmentError;
 use crate::provenance::ToolVersions;
-use dexjoco_sim::randomize::CameraPool;
+use dexjoco_render::randomize::CameraPool;
 
 /// Format name of the settings file.
 const FORMAT: &str = "dexjoco-data/augment-settings";
@@ -112,7 +113,7 @@ pub(crate) fn scene_hash(
 ) -> Result<SceneHashes, AugmentError> {
     dexjoco_sim::scene_files::scene_hash(source, spec).map_err(|source| AugmentError::Sim {
         episode: spec.id.clone(),
-        source,
+        source: source.into(),
     })
 }
 
@@ -376,7 +377,7 @@ mod tests {
 
     #[test]
     fn differences_name_the_setting_and_both_values() {
-        let pool = dexjoco_sim::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
+        let pool = dexjoco_render::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
         let task = || [("t".to_owned(), hashes("s", &[]), &pool, "x".to_owned())];
         let a = OutputSettings::of(&config(64), task());
         let b = OutputSettings::of(&config(224), task());
@@ -399,8 +400,8 @@ mod tests {
     /// changes any one of them is refused, naming it.
     #[test]
     fn every_byte_changing_setting_is_named() {
-        let pool = dexjoco_sim::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
-        let other_pool = dexjoco_sim::randomize::builtin_pool(dexjoco_core::ArmSetup::Bimanual);
+        let pool = dexjoco_render::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
+        let other_pool = dexjoco_render::randomize::builtin_pool(dexjoco_core::ArmSetup::Bimanual);
         let scenes = tempfile::tempdir().unwrap();
         let base = config(64);
         let files = [("robot.xml", "sha256:1"), ("mesh.stl", "sha256:2")];
@@ -429,7 +430,7 @@ mod tests {
             ("video", changed(&base, |c| c.video.keyframe_interval = 2)),
             (
                 "renderer",
-                changed(&base, |c| c.renderer = dexjoco_sim::RendererKind::Warp),
+                changed(&base, |c| c.renderer = dexjoco_render::RendererKind::Warp),
             ),
             (
                 "scene",
@@ -493,11 +494,11 @@ mod tests {
     /// and GPU ray tracers may differ in last bits); an OpenGL folder records none.
     #[test]
     fn the_warp_device_is_part_of_a_warp_folders_settings() {
-        let pool = dexjoco_sim::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
+        let pool = dexjoco_render::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
         let task = || [("t".to_owned(), hashes("s", &[]), &pool, "x".to_owned())];
         let warp = |device: &str| {
             let mut c = config(64);
-            c.renderer = dexjoco_sim::RendererKind::Warp;
+            c.renderer = dexjoco_render::RendererKind::Warp;
             c.warp.device = device.into();
             OutputSettings::of(&c, task())
         };
@@ -513,7 +514,7 @@ mod tests {
 
     #[test]
     fn one_scene_folder_named_two_ways_is_one_setting() {
-        let pool = dexjoco_sim::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
+        let pool = dexjoco_render::randomize::builtin_pool(dexjoco_core::ArmSetup::SingleArm);
         let dir = tempfile::tempdir().unwrap();
         fs_err::create_dir(dir.path().join("xmls")).unwrap();
         let task = || [("t".to_owned(), hashes("s", &[]), &pool, "x".to_owned())];

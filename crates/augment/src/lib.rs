@@ -22,11 +22,11 @@
 mod assets;
 mod camera_pool;
 mod checks;
-mod compare;
 mod config;
 mod dry_run;
 mod error;
 mod fingerprint;
+mod geometry_difference;
 mod inputs;
 mod physics;
 mod plan;
@@ -42,21 +42,21 @@ mod worker;
 pub use camera_pool::{BuiltPool, PoolOptions, ScoredPose, build_pool, occlusion};
 pub use checks::inject::RENDER_DEFECT_ENV;
 pub use checks::{BLANK_SHARE, BLANK_TOLERANCE, FROZEN_HAND_RAD, FROZEN_MIN_FRAMES, FROZEN_TCP_M};
-pub use compare::{GeometryDifference, geometry_difference, psnr, ssim};
 pub use config::{
     AugmentConfig, CONTACT_SHEET, DEFAULT_EXTEND_STEPS, DEFAULT_REPLAYS, REPORT_JSON, REPORT_MD,
     SETTINGS_FILE, Shard, THIRD_PERSON, VideoEncoding, replay_name,
 };
-pub use dexjoco_sim::dynamics::{
-    DynamicsValue, apply_dynamics, dynamics_seed, read_dynamics, sample_dynamics,
-};
-pub use dexjoco_sim::randomize::{
+pub use dexjoco_render::randomize::{
     CameraPool, CameraPose, LightSample, TableLibrary, VisualSample, apply_visuals, builtin_pool,
     replay_seed,
+};
+pub use dexjoco_sim::dynamics::{
+    DynamicsValue, apply_dynamics, dynamics_seed, read_dynamics, sample_dynamics,
 };
 pub use dry_run::{DryRun, PlannedTask, dry_run, render_only};
 pub use error::AugmentError;
 pub use fingerprint::{OutputSettings, TaskInputs};
+pub use geometry_difference::{GeometryDifference, geometry_difference};
 pub use inputs::SkippedInput;
 pub use profile::StageTimes;
 pub use provenance::{Provenance, ToolVersions};

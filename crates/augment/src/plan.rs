@@ -152,7 +152,7 @@ pub(crate) fn source_state(
     // earlier run with more), so the report lists what convert will read.
     for (r, rec) in on_disk.into_iter().flatten() {
         let folder = config.out.join(&src.spec.id).join(&rec.name);
-        let seed = dexjoco_sim::randomize::replay_seed(config.seed, &key, *r);
+        let seed = dexjoco_render::randomize::replay_seed(config.seed, &key, *r);
         if rec.sample.seed != seed {
             return Err(AugmentError::Input(format!(
                 "'{}' was made with another --seed (replay seed {}, now {seed}): augment into another --out, or pass --overwrite to start clean",
@@ -182,7 +182,7 @@ pub(crate) fn source_state(
             && !config.keep_failed
             && let Some(rec) = read_record_file(&dropped_path(&config.out, &src.spec.id, &name))
         {
-            let seed = dexjoco_sim::randomize::replay_seed(config.seed, &key, r);
+            let seed = dexjoco_render::randomize::replay_seed(config.seed, &key, r);
             let draw = sample_dynamics(&src.spec, &assets.scene.model, dynamics_seed(seed))?;
             if rec.sample.seed == seed
                 && rec.source_hash == source_hash

@@ -5,7 +5,7 @@
 
 use std::time::Instant;
 
-use dexjoco_sim::RenderTimes;
+use dexjoco_render::RenderTimes;
 use serde::{Deserialize, Serialize};
 
 /// Seconds per stage, summed over the frames (every camera of every replay) of a run or a

@@ -11,8 +11,9 @@ use std::time::Instant;
 use dexjoco_formats::SourceKind;
 use dexjoco_formats::npz::DepthWriter;
 use dexjoco_formats::raw;
+use dexjoco_render::{RenderSettings, Renderer, RendererKind};
+use dexjoco_sim::Scene;
 use dexjoco_sim::mujoco_rs::prelude::MjModel;
-use dexjoco_sim::{RenderSettings, Renderer, RendererKind, Scene};
 use dexjoco_video::{VideoSpec, VideoWriter};
 use serde::{Deserialize, Serialize};
 
@@ -28,8 +29,8 @@ use crate::report::ReplayRecord;
 use crate::staging::{
     Outcome, commit_replay, replay_cameras, replay_episode, staging_dir, write_dropped,
 };
+use dexjoco_render::randomize::{VisualSample, apply_visuals};
 use dexjoco_sim::dynamics::{DynamicsValue, apply_dynamics, dynamics_seed, sample_dynamics};
-use dexjoco_sim::randomize::{VisualSample, apply_visuals};
 
 thread_local! {
     /// One renderer per worker thread, for the scene it last drew.
@@ -160,7 +161,7 @@ struct Pending {
     depth: Vec<DepthWriter>,
     /// The drawn dynamics, with `--dynamics`.
     dynamics: Option<Vec<DynamicsValue>>,
-    preview: Option<dexjoco_sim::Frame>,
+    preview: Option<dexjoco_render::Frame>,
     /// The render checks watching its frames.
     checks: ReplayChecks,
     /// What the test hook corrupts (nothing unless it is set).
@@ -266,7 +267,7 @@ fn simulation_to_render(
     let id = &src.episode.id;
     let ep_key = job.key();
     let r = job.replays[0];
-    let seed = dexjoco_sim::randomize::replay_seed(config.seed, &ep_key, r);
+    let seed = dexjoco_render::randomize::replay_seed(config.seed, &ep_key, r);
     let values = sample_dynamics(&src.spec, &assets.scene.model, dynamics_seed(seed))?;
     let model = apply_dynamics(&src.spec, &assets.scene.model, &values)?;
     let scene = Scene {
@@ -324,7 +325,7 @@ fn open_replays(
         }
         let videos = staging.join(raw::VIDEOS);
         fs_err::create_dir_all(&videos).map_err(io_err("create", &videos))?;
-        let seed = dexjoco_sim::randomize::replay_seed(config.seed, &ep_key, r);
+        let seed = dexjoco_render::randomize::replay_seed(config.seed, &ep_key, r);
         let sample = assets.sample(config.seed, &ep_key, r);
         let dynamics = if config.dynamics {
             Some(sample_dynamics(
@@ -445,7 +446,7 @@ impl Pending {
         id: &str,
         c: usize,
         k: usize,
-        mut frame: dexjoco_sim::Frame,
+        mut frame: dexjoco_render::Frame,
         times: &mut StageTimes,
     ) -> Result<(), AugmentError> {
         self.defects.frame(c, k, &mut frame);

@@ -7,15 +7,15 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use dexjoco_formats::raw::RenderFlag;
-use dexjoco_sim::RenderSettings;
+use dexjoco_render::RenderSettings;
 use serde::{Deserialize, Serialize};
 
 use crate::config::{PREVIEWS, REPORT_JSON, REPORT_MD};
 use crate::error::{AugmentError, io_err};
 use crate::inputs::SkippedInput;
 use crate::provenance::Provenance;
+use dexjoco_render::randomize::VisualSample;
 use dexjoco_sim::dynamics::DynamicsValue;
-use dexjoco_sim::randomize::VisualSample;
 
 /// One replay in the report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -514,13 +514,13 @@ pub(crate) fn contact_sheet(out: &Path, report: &AugmentReport) -> Result<(), Au
             tiles.push(img.to_rgb8());
         }
     }
-    let layout = dexjoco_sim::SheetLayout {
+    let layout = dexjoco_render::SheetLayout {
         columns: report.replays_per_episode.clamp(1, 10) as u32,
         tile: Some(160),
         gap: 0,
         background: [0, 0, 0],
     };
-    let Some(sheet) = dexjoco_sim::contact_sheet(&tiles, layout) else {
+    let Some(sheet) = dexjoco_render::contact_sheet(&tiles, layout) else {
         return Ok(());
     };
     let path = out.join("contact_sheet.png");

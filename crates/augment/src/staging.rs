@@ -138,7 +138,7 @@ pub(crate) fn commit_replay(
     ep: &Episode,
     spec: &TaskSpec,
     record: &ReplayRecord,
-    preview: Option<&dexjoco_sim::Frame>,
+    preview: Option<&dexjoco_render::Frame>,
     still_wanted: &mut dyn FnMut() -> Result<(), AugmentError>,
 ) -> Result<(), AugmentError> {
     let (task, name) = (&record.task, &record.name);

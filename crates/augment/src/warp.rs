@@ -6,10 +6,11 @@
 use std::cell::RefCell;
 use std::time::Instant;
 
-use dexjoco_sim::randomize::VisualSample;
-use dexjoco_sim::randomize::warp_world;
-use dexjoco_sim::warp::{WarpBatch, WarpRenderer, WarpTimes, WarpWorker, view_fovy, view_slots};
-use dexjoco_sim::{Frame, Scene};
+use dexjoco_render::Frame;
+use dexjoco_render::randomize::VisualSample;
+use dexjoco_render::randomize::warp_world;
+use dexjoco_render::warp::{WarpBatch, WarpRenderer, WarpTimes, WarpWorker, view_fovy, view_slots};
+use dexjoco_sim::Scene;
 
 use crate::assets::TaskAssets;
 use crate::config::AugmentConfig;

@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 
 use dexjoco_augment::{AugmentConfig, AugmentReport, augment};
 use dexjoco_core::NoProgress;
-use dexjoco_sim::{RenderSettings, SceneSource};
+use dexjoco_render::RenderSettings;
+use dexjoco_sim::SceneSource;
 
 fn demos() -> PathBuf {
     dexjoco_testkit::workspace_root().join("datasets/demos")
@@ -56,7 +57,7 @@ fn every_sample_demo_replays_to_success_with_zero_deviation() {
     // One scripted demonstration per planned task, two of click_mouse.
     assert_eq!(
         report.episodes.len(),
-        dexjoco_sim::scripted::PLANNED_TASKS.len() + 1
+        dexjoco_scripted::PLANNED_TASKS.len() + 1
     );
     for e in &report.episodes {
         assert!(
@@ -213,7 +214,7 @@ fn depth_streams_to_npz_that_numpy_loads_and_equals_a_direct_render() {
         dexjoco_sim::EnvOptions::default(),
     )
     .unwrap();
-    let mut r = dexjoco_sim::Renderer::new(
+    let mut r = dexjoco_render::Renderer::new(
         &scene.model,
         RenderSettings {
             depth: true,
@@ -225,7 +226,7 @@ fn depth_streams_to_npz_that_numpy_loads_and_equals_a_direct_render() {
     let actions = ep.array(dexjoco_core::Episode::ACTION).unwrap();
     for k in 0..6 {
         let f = r
-            .render(env.data_mut(), dexjoco_sim::CameraView::Fixed(cam))
+            .render(env.data_mut(), dexjoco_render::CameraView::Fixed(cam))
             .unwrap();
         let d = f.depth.unwrap();
         assert_eq!(&values[k * 64 * 64..(k + 1) * 64 * 64], &d[..], "frame {k}");
@@ -258,7 +259,7 @@ fn a_recording_the_reference_code_made_replays_to_success_with_scene_dir() {
         (x >> 11) as f64 / (1u64 << 53) as f64
     };
     let s0 = dexjoco_sim::TaskEnv::sample_initial_state(&scene, spec, &mut uniform).unwrap();
-    let ep = dexjoco_sim::scripted::click_mouse_demo(&scene, spec, &s0, "episode_000000").unwrap();
+    let ep = dexjoco_scripted::click_mouse_demo(&scene, spec, &s0, "episode_000000").unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let planned = tmp.path().join("planned/click_mouse/episode_000000");
     dexjoco_formats::raw::write_replay_zarr(&planned, &ep).unwrap();

@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 
 use dexjoco_augment::{AugmentConfig, SETTINGS_FILE, augment};
 use dexjoco_core::NoProgress;
-use dexjoco_sim::{RenderSettings, SceneSource};
+use dexjoco_render::RenderSettings;
+use dexjoco_sim::SceneSource;
 
 /// The reference scenes as a folder of links, with `own` copied in so it can be edited.
 fn scene_folder(dir: &Path, own: &str) -> PathBuf {

@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 
 use dexjoco_augment::{AugmentConfig, augment, geometry_difference};
 use dexjoco_core::NoProgress;
-use dexjoco_sim::{Geometry, RenderSettings, SceneSource};
+use dexjoco_render::{Geometry, RenderSettings};
+use dexjoco_sim::SceneSource;
 
 fn config(out: &Path, geometry: Geometry) -> AugmentConfig {
     AugmentConfig {

@@ -4,7 +4,7 @@
 
 use dexjoco_augment::{AugmentConfig, Provenance, REPORT_MD, ToolVersions, augment};
 use dexjoco_core::NoProgress;
-use dexjoco_sim::RenderSettings;
+use dexjoco_render::RenderSettings;
 
 fn config(out: &std::path::Path) -> AugmentConfig {
     AugmentConfig {

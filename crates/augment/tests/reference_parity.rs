@@ -21,8 +21,9 @@ use std::collections::BTreeMap;
 use dexjoco_augment::{AugmentConfig, augment};
 use dexjoco_core::{Episode, TaskSpec};
 use dexjoco_formats::raw::write_replay_zarr;
-use dexjoco_sim::scripted::{self, PLANNED_TASKS, Variant};
-use dexjoco_sim::{RenderSettings, SceneSource, TaskEnv, load_task_scene};
+use dexjoco_render::RenderSettings;
+use dexjoco_scripted::{self as scripted, PLANNED_TASKS, Variant};
+use dexjoco_sim::{SceneSource, TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
 use serde_json::Value;
 

@@ -10,7 +10,7 @@ use std::process::Command;
 use dexjoco_augment::{AugmentConfig, AugmentReport, RENDER_DEFECT_ENV, augment};
 use dexjoco_core::NoProgress;
 use dexjoco_formats::raw::{RenderCheck, RenderFlag, read_replay_label};
-use dexjoco_sim::RenderSettings;
+use dexjoco_render::RenderSettings;
 
 /// Where the run with the hook writes (set for the child test only).
 const OUT_ENV: &str = "DEXJOCO_TEST_RENDER_CHECKS_OUT";

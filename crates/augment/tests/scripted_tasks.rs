@@ -7,8 +7,9 @@ use std::path::Path;
 
 use dexjoco_augment::{AugmentConfig, augment};
 use dexjoco_core::TaskSpec;
-use dexjoco_sim::scripted::{self, Variant};
-use dexjoco_sim::{RenderSettings, SceneSource, TaskEnv, load_task_scene};
+use dexjoco_render::RenderSettings;
+use dexjoco_scripted::{self as scripted, Variant};
+use dexjoco_sim::{SceneSource, TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
 
 /// A random reset of `task` (seeded), its scene and spec.

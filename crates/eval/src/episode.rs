@@ -10,9 +10,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use dexjoco_core::{Episode, TaskSpec};
+use dexjoco_render::randomize::apply_visuals;
+use dexjoco_render::{CameraView, Renderer};
 use dexjoco_sim::dynamics::apply_dynamics;
-use dexjoco_sim::randomize::apply_visuals;
-use dexjoco_sim::{CameraView, EnvOptions, Renderer, Scene, TaskEnv};
+use dexjoco_sim::{EnvOptions, Scene, TaskEnv};
 use dexjoco_video::VideoWriter;
 
 use crate::chunks::{ActionBuffer, stay_action, to_env_action};

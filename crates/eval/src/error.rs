@@ -43,7 +43,7 @@ pub enum EvalError {
         what: String,
         /// The cause.
         #[source]
-        source: dexjoco_sim::SimError,
+        source: dexjoco_render::RenderError,
     },
     /// Writing a video failed.
     #[error("{what}: {source}")]
@@ -109,10 +109,12 @@ pub(crate) fn io_err(
 }
 
 /// Maps a simulation error with what it concerns.
-pub(crate) fn sim_err(what: &str) -> impl FnOnce(dexjoco_sim::SimError) -> EvalError + '_ {
+pub(crate) fn sim_err<E: Into<dexjoco_render::RenderError>>(
+    what: &str,
+) -> impl FnOnce(E) -> EvalError + '_ {
     move |source| EvalError::Sim {
         what: what.into(),
-        source,
+        source: source.into(),
     }
 }
 

@@ -71,7 +71,7 @@ pub struct EpisodeRecord {
     /// step).
     pub initial_state: Vec<f64>,
     /// The visual randomization (`--rand-full`).
-    pub visuals: Option<dexjoco_sim::randomize::VisualSample>,
+    pub visuals: Option<dexjoco_render::randomize::VisualSample>,
     /// The dynamics drawn (`--randomize-dynamics`).
     pub dynamics: Option<Vec<dexjoco_sim::dynamics::DynamicsValue>>,
     /// The prompt sent.

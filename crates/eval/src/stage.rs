@@ -5,9 +5,10 @@
 use std::path::Path;
 
 use dexjoco_core::{Node, TaskSpec};
+use dexjoco_render::randomize::{CameraPool, TABLE_GEOM, TableLibrary, VisualSample};
+use dexjoco_render::{RenderQuality, RenderSettings, Renderer};
 use dexjoco_sim::dynamics::{DynamicsValue, dynamics_seed, sample_dynamics};
-use dexjoco_sim::randomize::{CameraPool, TABLE_GEOM, TableLibrary, VisualSample};
-use dexjoco_sim::{RenderQuality, RenderSettings, Renderer, Scene, SceneSource, load_task_scene};
+use dexjoco_sim::{Scene, SceneSource, load_task_scene};
 use dexjoco_video::{Codec, VideoError, VideoSpec, VideoWriter};
 use sha2::{Digest, Sha256};
 
@@ -192,7 +193,7 @@ impl Stage {
                 View::Random => None,
             })
             .unwrap_or(0);
-        renderer.update_scene(&mut data, dexjoco_sim::CameraView::Fixed(camera));
+        renderer.update_scene(&mut data, dexjoco_render::CameraView::Fixed(camera));
         renderer.draw().map_err(sim_err(&self.spec.id))?;
         self.frames_rendered += 1;
         Ok(())

@@ -78,7 +78,7 @@ fn cannot_render(e: &EvalError) -> bool {
     matches!(
         e,
         EvalError::Sim {
-            source: dexjoco_sim::SimError::Egl(_),
+            source: dexjoco_render::RenderError::Egl(_),
             ..
         }
     )

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use dexjoco_core::TaskSpec;
 use dexjoco_generate::{AttemptOptions, AttemptRecord, SourceDemo, attempt, write_pose_figure};
-use dexjoco_sim::scripted::{self, PLANNED_TASKS, Variant};
+use dexjoco_scripted::{self as scripted, PLANNED_TASKS, Variant};
 use dexjoco_sim::{SceneSource, TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
 

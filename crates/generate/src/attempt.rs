@@ -6,7 +6,7 @@
 //! subtask's end condition checked. Kept only when the task succeeds.
 
 use dexjoco_core::{HAND_DOF, Pose, TaskSpec};
-use dexjoco_sim::scripted::{Planned, Recorder};
+use dexjoco_scripted::{Planned, Recorder};
 use dexjoco_sim::{EnvOptions, Scene, TaskEnv};
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};

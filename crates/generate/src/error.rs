@@ -45,6 +45,9 @@ pub enum GenerateError {
     /// The simulation failed.
     #[error(transparent)]
     Sim(#[from] dexjoco_sim::SimError),
+    /// Rendering the contact sheet failed.
+    #[error(transparent)]
+    Render(#[from] dexjoco_render::RenderError),
     /// Reading or writing files failed.
     #[error(transparent)]
     Format(#[from] dexjoco_formats::FormatError),

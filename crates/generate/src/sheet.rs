@@ -7,10 +7,10 @@
 use std::path::Path;
 
 use dexjoco_core::TaskSpec;
-use dexjoco_sim::{
-    CameraView, EnvOptions, RenderQuality, RenderSettings, Renderer, Scene, SheetLayout, TaskEnv,
-    contact_sheet,
+use dexjoco_render::{
+    CameraView, RenderQuality, RenderSettings, Renderer, SheetLayout, contact_sheet,
 };
+use dexjoco_sim::{EnvOptions, Scene, TaskEnv};
 
 use crate::error::GenerateError;
 

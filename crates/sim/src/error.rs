@@ -1,8 +1,8 @@
-//! The simulation and rendering errors, each naming the scene, name or device concerned.
+//! The simulation errors, each naming the scene, file or name concerned.
 
 use std::path::PathBuf;
 
-/// Errors of the simulation and rendering layer.
+/// Errors of the simulator.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SimError {
@@ -17,9 +17,6 @@ pub enum SimError {
     /// A scene file does not exist.
     #[error("scene file '{0}' does not exist")]
     Missing(PathBuf),
-    /// No EGL device could open an offscreen OpenGL context.
-    #[error("offscreen rendering is not available: {0}")]
-    Egl(String),
     /// A name (camera, body, geom...) is not in the scene.
     #[error("scene has no {kind} named '{name}' (it has: {available})")]
     UnknownName {
@@ -29,20 +26,6 @@ pub enum SimError {
         name: String,
         /// The names the scene has.
         available: String,
-    },
-    /// Rendering failed.
-    #[error("rendering failed: {0}")]
-    Render(String),
-    /// The Warp renderer's worker could not start or failed.
-    #[error("warp renderer: {0}")]
-    Warp(String),
-    /// Writing an image failed.
-    #[error("cannot write image '{path}': {message}")]
-    Image {
-        /// The image file.
-        path: PathBuf,
-        /// What went wrong.
-        message: String,
     },
     /// Names a task spec or the robot refers to are not in the scene.
     #[error("{what}: the scene lacks {}", names.join(", "))]
@@ -55,14 +38,6 @@ pub enum SimError {
     /// A task spec cannot be used.
     #[error("task spec: {0}")]
     Spec(String),
-    /// A camera pool file is malformed or cannot be read.
-    #[error("camera pool '{}': {message}", path.display())]
-    Pool {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong.
-        message: String,
-    },
     /// A file of a scene could not be read.
     #[error("cannot {action} '{}': {source}", path.display())]
     Io {

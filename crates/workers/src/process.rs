@@ -72,9 +72,9 @@ impl Worker {
             .stderr(Stdio::inherit());
         let assigned = w.device_of(slot);
         if let Some(dev) = assigned {
-            cmd.env(dexjoco_sim::EGL_DEVICE_ENV, dev.to_string());
+            cmd.env(dexjoco_render::EGL_DEVICE_ENV, dev.to_string());
         }
-        dexjoco_sim::share_llvmpipe_threads(&mut cmd, busy);
+        dexjoco_render::share_llvmpipe_threads(&mut cmd, busy);
         let mut child = cmd.spawn().map_err(|e| {
             PoolError::Start(format!(
                 "cannot start a worker process '{}': {e}",

@@ -90,7 +90,7 @@ pub fn probe_renderer(device: Option<usize>, deadline: Duration) -> Result<(), P
     );
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
-        let _ = tx.send(dexjoco_sim::probe_renderer(device));
+        let _ = tx.send(dexjoco_render::probe_renderer(device));
     });
     let reason = match rx.recv_timeout(deadline) {
         Ok(Ok(opened)) => {
@@ -101,7 +101,7 @@ pub fn probe_renderer(device: Option<usize>, deadline: Duration) -> Result<(), P
             );
             return Ok(());
         }
-        Ok(Err(dexjoco_sim::SimError::Egl(why))) => why,
+        Ok(Err(dexjoco_render::RenderError::Egl(why))) => why,
         Ok(Err(e)) => e.to_string(),
         Err(_) => format!(
             "no offscreen context opened within {} s (--first-frame-timeout)",

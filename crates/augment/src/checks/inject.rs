@@ -5,7 +5,7 @@
 //! inherit the environment). Unset, it costs nothing.
 
 use dexjoco_core::Episode;
-use dexjoco_sim::Frame;
+use dexjoco_render::Frame;
 
 use crate::error::AugmentError;
 

@@ -24,7 +24,7 @@ use crate::error::AugmentError;
 use crate::profile::StageTimes;
 use crate::render::UnitJob;
 
-pub use dexjoco_sim::share_llvmpipe_threads;
+pub use dexjoco_render::share_llvmpipe_threads;
 pub use dexjoco_workers::{DEFAULT_FIRST_FRAME_TIMEOUT, WorkerPool, WorkerProcesses};
 pub use executor::Executor;
 pub(crate) use executor::UnitResult;
