@@ -35,6 +35,7 @@ pub fn stderr(args: std::fmt::Arguments<'_>) {
 }
 
 /// `println!` that survives a closed pipe.
+#[macro_export]
 macro_rules! outln {
     () => {
         $crate::out::stdout(format_args!("\n"))
@@ -45,6 +46,7 @@ macro_rules! outln {
 }
 
 /// `eprintln!` that survives a closed pipe.
+#[macro_export]
 macro_rules! errln {
     ($($arg:tt)*) => {
         $crate::out::stderr(format_args!("{}\n", format_args!($($arg)*)))

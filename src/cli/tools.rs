@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
-use super::{FirstFrameArgs, GeometryArg, QualityArg, RendererArgs, TasksDirArgs, WarpArgs};
+use super::{FirstFrameArgs, GeometryArg, QualityArg, RendererArgs, TasksDirArgs};
 
 /// `doctor` options.
 #[derive(Debug, Args)]
@@ -91,18 +91,9 @@ pub enum BenchCommand {
     Render(BenchRenderArgs),
     /// Episodes/s and MB/s of `ingest` on generated raw folders and MCAP files.
     Ingest(BenchIngestArgs),
-    /// `convert` against lerobot's own dataset writer and the DexJoCo reference converter
-    /// on the same episodes, and our peak memory for few vs many short episodes.
-    Convert(BenchConvertArgs),
     /// `augment` with 1 and N worker processes against the reference approach (re-simulate
     /// and render every replay in one process) and the render-only limit of N processes.
     Augment(BenchAugmentArgs),
-    /// Generation attempts per second on one core, against the same loop in Python on the
-    /// DexJoCo reference environments.
-    Generate(BenchGenerateArgs),
-    /// The Warp batch renderer against MuJoCo's OpenGL one on each task's scene: PSNR and
-    /// SSIM per task and camera, side-by-side pictures.
-    Fidelity(BenchFidelityArgs),
     /// One process of `bench augment`'s render-only limit (started by it).
     #[command(hide = true)]
     RenderLimit(BenchRenderLimitArgs),
@@ -179,42 +170,6 @@ pub struct BenchAugmentArgs {
     pub renderer: RendererArgs,
 }
 
-/// `bench fidelity` options.
-#[derive(Debug, Args)]
-#[command(after_help = "\
-Examples:
-  dexjoco-data bench fidelity                                 # the 11 reference scenes (or built-in)
-  dexjoco-data bench fidelity --task hammer_nail --views 8 --size 640 --quality paper
-  dexjoco-data bench fidelity --warp-supersample 2            # anti-aliased Warp images
-
-Each task's scene at its reset, seen from --views randomized third-person views (camera
-pose, lights, table look as augment samples them) and from the task's cameras, is rendered
-by MuJoCo's OpenGL renderer and by the Warp ray tracer. The table gives PSNR (dB, over RGB)
-and SSIM (luma, 8x8 windows) per task and camera; <work-dir>/bench/fidelity/ holds
-fidelity.json, <task>.png (OpenGL | Warp | difference x4 per view) and sheet.png.")]
-pub struct BenchFidelityArgs {
-    /// Tasks (repeatable; default: all 11).
-    #[arg(long = "task")]
-    pub tasks: Vec<String>,
-    /// Scene pack folder (default: the DexJoCo reference scenes when found, else the
-    /// built-in scenes).
-    #[arg(long)]
-    pub scene_dir: Option<PathBuf>,
-    /// Image size (square).
-    #[arg(long, default_value_t = 224, value_parser = image_side())]
-    pub size: u32,
-    /// Quality preset (shadows, multisampling).
-    #[arg(long, value_enum, default_value_t = QualityArg::Fast)]
-    pub quality: QualityArg,
-    /// Randomized third-person views per task.
-    #[arg(long, default_value_t = 4,
-          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
-    pub views: usize,
-    /// The Warp renderer's options.
-    #[command(flatten)]
-    pub warp: WarpArgs,
-}
-
 /// `bench render-limit`: internal, one process of the render-only limit.
 #[derive(Debug, Args)]
 pub struct BenchRenderLimitArgs {
@@ -241,89 +196,6 @@ pub struct BenchRenderLimitArgs {
     /// The renderer's meshes.
     #[arg(long, value_enum, default_value_t = GeometryArg::Full)]
     pub geometry: GeometryArg,
-}
-
-/// `bench generate` options.
-#[derive(Debug, Args)]
-#[command(after_help = "\
-Examples:
-  dexjoco-data bench generate
-  dexjoco-data bench generate --task hammer_nail --attempts 20 --sources 5
-
-Per task, on the DexJoCo reference scenes: scripted plans (`scripted --seed 1000`'s first
-resets) are the sources; attempts from --seed's resets run one after another on one core,
-ours in this process; then the same attempts, with the same source segment per subtask,
-in Python on the reference environments (tests/python/generate_loop.py: MuJoCo's Python
-bindings, the reference controller and task logic; it does not check the subtasks' ends,
-so it never waits for one). Both report attempts, steps and successes; the ratio is of
-seconds per step. Single-arm tasks only (the Python loop runs the arm's subtasks in
-order).
-
-Needs the reference venv (scripts/setup.sh --python; $DEXJOCO_REFERENCE_PYTHON or the
-checkout's .deps/reference-python-path) and the reference code ($DEXJOCO_THIRD_PARTY,
-else ../shared/third_party beside the checkout); without them the Python rows are
-skipped and the output says why. The table goes to stdout and
-<work-dir>/bench/generate.json.")]
-pub struct BenchGenerateArgs {
-    /// Tasks (single-arm), e.g. click_mouse,pick_bucket.
-    #[arg(long = "task", value_delimiter = ',', default_values_t = ["click_mouse".to_owned(), "pick_bucket".to_owned()])]
-    pub tasks: Vec<String>,
-    /// Attempts per task.
-    #[arg(long, default_value_t = 10,
-          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000))]
-    pub attempts: usize,
-    /// Scripted source plans per task.
-    #[arg(long, default_value_t = 3,
-          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100))]
-    pub sources: usize,
-    /// Skip the Python loop.
-    #[arg(long)]
-    pub no_reference: bool,
-}
-
-/// `bench convert` options.
-#[derive(Debug, Args)]
-#[command(after_help = "\
-Examples:
-  dexjoco-data bench convert
-  dexjoco-data bench convert --episodes 50 --frames 120 --memory-episodes 100,1000
-
-Needs the test venv (`scripts/setup.sh --python`, or DEXJOCO_PYTHON) for lerobot's writer
-and /usr/bin/time for peak memory (maximum resident set size of each child process: for
-the reference converter, the largest of its processes).
-
-The DexJoCo reference converter (dexjoco-dc-single-lerobot and dexjoco-dc-single-zarr)
-runs from its code in place: $DEXJOCO_THIRD_PARTY, else ../shared/third_party beside the
-checkout, with Diffusion Policy from $DEXJOCO_DIFFUSION_POLICY or the checkout's .deps;
-beside it, our --format diffusion-policy --videos. When that code is absent the output
-says so and those rows are skipped.")]
-pub struct BenchConvertArgs {
-    /// Generated click_mouse episodes converted by both tools.
-    #[arg(long, default_value_t = 50)]
-    pub episodes: usize,
-    /// Frames per episode.
-    #[arg(long, default_value_t = 60)]
-    pub frames: usize,
-    /// Camera frame size (square; at least 64 for lerobot's AV1 encoder).
-    #[arg(long, default_value_t = 96, value_parser = image_side())]
-    pub size: u32,
-    /// Episode counts for our peak-memory runs (short episodes).
-    #[arg(long, value_delimiter = ',', default_values_t = [100, 1000])]
-    pub memory_episodes: Vec<usize>,
-    /// Frames per episode in the peak-memory runs.
-    #[arg(long, default_value_t = 10)]
-    pub memory_frames: usize,
-    /// Skip lerobot's writer.
-    #[arg(long)]
-    pub no_lerobot: bool,
-    /// Skip the DexJoCo reference converter.
-    #[arg(long)]
-    pub no_reference: bool,
-    /// Random items read (lerobot 0.6.1's LeRobotDataset, torchcodec and pyav) from our
-    /// LeRobot v3.0 dataset and the reference converter's, timed one by one as a training
-    /// data loader reads them; 0 skips the read timing.
-    #[arg(long, default_value_t = 100, value_name = "N")]
-    pub read_items: usize,
 }
 
 /// `bench render` options.

@@ -17,14 +17,11 @@ pub fn run(global: &GlobalArgs, cmd: &BenchCommand) -> anyhow::Result<ExitStatus
     match cmd {
         BenchCommand::Render(args) => render(&BenchRenderSettings::resolve(args, global)?),
         BenchCommand::Ingest(args) => ingest(&BenchIngestSettings::resolve(args, global)),
-        BenchCommand::Convert(args) => super::bench_convert::run(global, args),
-        BenchCommand::Generate(args) => super::bench_generate::run(global, args),
         BenchCommand::Augment(args) => super::bench_augment::run(&BenchAugmentSettings::resolve(
             args,
             global,
             super::augment::sample_data,
         )?),
-        BenchCommand::Fidelity(args) => super::bench_fidelity::run(global, args),
         BenchCommand::RenderLimit(args) => super::bench_augment::render_limit(global, args),
     }
 }

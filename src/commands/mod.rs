@@ -3,9 +3,6 @@
 pub mod augment;
 pub mod bench;
 pub mod bench_augment;
-pub mod bench_convert;
-pub mod bench_fidelity;
-pub mod bench_generate;
 pub mod cameras;
 pub mod convert;
 pub mod dataset;

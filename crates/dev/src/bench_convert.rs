@@ -11,8 +11,9 @@ use anyhow::Context;
 use dexjoco_core::TaskSpec;
 use serde::Serialize;
 
-use crate::cli::{BenchConvertArgs, GlobalArgs};
-use crate::exit::ExitStatus;
+use crate::cli::BenchConvertArgs;
+use dexjoco_cli::cli::GlobalArgs;
+use dexjoco_cli::exit::ExitStatus;
 
 #[derive(Debug, Serialize)]
 struct Run {
@@ -117,7 +118,7 @@ fn timed(program: &Path, args: &[&str]) -> anyhow::Result<(f64, f64, String)> {
 }
 
 fn python() -> anyhow::Result<PathBuf> {
-    crate::locate::python().map(|l| l.path).context(
+    dexjoco_cli::locate::python().map(|l| l.path).context(
         "no Python with lerobot: run scripts/setup.sh --python in the checkout (or set DEXJOCO_PYTHON)",
     )
 }
@@ -131,7 +132,7 @@ fn ours(
     config: &Path,
     extra: &[&str],
 ) -> anyhow::Result<(f64, f64)> {
-    let exe = std::env::current_exe()?;
+    let (exe, user) = crate::user_binary()?;
     let out = tmp.join(name);
     let (input, out, config) = (
         input.to_string_lossy(),
@@ -139,6 +140,7 @@ fn ours(
         config.to_string_lossy(),
     );
     let mut argv = vec![
+        user,
         "-q",
         "convert",
         &input,
@@ -160,7 +162,7 @@ pub fn run(global: &GlobalArgs, args: &BenchConvertArgs) -> anyhow::Result<ExitS
     // The same arrays on every side: action (23) and the proprioceptive state (23).
     fs_err::write(&config, "[default]\naction = \"action\"\nstate = [0, 23]\n")?;
     let raw = tmp.path().join("raw");
-    let pb = crate::progress::bar(1, "generate", global.quiet);
+    let pb = dexjoco_cli::progress::bar(1, "generate", global.quiet);
     generate(&raw, args.episodes, args.frames, args.size)?;
     pb.finish_and_clear();
     let ours_lerobot = ours(tmp.path(), &raw, "ours", &config, &[])?;
@@ -228,7 +230,7 @@ struct ReferenceCode {
 /// checkout; Diffusion Policy from `$DEXJOCO_DIFFUSION_POLICY`, else the checkout's
 /// `.deps/diffusion-policy-path`. Err says what is missing.
 fn reference_code() -> Result<ReferenceCode, String> {
-    let checkout = crate::locate::checkout().ok_or("not run from a source checkout")?;
+    let checkout = dexjoco_cli::locate::checkout().ok_or("not run from a source checkout")?;
     let third_party = std::env::var_os("DEXJOCO_THIRD_PARTY")
         .map_or_else(|| checkout.join("../shared/third_party"), PathBuf::from);
     let converter_src = third_party.join("dexjoco-8d23b0f/dexjoco-data-converter/src");
@@ -362,7 +364,7 @@ fn run_reference(
 /// lerobot's own writer on the episodes in `raw` (the checkout's
 /// `tests/python/bench_lerobot_writer.py`).
 fn lerobot(tmp: &Path, raw: &Path, args: &BenchConvertArgs) -> anyhow::Result<Run> {
-    let script = crate::locate::checkout()
+    let script = dexjoco_cli::locate::checkout()
         .context("bench convert runs lerobot's writer from the source checkout's tests/python: run it from a checkout, or pass --no-lerobot")?
         .join("tests/python/bench_lerobot_writer.py");
     let out = tmp.join("lerobot");
@@ -484,7 +486,7 @@ fn random_reads(
     if args.read_items == 0 {
         return Ok(Vec::new());
     }
-    let script = crate::locate::checkout()
+    let script = dexjoco_cli::locate::checkout()
         .context("the read timing runs tests/python/lerobot_random_read.py from the source checkout: run it from a checkout, or pass --read-items 0")?
         .join("tests/python/lerobot_random_read.py");
     let mut datasets = vec![("dexjoco-data convert (stream copy)", tmp.join("ours"))];

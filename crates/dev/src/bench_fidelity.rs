@@ -18,8 +18,8 @@ use dexjoco_sim::{EnvOptions, SceneSource, TaskEnv, load_task_scene};
 use serde::Serialize;
 
 use crate::cli::BenchFidelityArgs;
-use crate::cli::GlobalArgs;
-use crate::exit::ExitStatus;
+use dexjoco_cli::cli::GlobalArgs;
+use dexjoco_cli::exit::ExitStatus;
 
 /// One task camera's comparison over its views.
 #[derive(Debug, Serialize)]
@@ -44,10 +44,14 @@ pub fn run(global: &GlobalArgs, args: &BenchFidelityArgs) -> anyhow::Result<Exit
         views,
         warp,
     } = args;
-    let source = SceneSource::from_option(scene_dir.clone().or_else(super::reference_scene_dir));
+    let source = SceneSource::from_option(
+        scene_dir
+            .clone()
+            .or_else(dexjoco_cli::commands::reference_scene_dir),
+    );
     let settings = dexjoco_render::RenderSettings {
         depth: false,
-        ..crate::settings::render_settings(*size, *quality)
+        ..dexjoco_cli::settings::render_settings(*size, *quality)
     };
     let options = warp.clone().options();
     let specs: Vec<&TaskSpec> = if tasks.is_empty() {
@@ -62,7 +66,7 @@ pub fn run(global: &GlobalArgs, args: &BenchFidelityArgs) -> anyhow::Result<Exit
     fs_err::create_dir_all(&out)?;
     let mut rows = Vec::new();
     let mut sheet = Vec::new();
-    let pb = crate::progress::bar(specs.len() as u64, "fidelity", global.quiet);
+    let pb = dexjoco_cli::progress::bar(specs.len() as u64, "fidelity", global.quiet);
     for spec in specs {
         let pairs = render_both(&source, spec, settings, &options, *views, global.seed)
             .with_context(|| format!("task {}", spec.id))?;
@@ -75,7 +79,7 @@ pub fn run(global: &GlobalArgs, args: &BenchFidelityArgs) -> anyhow::Result<Exit
     }
     pb.finish_and_clear();
     let sheet_path = out.join("sheet.png");
-    super::render::contact_sheet(&sheet, &sheet_path)?;
+    dexjoco_cli::commands::render::contact_sheet(&sheet, &sheet_path)?;
     print_table(&rows, &source, settings);
     let json = out.join("fidelity.json");
     fs_err::write(&json, serde_json::to_string_pretty(&rows)?)?;
@@ -188,7 +192,7 @@ fn save_pairs(pairs: &Pairs, path: &Path) -> anyhow::Result<()> {
             },
         ]);
     }
-    super::render::contact_sheet_in_columns(&tiles, 3, path)
+    dexjoco_cli::commands::render::contact_sheet_in_columns(&tiles, 3, path)
 }
 
 fn print_table(rows: &[Row], source: &SceneSource, settings: dexjoco_render::RenderSettings) {

@@ -14,8 +14,9 @@ use dexjoco_sim::{EnvOptions, Scene, SceneSource, TaskEnv, load_task_scene};
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 
-use crate::cli::{BenchGenerateArgs, GlobalArgs};
-use crate::exit::ExitStatus;
+use crate::cli::BenchGenerateArgs;
+use dexjoco_cli::cli::GlobalArgs;
+use dexjoco_cli::exit::ExitStatus;
 
 /// One side's run of a task's attempts.
 #[derive(Debug, Serialize)]
@@ -54,7 +55,7 @@ struct TaskRun {
 
 /// Runs `bench generate`.
 pub fn run(global: &GlobalArgs, args: &BenchGenerateArgs) -> anyhow::Result<ExitStatus> {
-    let scenes = super::reference_scene_dir()
+    let scenes = dexjoco_cli::commands::reference_scene_dir()
         .context("the DexJoCo reference scenes are not found (../shared/dexjoco-upstream beside the checkout, or $DEXJOCO_UPSTREAM)")?;
     let python = if args.no_reference {
         Err("--no-reference".to_owned())
@@ -146,10 +147,10 @@ fn ours(
 
 /// The reference venv's Python and the environment its scripts need, or why not.
 fn reference_python() -> Result<(std::path::PathBuf, Vec<(String, std::path::PathBuf)>), String> {
-    let py = crate::locate::reference_python()
+    let py = dexjoco_cli::locate::reference_python()
         .map(|l| l.path)
         .ok_or("no reference venv (scripts/setup.sh --python, or $DEXJOCO_REFERENCE_PYTHON)")?;
-    let checkout = crate::locate::checkout().ok_or("not run from a source checkout")?;
+    let checkout = dexjoco_cli::locate::checkout().ok_or("not run from a source checkout")?;
     let third_party = std::env::var_os("DEXJOCO_THIRD_PARTY")
         .map_or_else(|| checkout.join("../shared/third_party"), Into::into);
     let code = third_party.join("dexjoco-8d23b0f");
