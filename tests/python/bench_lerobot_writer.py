@@ -1,4 +1,4 @@
-"""The lerobot side of `dexjoco-data bench convert`: writes the same raw episodes with
+"""The lerobot side of `dexjoco-dev bench convert`: writes the same raw episodes with
 lerobot's own dataset writer (LeRobotDataset.create / add_frame / save_episode /
 finalize), offline, so that its wall time and peak memory can be compared with ours.
 

@@ -1,6 +1,6 @@
 """The generation loop of `dexjoco-data generate` written in Python on the DexJoCo reference
 environments (MuJoCo's Python bindings, the reference controller and task logic), for
-`dexjoco-data bench generate` (reference venv only).
+`dexjoco-dev bench generate` (reference venv only).
 
 The job (JSON, written by the bench) names the task and gives, per attempt, the state
 to restore, each arm's target at reset and, per subtask in order, the source segment our

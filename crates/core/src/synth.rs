@@ -7,10 +7,9 @@ use crate::episode::{Episode, FrameArray};
 use crate::layout::{DEXJOCO_FPS, HAND_CTRL_RANGES, HAND_DOF, POSE_DIM};
 use crate::task_spec::{PrivilegedKind, TaskSpec};
 
+/// A unit quaternion that varies with `a` and `b`.
 fn unit_quat(a: f64, b: f64) -> [f64; 4] {
-    let q = [a.cos(), 0.3 * b.sin(), 0.2 * a.sin(), 0.1 * b.cos()];
-    let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-    q.map(|x| x / n)
+    crate::pose::normalize([a.cos(), 0.3 * b.sin(), 0.2 * a.sin(), 0.1 * b.cos()])
 }
 
 /// A valid episode of `task` with `frames` frames; `seed` varies the values.

@@ -3,7 +3,7 @@
 # `python -c`; needs mujoco==3.17.0, mujoco-warp==3.17.0, warp-lang==1.19.0.
 #
 # Framing: every message is a 12-byte header (u32 JSON length, u64 payload length, little
-# endian), the JSON object, then the payload bytes. The Rust side (crates/sim/src/warp.rs)
+# endian), the JSON object, then the payload bytes. The Rust side (crates/render/src/warp/worker.rs)
 # documents the requests; in short:
 #   hello  -> versions and the device
 #   open   -> compiles the scene with one extra camera per field of view asked for (the
