@@ -135,7 +135,7 @@ pub(crate) fn shard_of(shard: Option<&str>, overwrite: bool) -> anyhow::Result<O
         None => return Ok(None),
         Some("auto") => Shard::from_env(|k| std::env::var(k).ok()).map_err(|e| {
             usage(
-                e,
+                e.to_string(),
                 "run inside a Slurm job array or a Kubernetes Indexed Job, or give --shard I/N",
             )
         })?,

@@ -207,6 +207,7 @@ mod tests {
                 .find(|(k, _)| *k == name)
                 .map(|(_, v)| (*v).to_owned())
         })
+        .map_err(|e| e.to_string())
     }
 
     #[test]

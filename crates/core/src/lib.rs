@@ -40,7 +40,7 @@ pub use progress::{NoProgress, Progress};
 pub use rotation::{
     ZERO_QUAT_EPS, action_to_rotvec, quat_wxyz_to_rotvec, rotvec_geodesic, rotvec_to_quat_wxyz,
 };
-pub use shard::Shard;
+pub use shard::{Shard, ShardError};
 pub use task_set::TaskSet;
 pub use task_spec::{
     ArmTargetInit, Axis, BUILTIN_SPEC_FILES, BoxAxes, CameraSpec, Cmp, ConstraintKind, DerivedPose,
