@@ -377,9 +377,9 @@ impl Loop<'_> {
 /// included, and the state before each).
 fn write_rollout(dir: &Path, spec: &TaskSpec, r: &Rollout, k: usize) -> Result<(), EvalError> {
     let mut ep = Episode::from_rollout(format!("episode_{k:02}"), spec, &r.actions, &r.states)
-        .map_err(|e| EvalError::Worker(format!("episode {k}: {e}")))?;
+        .map_err(|source| EvalError::Rollout { episode: k, source })?;
     ep.insert_rows(Episode::ENVIRONMENT_STATE, &r.environment)
-        .map_err(|e| EvalError::Worker(format!("episode {k}: {e}")))?;
+        .map_err(|source| EvalError::Rollout { episode: k, source })?;
     dexjoco_formats::raw::write_replay_zarr(dir, &ep)?;
     Ok(())
 }

@@ -68,9 +68,27 @@ pub enum EvalError {
         #[source]
         source: std::io::Error,
     },
-    /// A worker process failed.
+    /// A worker process could not be talked to (a message it or the parent sent).
     #[error("{0}")]
     Worker(String),
+    /// The worker processes could not be started or run.
+    #[error(transparent)]
+    Pool(#[from] dexjoco_workers::PoolError),
+    /// Episodes failed on the worker processes: each episode and what its worker said.
+    #[error("{}", failures.iter().map(|(k, why)| format!("episode {k}: {why}")).collect::<Vec<_>>().join("; "))]
+    EpisodesFailed {
+        /// (episode index, the worker's reason), in episode order.
+        failures: Vec<(usize, String)>,
+    },
+    /// An episode's rollout could not be made into a raw episode.
+    #[error("episode {episode}: {source}")]
+    Rollout {
+        /// The episode index.
+        episode: usize,
+        /// The cause.
+        #[source]
+        source: dexjoco_core::CoreError,
+    },
     /// A record of an earlier run in the output folder cannot be used.
     #[error("'{}': {message}", path.display())]
     Record {

@@ -378,18 +378,16 @@ fn run_on_processes(
             .collect(),
         tally,
     };
-    let pool = WorkerPool::start(w, &episodes.hello, todo.len())
-        .map_err(|e| EvalError::Worker(e.to_string()))?;
-    let results = dexjoco_workers::run_jobs(w, pool, &episodes)
-        .map_err(|e| EvalError::Worker(e.to_string()))?;
-    let failed: Vec<String> = todo
+    let pool = WorkerPool::start(w, &episodes.hello, todo.len())?;
+    let results = dexjoco_workers::run_jobs(w, pool, &episodes)?;
+    let failures: Vec<(usize, String)> = todo
         .iter()
         .zip(results)
-        .filter_map(|(k, r)| r.err().map(|why| format!("episode {k}: {why}")))
+        .filter_map(|(&k, r)| r.err().map(|why| (k, why.to_string())))
         .collect();
-    if failed.is_empty() {
+    if failures.is_empty() {
         Ok(())
     } else {
-        Err(EvalError::Worker(failed.join("; ")))
+        Err(EvalError::EpisodesFailed { failures })
     }
 }
