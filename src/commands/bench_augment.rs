@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use dexjoco_augment::{
-    AugmentConfig, AugmentReport, Executor, GeometryDifference, StageTimes, WorkerProcesses,
+    AugmentConfig, AugmentRun, Executor, GeometryDifference, StageTimes, WorkerProcesses,
     augment_with, geometry_difference, render_only,
 };
 use dexjoco_render::RenderSettings;
@@ -88,7 +88,7 @@ fn measured(
     Look(size, quality, geometry): Look,
     approach: &str,
     workers: usize,
-    report: &AugmentReport,
+    report: &AugmentRun,
     seconds: f64,
 ) -> Run {
     let frames: usize = report.replays.iter().map(|r| r.steps).sum();
@@ -108,7 +108,7 @@ fn measured(
     }
 }
 
-fn timed(config: &AugmentConfig, executor: &Executor) -> anyhow::Result<(AugmentReport, f64)> {
+fn timed(config: &AugmentConfig, executor: &Executor) -> anyhow::Result<(AugmentRun, f64)> {
     let _ = fs_err::remove_dir_all(&config.out);
     let t = Instant::now();
     let report = augment_with(config, executor, &dexjoco_core::NoProgress)

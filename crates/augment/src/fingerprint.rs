@@ -239,7 +239,7 @@ impl OutputSettings {
                     (task, inputs)
                 })
                 .collect(),
-            versions: ToolVersions::current().clone(),
+            versions: crate::provenance::current_versions().clone(),
         }
     }
 

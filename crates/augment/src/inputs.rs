@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 
 use dexjoco_core::{Episode, FrameArray, TaskSet, TaskSpec};
 use dexjoco_formats::SourceKind;
-use serde::{Deserialize, Serialize};
 
 use crate::error::AugmentError;
 
@@ -27,22 +26,14 @@ impl Source {
     }
 }
 
-/// An input that could not be replayed, and why; the rest of the batch goes on.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct SkippedInput {
-    /// The file or folder.
-    pub source: String,
-    /// What is wrong with it (episode, field and frame where known).
-    pub reason: String,
-}
+pub use dexjoco_formats::augment_report::SkippedInput;
 
-impl SkippedInput {
-    pub(crate) fn new(path: &Path, reason: String) -> Self {
-        tracing::warn!(input = %path.display(), "skipped: {reason}");
-        Self {
-            source: path.display().to_string(),
-            reason,
-        }
+/// An input left out, and why (logged as a warning).
+pub(crate) fn skipped_input(path: &Path, reason: String) -> SkippedInput {
+    tracing::warn!(input = %path.display(), "skipped: {reason}");
+    SkippedInput {
+        source: path.display().to_string(),
+        reason,
     }
 }
 
@@ -85,7 +76,7 @@ pub(crate) fn read_sources(
 ) -> Result<(Vec<Source>, Vec<SkippedInput>), AugmentError> {
     let mut out = Vec::new();
     let mut skipped = Vec::new();
-    let mut skip = |path: &Path, reason: String| skipped.push(SkippedInput::new(path, reason));
+    let mut skip = |path: &Path, reason: String| skipped.push(skipped_input(path, reason));
     for input in inputs {
         let found = match dexjoco_formats::discover_input(input, Some(exclude)) {
             Ok(found) => found,

@@ -59,8 +59,10 @@ pub use fingerprint::{OutputSettings, TaskInputs};
 pub use geometry_difference::{GeometryDifference, geometry_difference};
 pub use inputs::SkippedInput;
 pub use profile::StageTimes;
-pub use provenance::{Provenance, ToolVersions};
-pub use report::{AugmentReport, EpisodeOutcome, FailedUnit, FlaggedReplay, MadeOn, ReplayRecord};
+pub use provenance::{Provenance, ToolVersions, current_versions, this_machine};
+pub use report::{
+    AugmentReport, AugmentRun, EpisodeOutcome, FailedUnit, FlaggedReplay, MadeOn, ReplayRecord,
+};
 pub use run::{augment, augment_with};
 pub use worker::{
     DEFAULT_FIRST_FRAME_TIMEOUT, Executor, FAULT_ENV, STALL_ENV, WorkerProcesses, serve_worker,

@@ -7,88 +7,43 @@
 
 use std::sync::OnceLock;
 
-use serde::{Deserialize, Serialize};
+pub use dexjoco_formats::augment_report::{Provenance, ToolVersions};
 
-/// What a version reads when it was not recorded (an output folder made before it was).
-const NOT_RECORDED: &str = "not recorded";
-
-/// The programs that decide an augment output's bytes, as they name themselves.
-#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-pub struct ToolVersions {
-    /// This program: its version and the git commit it was built from
-    /// (`0.1.0 (git 3f1ab45…)`; the version alone when built outside a git checkout).
-    pub dexjoco_data: String,
-    /// The MuJoCo library loaded (`3.17.0`).
-    pub mujoco: String,
-    /// ffmpeg as `ffmpeg -version` names itself (`5.1.9-0+deb12u1`), or why it could not
-    /// be asked.
-    pub ffmpeg: String,
-    /// x264 as it names itself in the streams it writes (`x264 - core 164 r3095 baee400`).
-    pub x264: String,
-}
-
-impl Default for ToolVersions {
-    /// Every version "not recorded".
-    fn default() -> Self {
-        Self {
-            dexjoco_data: NOT_RECORDED.into(),
-            mujoco: NOT_RECORDED.into(),
-            ffmpeg: NOT_RECORDED.into(),
-            x264: NOT_RECORDED.into(),
+/// This process's versions, asked once (ffmpeg is run twice the first time).
+pub fn current_versions() -> &'static ToolVersions {
+    static CURRENT: OnceLock<ToolVersions> = OnceLock::new();
+    CURRENT.get_or_init(|| {
+        let commit = env!("DEXJOCO_GIT_COMMIT");
+        let dexjoco_data = if commit.is_empty() {
+            env!("CARGO_PKG_VERSION").to_owned()
+        } else {
+            format!("{} (git {commit})", env!("CARGO_PKG_VERSION"))
+        };
+        let (ffmpeg, x264) = match dexjoco_video::encoder_versions() {
+            Ok(v) => (v.ffmpeg, v.x264),
+            Err(e) => (format!("unavailable: {e}"), "unavailable".to_owned()),
+        };
+        ToolVersions {
+            dexjoco_data,
+            mujoco: dexjoco_sim::mujoco_version(),
+            ffmpeg,
+            x264,
         }
-    }
+    })
 }
 
-impl ToolVersions {
-    /// This process's versions, asked once (ffmpeg is run twice the first time).
-    pub fn current() -> &'static Self {
-        static CURRENT: OnceLock<ToolVersions> = OnceLock::new();
-        CURRENT.get_or_init(|| {
-            let commit = env!("DEXJOCO_GIT_COMMIT");
-            let dexjoco_data = if commit.is_empty() {
-                env!("CARGO_PKG_VERSION").to_owned()
-            } else {
-                format!("{} (git {commit})", env!("CARGO_PKG_VERSION"))
-            };
-            let (ffmpeg, x264) = match dexjoco_video::encoder_versions() {
-                Ok(v) => (v.ffmpeg, v.x264),
-                Err(e) => (format!("unavailable: {e}"), "unavailable".to_owned()),
-            };
-            Self {
-                dexjoco_data,
-                mujoco: dexjoco_sim::mujoco_version(),
-                ffmpeg,
-                x264,
-            }
-        })
-    }
-}
-
-/// Where a replay was made.
-#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-pub struct Provenance {
-    /// The CPU model (`/proc/cpuinfo`'s `model name`, or its ARM equivalents).
-    pub cpu_model: String,
-    /// The CPU's feature flags (`/proc/cpuinfo`'s `flags` or `Features`), as listed there.
-    pub cpu_flags: String,
-    /// The programs' versions.
-    pub versions: ToolVersions,
-}
-
-impl Provenance {
-    /// This machine and process, read once.
-    pub fn here() -> &'static Self {
-        static HERE: OnceLock<Provenance> = OnceLock::new();
-        HERE.get_or_init(|| {
-            let cpuinfo = fs_err::read_to_string("/proc/cpuinfo").unwrap_or_default();
-            let (cpu_model, cpu_flags) = cpu_of(&cpuinfo);
-            Self {
-                cpu_model,
-                cpu_flags,
-                versions: ToolVersions::current().clone(),
-            }
-        })
-    }
+/// This machine and process, read once.
+pub fn this_machine() -> &'static Provenance {
+    static HERE: OnceLock<Provenance> = OnceLock::new();
+    HERE.get_or_init(|| {
+        let cpuinfo = fs_err::read_to_string("/proc/cpuinfo").unwrap_or_default();
+        let (cpu_model, cpu_flags) = cpu_of(&cpuinfo);
+        Provenance {
+            cpu_model,
+            cpu_flags,
+            versions: current_versions().clone(),
+        }
+    })
 }
 
 /// The first processor's model and flags in a `/proc/cpuinfo` text (`unknown` when it
@@ -129,7 +84,7 @@ mod tests {
 
     #[test]
     fn versions_name_this_build_and_the_loaded_mujoco() {
-        let v = ToolVersions::current();
+        let v = current_versions();
         assert!(
             v.dexjoco_data.starts_with(env!("CARGO_PKG_VERSION")),
             "{v:?}"

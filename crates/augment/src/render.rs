@@ -548,6 +548,6 @@ fn record_of(
         dynamics,
         source_hash: job.source_hash.clone(),
         renderer: String::new(),
-        made_on: Some(crate::provenance::Provenance::here().clone()),
+        made_on: Some(crate::provenance::this_machine().clone()),
     }
 }

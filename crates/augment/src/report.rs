@@ -6,186 +6,41 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use dexjoco_formats::raw::RenderFlag;
 use dexjoco_render::RenderSettings;
-use serde::{Deserialize, Serialize};
 
 use crate::config::{PREVIEWS, REPORT_JSON, REPORT_MD};
 use crate::error::{AugmentError, io_err};
-use crate::inputs::SkippedInput;
-use crate::provenance::Provenance;
+use dexjoco_formats::augment_report::{self, Provenance, ToolVersions};
 use dexjoco_render::randomize::VisualSample;
 use dexjoco_sim::dynamics::DynamicsValue;
 
-/// One replay in the report.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ReplayRecord {
-    /// Folder name, `<episode>__rNN`.
-    pub name: String,
-    /// Task id.
-    pub task: String,
-    /// Source episode id.
-    pub episode: String,
-    /// Replay index.
-    pub replay: usize,
-    /// The sampled randomization (incl. the seed).
-    pub sample: VisualSample,
-    /// Whether the task succeeded on some step.
-    pub success: bool,
-    /// First successful step.
-    pub first_success: Option<usize>,
-    /// Steps replayed (= frames): the recorded steps used, plus any extension.
-    pub steps: usize,
-    /// Recorded steps used (the recording's length, or `--max-frames`).
-    #[serde(default)]
-    pub recorded_steps: usize,
-    /// The replay ran past the recording (`--extend-steps`) to reach its success.
-    #[serde(default)]
-    pub extended: bool,
-    /// Largest |replayed state - recorded state| over frames and columns.
-    pub max_state_deviation: f64,
-    /// Where that largest deviation is: (frame, column).
-    pub deviation_at: Option<(usize, usize)>,
-    /// Where each of the task's subtasks ended (the step, `None` when it never did),
-    /// the task spec's subtasks in order. Absent in replays made before subtasks existed.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
-    /// The render checks this replay failed (empty: it passed them all). Absent in
-    /// replays made before the checks existed.
-    #[serde(default)]
-    pub flags: Vec<RenderFlag>,
-    /// Videos written, relative to the replay folder.
-    pub videos: Vec<String>,
-    /// Depth files written (`videos/<camera>_depth.npz`), relative to the replay folder.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub depth: Vec<String>,
-    /// The dynamics drawn for this replay (`--dynamics`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub dynamics: Option<Vec<DynamicsValue>>,
-    /// Content hash of the source episode it was made from.
-    #[serde(default)]
-    pub source_hash: String,
-    /// The renderer that drew its frames: `opengl`, or the Warp worker's version and
-    /// device (`warp 3.17.0 on cpu`). Absent in replays made before it was recorded (all
-    /// OpenGL) and in records of replays dropped before rendering.
-    #[serde(default, skip_serializing_if = "String::is_empty")]
-    pub renderer: String,
-    /// Where it was made: the CPU and the programs' versions (absent in replays made
-    /// before it was recorded, and in the report, which lists each once in `made_on`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub made_on: Option<Provenance>,
-}
+pub use dexjoco_formats::augment_report::{EpisodeOutcome, FailedUnit, FlaggedReplay, MadeOn};
 
-/// The result of replaying one source episode (physics only).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct EpisodeOutcome {
-    /// Task id.
-    pub task: String,
-    /// Episode id.
-    pub episode: String,
-    /// Source folder or file.
-    pub source: String,
-    /// Success on some step.
-    pub success: bool,
-    /// First successful step.
-    pub first_success: Option<usize>,
-    /// Steps replayed (with any extension).
-    pub steps: usize,
-    /// Recorded steps used.
-    pub recorded_steps: usize,
-    /// First success minus the recording's last step: 0 when the replay succeeds where
-    /// the recording ends (the DexJoCo recorder stops on the first success), +k when k
-    /// steps later (after an extension), -k when earlier.
-    pub success_shift: Option<i64>,
-    /// The replay ran past the recording to reach its success.
-    pub extended: bool,
-    /// Largest deviation of the replayed state from the recording.
-    pub max_state_deviation: f64,
-    /// Replays kept for this episode (done now or earlier).
-    pub replays_kept: usize,
-    /// Where each of the task's subtasks ended in the replay.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub subtasks: Vec<dexjoco_core::SubtaskSpan>,
-}
+/// One replay's record (`replay.json`), with augment's randomization draw and dynamics.
+pub type ReplayRecord = augment_report::ReplayRecord<VisualSample, DynamicsValue>;
 
-impl EpisodeOutcome {
-    /// The success shift in words: `on time`, `+1 step, extended`, `-3 steps`.
-    pub fn shift_label(&self) -> String {
-        match self.success_shift {
-            None => "-".into(),
-            Some(0) => "on time".into(),
-            Some(s) => format!(
-                "{s:+} step{}{}",
-                if s.abs() == 1 { "" } else { "s" },
-                if self.extended { ", extended" } else { "" }
-            ),
-        }
-    }
-}
+/// The augment report (`augment_report.json`), with augment's own types in it.
+pub type AugmentReport = augment_report::AugmentReport<VisualSample, RenderSettings, DynamicsValue>;
 
-/// The augment report (`augment_report.json`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct AugmentReport {
-    /// Global seed.
-    pub seed: u64,
-    /// Replays asked per episode.
-    pub replays_per_episode: usize,
-    /// Render settings.
-    pub settings: RenderSettings,
-    /// Camera pool per setup used.
-    pub camera_pools: BTreeMap<String, String>,
-    /// Table looks per task (names).
-    pub table_library: BTreeMap<String, Vec<String>>,
-    /// The language instructions of the replayed episodes per task, sorted: each
-    /// episode's own, else its task's prompt; the replays keep them, and `convert` writes
-    /// them unless its config names another.
-    #[serde(default)]
-    pub instructions: BTreeMap<String, Vec<String>>,
-    /// Per source episode.
-    pub episodes: Vec<EpisodeOutcome>,
-    /// Per replay, sorted by folder.
-    pub replays: Vec<ReplayRecord>,
-    /// Replays that failed under `--dynamics` and were not kept (no folder), in the same
-    /// order.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub dropped: Vec<ReplayRecord>,
-    /// The replays a render check flagged (kept on disk, with their `flags` in their
-    /// record; `convert` leaves them out unless `--include-flagged`), in the order of `replays`.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub flagged: Vec<FlaggedReplay>,
-    /// Inputs that could not be replayed: those unreadable, of an unknown task or missing
-    /// a field, in input order, then those the simulator rejected, by task and episode.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub skipped: Vec<SkippedInput>,
-    /// Units of work that failed twice (a crashed worker, an error), with the reason;
-    /// their replays are not there and a later run redoes them.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub failed_units: Vec<FailedUnit>,
-    /// Where the replays (kept and dropped) were made: each distinct CPU and set of
-    /// versions, with its count. More than one: the dataset mixes machines or builds,
-    /// whose bytes differ for the same inputs.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub made_on: Vec<MadeOn>,
-    /// Replays rendered by this run (the rest were already there). Not written into the
-    /// report files, so a resumed or sharded run writes the same report as one that was
-    /// never interrupted.
-    #[serde(skip)]
+/// What an augment run returns: its report, and what the report files leave out (so a
+/// resumed or sharded run writes the same report as one never interrupted).
+#[derive(Debug, Clone)]
+pub struct AugmentRun {
+    /// The report, as written.
+    pub report: AugmentReport,
+    /// Replays rendered by this run (the rest were already there).
     pub rendered_now: usize,
     /// Where this run's time went, per stage of making its frames (the parent's
-    /// validation pass counted as physics). Not written, like `rendered_now`.
-    #[serde(skip)]
+    /// validation pass counted as physics).
     pub times: crate::profile::StageTimes,
 }
 
-/// A replay a render check flagged, and why.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct FlaggedReplay {
-    /// Task id.
-    pub task: String,
-    /// Replay folder name, `<episode>__rNN`.
-    pub replay: String,
-    /// The checks it failed, where (as in its record).
-    pub flags: Vec<RenderFlag>,
+impl std::ops::Deref for AugmentRun {
+    type Target = AugmentReport;
+
+    fn deref(&self) -> &AugmentReport {
+        &self.report
+    }
 }
 
 /// The flagged replays among `replays`, in their order.
@@ -201,16 +56,6 @@ pub(crate) fn flagged_replays(replays: &[ReplayRecord]) -> Vec<FlaggedReplay> {
         .collect()
 }
 
-/// One place replays were made, and how many.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct MadeOn {
-    /// The CPU and versions.
-    #[serde(flatten)]
-    pub provenance: Provenance,
-    /// Replays made there.
-    pub replays: usize,
-}
-
 /// Takes each record's provenance out (the report lists each once): the distinct ones
 /// with their counts, sorted; replays made before it was recorded count as "not
 /// recorded".
@@ -223,7 +68,7 @@ pub(crate) fn take_made_on(
         let p = r.made_on.take().unwrap_or_else(|| Provenance {
             cpu_model: "not recorded".into(),
             cpu_flags: "not recorded".into(),
-            versions: crate::provenance::ToolVersions::default(),
+            versions: ToolVersions::default(),
         });
         *counts.entry(p).or_default() += 1;
     }
@@ -234,26 +79,6 @@ pub(crate) fn take_made_on(
             replays,
         })
         .collect()
-}
-
-/// A unit of work that failed on its retry too.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct FailedUnit {
-    /// Task id.
-    pub task: String,
-    /// Episode id.
-    pub episode: String,
-    /// Replay indices of the unit.
-    pub replays: Vec<usize>,
-    /// Why (the second attempt's reason).
-    pub reason: String,
-}
-
-impl AugmentReport {
-    /// Episodes whose replay did not succeed.
-    pub fn failed_episodes(&self) -> usize {
-        self.episodes.iter().filter(|e| !e.success).count()
-    }
 }
 
 /// The success cell of a replay that has its folder.

@@ -21,7 +21,9 @@ use crate::plan::{
     source_state,
 };
 use crate::render::UnitJob;
-use crate::report::{AugmentReport, EpisodeOutcome, FailedUnit, contact_sheet, write_report};
+use crate::report::{
+    AugmentReport, AugmentRun, EpisodeOutcome, FailedUnit, contact_sheet, write_report,
+};
 use crate::staging::Outcome;
 use crate::worker::{Executor, LocalInputs, UnitResult, WorkerPool, run_jobs, start_pool};
 
@@ -29,7 +31,7 @@ use crate::worker::{Executor, LocalInputs, UnitResult, WorkerPool, run_jobs, sta
 pub fn augment(
     config: &AugmentConfig,
     progress: &dyn Progress,
-) -> Result<AugmentReport, AugmentError> {
+) -> Result<AugmentRun, AugmentError> {
     augment_with(config, &Executor::Threads, progress)
 }
 
@@ -39,7 +41,7 @@ pub fn augment_with(
     config: &AugmentConfig,
     executor: &Executor,
     progress: &dyn Progress,
-) -> Result<AugmentReport, AugmentError> {
+) -> Result<AugmentRun, AugmentError> {
     let (mut sources, mut skipped) = read_replayable(config)?;
     // One scene per task, shared by the workers, each `--camera` checked against it
     // before anything is written or simulated; the settings that decide the output's
@@ -108,9 +110,7 @@ pub fn augment_with(
         outcomes,
         skipped,
         failed_units,
-        rendered_now,
     );
-    let report = AugmentReport { times, ..report };
     // A shard writes no report: the unsharded run after the shards writes it (and renders
     // nothing new), the same bytes as one unsharded run.
     if config.shard.is_none() {
@@ -119,7 +119,11 @@ pub fn augment_with(
             contact_sheet(out, &report)?;
         }
     }
-    Ok(report)
+    Ok(AugmentRun {
+        report,
+        rendered_now,
+        times,
+    })
 }
 
 /// A full disk, with the space free on the output's file system and an estimate of what
@@ -297,7 +301,7 @@ fn simulate_episodes(
         physics.push(match p {
             Some(Ok(p)) => Some(p),
             Some(Err(e)) => {
-                skipped.push(SkippedInput::new(&s.path, e.to_string()));
+                skipped.push(crate::inputs::skipped_input(&s.path, e.to_string()));
                 None
             }
             None => None,
@@ -464,7 +468,6 @@ fn build_report(
     outcomes: BTreeMap<(usize, usize), Outcome>,
     skipped: Vec<SkippedInput>,
     failed_units: Vec<FailedUnit>,
-    rendered_now: usize,
 ) -> AugmentReport {
     let mut replays = Vec::new();
     let mut dropped = Vec::new();
@@ -527,7 +530,5 @@ fn build_report(
         skipped,
         failed_units,
         made_on,
-        rendered_now,
-        times: crate::profile::StageTimes::default(),
     }
 }

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use dexjoco_augment::{AugmentConfig, AugmentReport, augment};
+use dexjoco_augment::{AugmentConfig, AugmentRun, augment};
 use dexjoco_core::NoProgress;
 use dexjoco_render::RenderSettings;
 use dexjoco_sim::SceneSource;
@@ -30,7 +30,7 @@ fn config(inputs: Vec<PathBuf>, out: &Path) -> AugmentConfig {
     }
 }
 
-fn run(c: &AugmentConfig, threads: usize) -> AugmentReport {
+fn run(c: &AugmentConfig, threads: usize) -> AugmentRun {
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()

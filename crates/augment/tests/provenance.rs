@@ -2,7 +2,7 @@
 //! its `replay.json`; the report lists each place once and warns when the replays were
 //! made in more than one (MuJoCo's floating point depends on the CPU).
 
-use dexjoco_augment::{AugmentConfig, Provenance, REPORT_MD, ToolVersions, augment};
+use dexjoco_augment::{AugmentConfig, REPORT_MD, augment};
 use dexjoco_core::NoProgress;
 use dexjoco_render::RenderSettings;
 
@@ -34,10 +34,10 @@ fn replays_record_where_they_were_made_and_the_report_warns_of_a_mix() {
     let c = config(&out);
     let report = augment(&c, &NoProgress).unwrap();
     assert_eq!(report.replays.len(), 2);
-    let here = Provenance::here();
+    let here = dexjoco_augment::this_machine();
     let cpuinfo = fs_err::read_to_string("/proc/cpuinfo").unwrap();
     assert!(cpuinfo.contains(&here.cpu_model), "{here:?}");
-    assert_eq!(here.versions, *ToolVersions::current());
+    assert_eq!(here.versions, *dexjoco_augment::current_versions());
     assert_eq!(report.made_on.len(), 1);
     assert_eq!(
         (&report.made_on[0].provenance, report.made_on[0].replays),

@@ -21,12 +21,15 @@
 //!   statistics (convert and stats both use it).
 //! - [`validate`]: the checks of an episode against its task: the integrity checks every
 //!   reader applies whichever door the episode comes in by, and `ingest`'s full check.
+//! - [`augment_report`]: augment's report and replay record, the one definition its
+//!   writer and its readers share.
 //! - [`manifest`]: the episode store's `manifest.json` and per-episode entries.
 //! - [`fs`]: atomic file writes, whole-folder replacement, tree copies; [`lock`]: one
 //!   writer per output folder.
 //! - [`error`]: [`FormatError`] and the [`Problem`] records (code, file, episode, field,
 //!   frame) that manifests and reports keep; [`DatasetError`] of the dataset writers.
 
+pub mod augment_report;
 pub mod container;
 pub mod dataset;
 pub mod episodes;

@@ -10,6 +10,9 @@ pub enum StatsError {
     /// A file or folder could not be read or written.
     #[error(transparent)]
     Io(#[from] std::io::Error),
+    /// A file of another stage could not be read (an augment report).
+    #[error(transparent)]
+    Format(#[from] dexjoco_formats::FormatError),
     /// A CSV file is malformed.
     #[error("file '{}': {source}", path.display())]
     Csv {

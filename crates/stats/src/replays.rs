@@ -1,52 +1,16 @@
 //! Replay success rates from an augment report (`augment_report.json`, written by
-//! `dexjoco-data augment` beside its replay folders).
-//!
-//! Only the fields read here are relied on: `replays_per_episode`, `episodes[]` with
-//! `task` and `success`, `replays[]` with `task`, `success` and `max_state_deviation`,
-//! the optional `extended` of a replay (it reached its success only after the recording
-//! ended, `augment --extend-steps`), and the optional `dropped[]` (replays that failed
-//! under `--dynamics` and were not kept) with `task`.
+//! `dexjoco-data augment` beside its replay folders), read through the report's one
+//! definition (`dexjoco_formats::augment_report`) without the renderer's parts.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use dexjoco_formats::augment_report::{ReportSummary, read_report};
 use serde::{Deserialize, Serialize};
 
 use crate::StatsError;
 
-/// The augment report's file name.
-pub const AUGMENT_REPORT: &str = "augment_report.json";
-
-#[derive(Deserialize)]
-struct ReportFile {
-    replays_per_episode: usize,
-    episodes: Vec<EpisodeRow>,
-    replays: Vec<ReplayRow>,
-    #[serde(default)]
-    dropped: Vec<DroppedRow>,
-}
-
-#[derive(Deserialize)]
-struct DroppedRow {
-    task: String,
-}
-
-#[derive(Deserialize)]
-struct EpisodeRow {
-    task: String,
-    success: bool,
-}
-
-#[derive(Deserialize)]
-struct ReplayRow {
-    task: String,
-    success: bool,
-    max_state_deviation: f64,
-    #[serde(default)]
-    extended: bool,
-    #[serde(default)]
-    subtasks: Vec<dexjoco_core::SubtaskSpan>,
-}
+pub use dexjoco_formats::augment_report::AUGMENT_REPORT;
 
 /// One task's replay outcome.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -129,16 +93,11 @@ impl ReplayStats {
         } else {
             path.to_path_buf()
         };
-        let bytes = fs_err::read(&file)?;
-        let report: ReportFile =
-            serde_json::from_slice(&bytes).map_err(|source| StatsError::Json {
-                path: file.clone(),
-                source,
-            })?;
-        Ok(Some(Self::from_report(report)))
+        let report: ReportSummary = read_report(&file)?;
+        Ok(Some(Self::from_report(&report)))
     }
 
-    fn from_report(report: ReportFile) -> Self {
+    fn from_report(report: &ReportSummary) -> Self {
         let mut tasks: BTreeMap<String, TaskReplays> = BTreeMap::new();
         fn entry<'a>(
             tasks: &'a mut BTreeMap<String, TaskReplays>,
@@ -227,23 +186,75 @@ impl ReplayStats {
 mod tests {
     use super::*;
 
+    use dexjoco_formats::augment_report::{EpisodeOutcome, ReplayRecord};
+    use serde::de::IgnoredAny;
+
+    fn episode(task: &str, success: bool) -> EpisodeOutcome {
+        EpisodeOutcome {
+            task: task.into(),
+            episode: "e".into(),
+            source: "s".into(),
+            success,
+            first_success: None,
+            steps: 1,
+            recorded_steps: 1,
+            success_shift: None,
+            extended: false,
+            max_state_deviation: 0.0,
+            replays_kept: 0,
+            subtasks: Vec::new(),
+        }
+    }
+
+    fn replay(task: &str, success: bool, deviation: f64) -> ReplayRecord<IgnoredAny, IgnoredAny> {
+        ReplayRecord {
+            name: "r".into(),
+            task: task.into(),
+            episode: "e".into(),
+            replay: 0,
+            sample: IgnoredAny,
+            success,
+            first_success: None,
+            steps: 1,
+            recorded_steps: 1,
+            extended: false,
+            max_state_deviation: deviation,
+            deviation_at: None,
+            subtasks: Vec::new(),
+            flags: Vec::new(),
+            videos: Vec::new(),
+            depth: Vec::new(),
+            dynamics: None,
+            source_hash: String::new(),
+            renderer: String::new(),
+            made_on: None,
+        }
+    }
+
     #[test]
     fn counts_per_task_and_in_total() {
-        let json = r#"{"replays_per_episode": 3,
-            "episodes": [
-              {"task": "a", "success": true, "replays_kept": 3},
-              {"task": "a", "success": false, "replays_kept": 1},
-              {"task": "b", "success": true, "replays_kept": 3}],
-            "replays": [
-              {"task": "a", "success": true, "max_state_deviation": 0.0},
-              {"task": "a", "success": true, "max_state_deviation": 0.0},
-              {"task": "a", "success": true, "max_state_deviation": 0.0},
-              {"task": "a", "success": false, "max_state_deviation": 0.25, "extended": true},
-              {"task": "b", "success": true, "max_state_deviation": 0.0},
-              {"task": "b", "success": true, "max_state_deviation": 0.0},
-              {"task": "b", "success": true, "max_state_deviation": 0.0}],
-            "dropped": [{"task": "b", "success": false}]}"#;
-        let r = ReplayStats::from_report(serde_json::from_str(json).unwrap());
+        let mut replays: Vec<_> = (0..3).map(|_| replay("a", true, 0.0)).collect();
+        replays.push(ReplayRecord {
+            extended: true,
+            ..replay("a", false, 0.25)
+        });
+        replays.extend((0..3).map(|_| replay("b", true, 0.0)));
+        let report = ReportSummary {
+            seed: 0,
+            replays_per_episode: 3,
+            settings: IgnoredAny,
+            camera_pools: BTreeMap::new(),
+            table_library: BTreeMap::new(),
+            instructions: BTreeMap::new(),
+            episodes: vec![episode("a", true), episode("a", false), episode("b", true)],
+            replays,
+            dropped: vec![replay("b", false, 0.0)],
+            flagged: Vec::new(),
+            skipped: Vec::new(),
+            failed_units: Vec::new(),
+            made_on: Vec::new(),
+        };
+        let r = ReplayStats::from_report(&report);
         assert_eq!(r.tasks.len(), 2);
         let a = &r.tasks[0];
         assert_eq!((a.source_episodes, a.source_successes), (2, 1));
