@@ -195,7 +195,7 @@ pub fn check_egl_choice(egl_devices: &[usize]) -> anyhow::Result<()> {
     let env = dexjoco_render::EGL_DEVICE_ENV;
     let requested = dexjoco_render::requested_egl_device().map_err(|e| {
         let message = match e {
-            dexjoco_render::RenderError::Egl(why) => why,
+            dexjoco_render::RenderError::Egl(why) => why.to_string(),
             e => e.to_string(),
         };
         usage(

@@ -14,7 +14,7 @@ use glutin::prelude::{GlDisplay, NotCurrentGlContext, PossiblyCurrentGlContext};
 use glutin::surface::{PbufferSurface, SurfaceAttributesBuilder};
 use serde::Serialize;
 
-use crate::error::RenderError;
+use crate::error::{DeviceAttempt, EglError, RenderError};
 
 /// Environment variable that picks an EGL device by its index in [`probe_egl`]'s list.
 pub const EGL_DEVICE_ENV: &str = "DEXJOCO_EGL_DEVICE";
@@ -97,7 +97,7 @@ fn describe(device: &Device) -> (String, bool) {
 fn devices() -> Result<Vec<Device>, RenderError> {
     Device::query_devices()
         .map(|d| d.collect())
-        .map_err(|e| RenderError::Egl(format!("cannot list EGL devices ({e}); is libEGL installed (Debian: libegl1 libegl-mesa0 libgl1-mesa-dri)?")))
+        .map_err(|source| EglError::List { source }.into())
 }
 
 /// The device index [`EGL_DEVICE_ENV`] asks for (`None` when it is unset or empty); a
@@ -112,9 +112,10 @@ pub fn requested_egl_device() -> Result<Option<usize>, RenderError> {
         return Ok(None);
     }
     value.parse().map(Some).map_err(|_| {
-        RenderError::Egl(format!(
-            "{EGL_DEVICE_ENV}='{value}' is not an EGL device index: give a number from the list of `dexjoco-data doctor`"
-        ))
+        EglError::NotAnIndex {
+            value: value.into(),
+        }
+        .into()
     })
 }
 
@@ -176,27 +177,32 @@ impl EglContext {
     fn open(requested: Option<usize>, width: u32, height: u32) -> Result<Self, RenderError> {
         let devices = devices()?;
         if devices.is_empty() {
-            return Err(RenderError::Egl("EGL lists no device".into()));
+            return Err(EglError::NoDevice.into());
         }
         let order: Vec<usize> = match requested {
             Some(i) if i < devices.len() => vec![i],
             Some(i) => {
-                return Err(RenderError::Egl(format!(
-                    "EGL device {i} does not exist: EGL lists {} device(s) ({})",
-                    devices.len(),
-                    listed(&devices)
-                )));
+                return Err(EglError::NoSuchDevice {
+                    index: i,
+                    count: devices.len(),
+                    listed: listed(&devices),
+                }
+                .into());
             }
             None => preferred_order(&devices),
         };
-        let mut errors = Vec::new();
+        let mut attempts = Vec::new();
         for i in order {
             match Self::on_device(i, &devices[i], width, height) {
                 Ok(c) => return Ok(c),
-                Err(e) => errors.push(format!("device {i} ({}): {e}", describe(&devices[i]).0)),
+                Err(source) => attempts.push(DeviceAttempt {
+                    index: i,
+                    device: describe(&devices[i]).0,
+                    source,
+                }),
             }
         }
-        Err(RenderError::Egl(errors.join("; ")))
+        Err(EglError::NoContext { attempts }.into())
     }
 
     fn on_device(
@@ -296,7 +302,7 @@ impl EglContext {
             Some(surface) => self.context.make_current(surface),
             None => self.context.make_current_surfaceless(),
         }
-        .map_err(|e| RenderError::Egl(e.to_string()))
+        .map_err(|source| EglError::MakeCurrent { source }.into())
     }
 }
 

@@ -284,24 +284,31 @@ impl Renderer {
             ..
         } = settings;
         if width == 0 || height == 0 {
-            return Err(RenderError::Render(format!(
-                "image size {width}x{height} is empty"
-            )));
+            return Err(RenderError::ImageSize {
+                width,
+                height,
+                max: 0,
+                device: None,
+            });
         }
         if width.max(height) > MAX_IMAGE_SIDE {
-            return Err(RenderError::Render(format!(
-                "image size {width}x{height}: the renderer draws at most {MAX_IMAGE_SIDE} pixels a side"
-            )));
+            return Err(RenderError::ImageSize {
+                width,
+                height,
+                max: MAX_IMAGE_SIDE,
+                device: None,
+            });
         }
         let egl = EglContext::new(width, height)?;
         if let Some(max) = egl.max_renderbuffer_size()
             && width.max(height) > max
         {
-            return Err(RenderError::Render(format!(
-                "image size {width}x{height}: EGL device {} draws at most {max} pixels a side \
-                 (GL_MAX_RENDERBUFFER_SIZE)",
-                egl.device.label()
-            )));
+            return Err(RenderError::ImageSize {
+                width,
+                height,
+                max,
+                device: Some(egl.device.label()),
+            });
         }
         // The meshes the context uploads: the model's, or simplified ones (the copy is only
         // read here; scenes are built from the simulation's own model).
@@ -417,7 +424,7 @@ impl Renderer {
         let mut depth = self.settings.depth.then(|| vec![0f32; w * h]);
         self.context
             .read_pixels(Some(&mut rgb), depth.as_deref_mut(), &vp)
-            .map_err(|e| RenderError::Render(e.to_string()))?;
+            .map_err(|e| RenderError::ReadPixels(e.to_string()))?;
         flip_rows(&mut rgb, w * 3);
         if let Some(d) = depth.as_mut() {
             flip_rows(d, w);

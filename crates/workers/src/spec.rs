@@ -101,7 +101,7 @@ pub fn probe_renderer(device: Option<usize>, deadline: Duration) -> Result<(), P
             );
             return Ok(());
         }
-        Ok(Err(dexjoco_render::RenderError::Egl(why))) => why,
+        Ok(Err(dexjoco_render::RenderError::Egl(why))) => why.to_string(),
         Ok(Err(e)) => e.to_string(),
         Err(_) => format!(
             "no offscreen context opened within {} s (--first-frame-timeout)",
