@@ -109,7 +109,8 @@ pub enum Command {
     Doctor(DoctorArgs),
     /// Render PNGs of an MJCF scene's cameras (RGB, optional depth) and a contact sheet.
     Render(RenderArgs),
-    /// Measure performance (rendering frames/s per quality preset and resolution).
+    /// Size this machine: rendering, ingest and augment throughput (comparisons with
+    /// other tools are in the developer binary, `dexjoco-dev`).
     #[command(subcommand)]
     Bench(BenchCommand),
     /// Read raw teleop episodes (MCAP logs, DexJoCo raw folders), validate and store them.

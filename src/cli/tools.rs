@@ -91,8 +91,9 @@ pub enum BenchCommand {
     Render(BenchRenderArgs),
     /// Episodes/s and MB/s of `ingest` on generated raw folders and MCAP files.
     Ingest(BenchIngestArgs),
-    /// `augment` with 1 and N worker processes against the reference approach (re-simulate
-    /// and render every replay in one process) and the render-only limit of N processes.
+    /// Frames/s of `augment` on this machine with 1 and N worker processes (to choose -j,
+    /// the size and the preset), beside the reference approach (re-simulate and render
+    /// every replay in one process) and the render-only limit of N processes.
     Augment(BenchAugmentArgs),
     /// One process of `bench augment`'s render-only limit (started by it).
     #[command(hide = true)]
