@@ -45,6 +45,9 @@ pub enum GenerateError {
     /// The simulation failed.
     #[error(transparent)]
     Sim(#[from] dexjoco_sim::SimError),
+    /// Recording an attempt failed (stepping, or making its episode).
+    #[error(transparent)]
+    Plan(#[from] dexjoco_scripted::PlanError),
     /// Rendering the contact sheet failed.
     #[error(transparent)]
     Render(#[from] dexjoco_render::RenderError),

@@ -14,7 +14,7 @@ use dexjoco_core::NameKind;
 
 use super::kin::{self, Q, V3};
 use super::{CLOSE, Goal, OPEN, Planned, Recorder, debug};
-use dexjoco_sim::SimError;
+use crate::PlanError;
 use dexjoco_sim::TaskEnv;
 use dexjoco_sim::name_id;
 
@@ -67,7 +67,7 @@ const PEG: &str = "industreal_round_peg_8mm";
 const TRAY: &str = "industreal_tray_insert_round_peg_8mm";
 
 /// Plans bimanual_assembly on an environment just restored from its initial state.
-pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, PlanError> {
     let s = env.state();
     let home = [s[3], s[4], s[5], s[6]];
     let left_home = [s[10], s[11], s[12], s[13]];
@@ -109,11 +109,11 @@ struct Shape {
 }
 
 impl Shape {
-    fn measure(e: &TaskEnv) -> Result<Self, SimError> {
+    fn measure(e: &TaskEnv) -> Result<Self, PlanError> {
         let m = e.data().model();
-        let geoms = |body: &str| -> Result<Vec<(V3, V3)>, SimError> {
-            let b = name_id(m, NameKind::Body, body)
-                .ok_or_else(|| SimError::Spec(format!("the scene has no body '{body}'")))?;
+        let geoms = |body: &str| -> Result<Vec<(V3, V3)>, PlanError> {
+            let b =
+                name_id(m, NameKind::Body, body).ok_or_else(|| PlanError::lacks("body", body))?;
             Ok((0..m.ffi().ngeom as usize)
                 .filter(|&g| m.geom_bodyid()[g] as usize == b && m.geom_contype()[g] != 0)
                 .map(|g| {
@@ -137,7 +137,7 @@ impl Shape {
         let base = tray
             .iter()
             .max_by(|a, b| (a.1[0] * a.1[1]).total_cmp(&(b.1[0] * b.1[1])))
-            .ok_or_else(|| SimError::Spec("the tray has no collision geom".into()))?;
+            .ok_or_else(|| PlanError::lacks("collision geom of body", "tray"))?;
         let base_half = base.1[0].min(base.1[1]);
         let block_half = tray
             .iter()
@@ -163,7 +163,7 @@ fn pinch_and_push(
     home: Q,
     left_home: Q,
     middle: f64,
-) -> Result<(V3, Q), SimError> {
+) -> Result<(V3, Q), PlanError> {
     let e = rec.env();
     let table = kin::site(e, "table_top")?[2];
     let (pp, pm) = kin::body(e, PEG)?;
@@ -226,7 +226,7 @@ fn pinch_and_push(
 /// The left TCP target that puts its fingertips on the base's strip beside the socket
 /// block on the left arm's side (along the tray's +y), `up` above the base's top,
 /// fingers pointing at the hole; its orientation; the fingers' direction.
-fn left_tips(e: &TaskEnv, shape: &Shape, left_home: Q, up: f64) -> Result<(V3, Q, V3), SimError> {
+fn left_tips(e: &TaskEnv, shape: &Shape, left_home: Q, up: f64) -> Result<(V3, Q, V3), PlanError> {
     let (tp, tm) = kin::body(e, TRAY)?;
     let tyaw = tm[3].atan2(tm[0]);
     let lyaw = tyaw + LEFT_YAW;
@@ -247,7 +247,7 @@ fn over_the_hole(
     left_home: Q,
     up: V3,
     qd: Q,
-) -> Result<(V3, Q), SimError> {
+) -> Result<(V3, Q), PlanError> {
     let e = rec.env();
     let (hold, lq, _) = left_tips(e, shape, left_home, -HOLD_PRESS)?;
     let tray = hole(e, shape)?;
@@ -331,7 +331,7 @@ fn show(rec: &Recorder, what: &str) {
 
 /// Turns the right hand, closed loop, until the pinched peg stands up; returns the
 /// hand's orientation.
-fn stand_peg_up(rec: &mut Recorder, up: V3, q: Q) -> Result<Q, SimError> {
+fn stand_peg_up(rec: &mut Recorder, up: V3, q: Q) -> Result<Q, PlanError> {
     let mut qd = q;
     for k in 0..TURNS {
         let e = rec.env();
@@ -352,13 +352,13 @@ fn stand_peg_up(rec: &mut Recorder, up: V3, q: Q) -> Result<Q, SimError> {
 }
 
 /// The centre of the hole's rim.
-fn hole(e: &TaskEnv, shape: &Shape) -> Result<V3, SimError> {
+fn hole(e: &TaskEnv, shape: &Shape) -> Result<V3, PlanError> {
     let (p, m) = kin::body(e, TRAY)?;
     Ok(kin::add(p, kin::mulv(&m, [0.0, 0.0, shape.rim])))
 }
 
 /// The peg's round end.
-fn peg_bottom(e: &TaskEnv, shape: &Shape) -> Result<V3, SimError> {
+fn peg_bottom(e: &TaskEnv, shape: &Shape) -> Result<V3, PlanError> {
     let (p, m) = kin::body(e, PEG)?;
     Ok(kin::add(p, kin::mulv(&m, [0.0, 0.0, shape.peg_end])))
 }
@@ -366,7 +366,7 @@ fn peg_bottom(e: &TaskEnv, shape: &Shape) -> Result<V3, SimError> {
 /// Lowers the peg from `above` into the socket whose rim's centre is `tray`, correcting
 /// xy toward the hole's axis while the round end is above the rim; the target leads
 /// the TCP down by at most [`LEAD`].
-fn lower_into_socket(rec: &mut Recorder, shape: &Shape, above: V3, qd: Q) -> Result<(), SimError> {
+fn lower_into_socket(rec: &mut Recorder, shape: &Shape, above: V3, qd: Q) -> Result<(), PlanError> {
     let mut target = above;
     let floor = above[2] - HOVER - (shape.rim - shape.base_top) - 0.03;
     let mut left: Option<(V3, V3, Q, usize)> = None;

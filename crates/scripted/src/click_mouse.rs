@@ -4,8 +4,8 @@
 use dexjoco_core::{Episode, TaskSpec};
 
 use super::{FLAT_HAND, POINT_HAND, Planned, Recorder, geom_of_body};
+use crate::PlanError;
 use dexjoco_sim::Scene;
-use dexjoco_sim::SimError;
 use dexjoco_sim::{EnvOptions, TaskEnv};
 
 /// A scripted click_mouse demonstration from an initial state: push the mouse's side
@@ -17,19 +17,19 @@ pub fn click_mouse_demo(
     spec: &TaskSpec,
     state0: &[f64],
     id: &str,
-) -> Result<Episode, SimError> {
+) -> Result<Episode, PlanError> {
     if spec.id != "click_mouse" {
-        return Err(SimError::Spec(format!(
-            "click_mouse_demo cannot plan '{}'",
-            spec.id
-        )));
+        return Err(PlanError::WrongTask {
+            planner: "click_mouse_demo",
+            task: spec.id.clone(),
+        });
     }
     let env = TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default())?;
     Ok(plan(env, id)?.episode)
 }
 
 /// Plans click_mouse on an environment just restored from its initial state.
-pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, PlanError> {
     let state0 = env.state();
     let layout = env.spec().state_layout();
     let mouse = layout
@@ -59,10 +59,10 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
 
     // Curl the index finger down in the air and measure where its tip is.
     rec.hold(0, quat, POINT_HAND, 30)?;
-    let tip =
-        geom_of_body(rec.env(), "ff_tip").ok_or_else(|| SimError::Spec("no ff_tip geom".into()))?;
-    let button =
-        geom_of_body(rec.env(), "link_0").ok_or_else(|| SimError::Spec("no button geom".into()))?;
+    let tip = geom_of_body(rec.env(), "ff_tip")
+        .ok_or_else(|| PlanError::lacks("collision geom of body", "ff_tip"))?;
+    let button = geom_of_body(rec.env(), "link_0")
+        .ok_or_else(|| PlanError::lacks("collision geom of body", "link_0"))?;
     let d = rec.env().data();
     let tcp = rec.env().robot().tcp_pose(d, &rec.env().robot().arms[0]).0;
     let t = d.geom_xpos()[tip];

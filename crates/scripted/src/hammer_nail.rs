@@ -11,7 +11,7 @@ use dexjoco_core::{HAND_DOF, NameKind};
 use super::hands::hammer_nail::{WRAP, WRAP_OPEN};
 use super::kin::{self, Q, V3};
 use super::{CLOSE, OPEN, Planned, Recorder, debug};
-use dexjoco_sim::SimError;
+use crate::PlanError;
 use dexjoco_sim::TaskEnv;
 use dexjoco_sim::mat_to_quat;
 use dexjoco_sim::name_id;
@@ -32,10 +32,10 @@ struct Handle {
 }
 
 impl Handle {
-    fn read(e: &TaskEnv) -> Result<Self, SimError> {
+    fn read(e: &TaskEnv) -> Result<Self, PlanError> {
         let (c, m) = kin::geom(e, "handle")?;
         let g = name_id(e.data().model(), NameKind::Geom, "handle")
-            .ok_or_else(|| SimError::Spec("the scene has no Geom 'handle'".into()))?;
+            .ok_or_else(|| PlanError::lacks("geom", "handle"))?;
         let half = e.data().model().geom_size()[g];
         Ok(Self { c, m, half })
     }
@@ -63,7 +63,7 @@ fn cross(a: V3, b: V3) -> V3 {
 }
 
 /// Plans hammer_nail on an environment just restored from its initial state.
-pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, PlanError> {
     let s = env.state();
     let home = [s[3], s[4], s[5], s[6]];
     let mut rec = Recorder::new(env);
@@ -85,7 +85,7 @@ const PALM_Z: f64 = 0.041;
 /// The wrap's centre from the handle's centre toward the head (m).
 const WRAP_ALONG: f64 = 0.04;
 
-fn plan_wrap(mut rec: Recorder, h: &Handle, id: &str) -> Result<Planned, SimError> {
+fn plan_wrap(mut rec: Recorder, h: &Handle, id: &str) -> Result<Planned, PlanError> {
     let (d, a) = (h.axis(0), h.axis(2));
     // Palm on the top face (normal = toward the face), thumb toward the head.
     let f = cross(kin::scale(a, -1.0), d);
@@ -150,7 +150,7 @@ fn tips(e: &TaskEnv, what: &str) {
 }
 
 /// Carries the held hammer's face over the nail and strikes until the nail is in.
-fn strikes(mut rec: Recorder, q: Q, hand: [f64; HAND_DOF], id: &str) -> Result<Planned, SimError> {
+fn strikes(mut rec: Recorder, q: Q, hand: [f64; HAND_DOF], id: &str) -> Result<Planned, PlanError> {
     rec.snap(0, "hammer_lifted");
     let mut above = face_above_nail(rec.env())?;
     for k in 0..4 {
@@ -187,7 +187,7 @@ fn strikes(mut rec: Recorder, q: Q, hand: [f64; HAND_DOF], id: &str) -> Result<P
 }
 
 /// The TCP target that puts the held hammer's face over the nail, ready to strike.
-fn face_above_nail(e: &TaskEnv) -> Result<V3, SimError> {
+fn face_above_nail(e: &TaskEnv) -> Result<V3, PlanError> {
     let face = kin::geom(e, "face")?.0;
     let nail = kin::site(e, "nail_top_site")?;
     let tcp = kin::tcp(e, 0).0;
@@ -201,7 +201,7 @@ fn face_above_nail(e: &TaskEnv) -> Result<V3, SimError> {
 }
 
 /// The pinch for a slim handle.
-fn plan_pinch(mut rec: Recorder, home: Q, id: &str) -> Result<Planned, SimError> {
+fn plan_pinch(mut rec: Recorder, home: Q, id: &str) -> Result<Planned, PlanError> {
     let e = rec.env();
     let (hp, m) = kin::body(e, "hammer_body")?;
     let down = [m[0], m[3], m[6]];

@@ -13,7 +13,7 @@ use dexjoco_core::HAND_DOF;
 use super::hands::hanoi_hand;
 use super::kin::{self, Q, V3};
 use super::{Goal, Planned, Recorder, Variant, debug};
-use dexjoco_sim::SimError;
+use crate::PlanError;
 use dexjoco_sim::TaskEnv;
 
 const RIGHT: usize = 0;
@@ -32,7 +32,7 @@ const SPREAD: [f64; HAND_DOF] = hanoi_hand(0.25);
 /// Closed on each other: the pinch (targets past contact give the squeeze).
 const PINCH: [f64; HAND_DOF] = hanoi_hand(-0.47);
 
-fn disk_pos(e: &TaskEnv, disk: &str) -> Result<V3, SimError> {
+fn disk_pos(e: &TaskEnv, disk: &str) -> Result<V3, PlanError> {
     Ok(kin::body(e, &format!("hanoi_disk_{disk}"))?.0)
 }
 
@@ -56,14 +56,14 @@ fn show(rec: &Recorder, what: &str) {
 }
 
 /// Where `arm`'s TCP pinches `disk` now.
-fn grip_at(e: &TaskEnv, disk: &str) -> Result<V3, SimError> {
+fn grip_at(e: &TaskEnv, disk: &str) -> Result<V3, PlanError> {
     let p = disk_pos(e, disk)?;
     Ok([p[0] - TIP_X, p[1], p[2] + GRIP_UP])
 }
 
 /// Brings each `(arm, orientation, disk)` hand around its disk, fingers spread
 /// (nothing touched yet), all at once; returns where each TCP pinches.
-fn reach(rec: &mut Recorder, hands: &[(usize, Q, &str)]) -> Result<Vec<V3>, SimError> {
+fn reach(rec: &mut Recorder, hands: &[(usize, Q, &str)]) -> Result<Vec<V3>, PlanError> {
     let at = hands
         .iter()
         .map(|&(_, _, disk)| grip_at(rec.env(), disk))
@@ -94,7 +94,7 @@ fn pinch_lift(
     at: V3,
     steps: usize,
     others: &[Goal],
-) -> Result<(), SimError> {
+) -> Result<(), PlanError> {
     let mut goals = others.to_vec();
     goals.push(Goal::new(arm, at, q, PINCH));
     rec.go_many(&goals, steps, |_| false)?;
@@ -117,7 +117,7 @@ fn place(
     disk: &str,
     post: V3,
     land: f64,
-) -> Result<(), SimError> {
+) -> Result<(), PlanError> {
     let e = rec.env();
     let off = kin::sub(disk_pos(e, disk)?, kin::tcp(e, arm).0);
     let z = rec.target(arm).0[2];
@@ -145,7 +145,7 @@ fn place(
 }
 
 /// Plans bimanual_hanoi on an environment just restored from its initial state.
-pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, PlanError> {
     let s = env.state();
     let rq = [s[3], s[4], s[5], s[6]];
     let lq = [s[10], s[11], s[12], s[13]];

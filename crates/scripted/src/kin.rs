@@ -4,7 +4,7 @@
 
 use dexjoco_core::NameKind;
 
-use dexjoco_sim::SimError;
+use crate::PlanError;
 use dexjoco_sim::TaskEnv;
 use dexjoco_sim::name_id;
 
@@ -62,40 +62,39 @@ pub(crate) fn norm(a: V3) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
-fn id(env: &TaskEnv, kind: NameKind, name: &str) -> Result<usize, SimError> {
-    name_id(env.data().model(), kind, name)
-        .ok_or_else(|| SimError::Spec(format!("the scene has no {kind:?} '{name}'")))
+fn id(env: &TaskEnv, kind: NameKind, name: &str) -> Result<usize, PlanError> {
+    name_id(env.data().model(), kind, name).ok_or_else(|| PlanError::lacks(kind.as_str(), name))
 }
 
 /// A body's world position and rotation matrix.
-pub(crate) fn body(env: &TaskEnv, name: &str) -> Result<(V3, [f64; 9]), SimError> {
+pub(crate) fn body(env: &TaskEnv, name: &str) -> Result<(V3, [f64; 9]), PlanError> {
     let b = id(env, NameKind::Body, name)?;
     let d = env.data();
     Ok((d.xpos()[b], d.xmat()[b]))
 }
 
 /// A geom's world position and rotation matrix.
-pub(crate) fn geom(env: &TaskEnv, name: &str) -> Result<(V3, [f64; 9]), SimError> {
+pub(crate) fn geom(env: &TaskEnv, name: &str) -> Result<(V3, [f64; 9]), PlanError> {
     let g = id(env, NameKind::Geom, name)?;
     let d = env.data();
     Ok((d.geom_xpos()[g], d.geom_xmat()[g]))
 }
 
 /// A site's world position.
-pub(crate) fn site(env: &TaskEnv, name: &str) -> Result<V3, SimError> {
+pub(crate) fn site(env: &TaskEnv, name: &str) -> Result<V3, PlanError> {
     let s = id(env, NameKind::Site, name)?;
     Ok(env.data().site_xpos()[s])
 }
 
 /// A joint's (first) qpos value.
-pub(crate) fn joint(env: &TaskEnv, name: &str) -> Result<f64, SimError> {
+pub(crate) fn joint(env: &TaskEnv, name: &str) -> Result<f64, PlanError> {
     let j = id(env, NameKind::Joint, name)?;
     let a = env.data().model().jnt_qposadr()[j] as usize;
     Ok(env.data().qpos()[a])
 }
 
 /// A joint's anchor in the world.
-pub(crate) fn anchor(env: &TaskEnv, name: &str) -> Result<V3, SimError> {
+pub(crate) fn anchor(env: &TaskEnv, name: &str) -> Result<V3, PlanError> {
     let j = id(env, NameKind::Joint, name)?;
     Ok(env.data().xanchor()[j])
 }

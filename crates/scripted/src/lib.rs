@@ -8,12 +8,13 @@
 use dexjoco_core::{Episode, HAND_DOF, NameKind, TaskSpec};
 
 use dexjoco_sim::Scene;
-use dexjoco_sim::SimError;
 use dexjoco_sim::name_id;
 use dexjoco_sim::{EnvOptions, TaskEnv};
+pub use error::PlanError;
 
 mod assembly;
 mod click_mouse;
+mod error;
 mod fold_glasses;
 mod hammer_nail;
 mod hands;
@@ -88,7 +89,7 @@ impl Recorder {
 
     /// Steps one action; stops recording (returns false) once the task succeeded or
     /// failed, or the step cap is reached.
-    pub fn step(&mut self, action: Vec<f64>) -> Result<bool, SimError> {
+    pub fn step(&mut self, action: Vec<f64>) -> Result<bool, PlanError> {
         if self.done() {
             return Ok(false);
         }
@@ -142,7 +143,7 @@ impl Recorder {
         hand: [f64; HAND_DOF],
         steps: usize,
         mut stop: impl FnMut(&TaskEnv) -> bool,
-    ) -> Result<bool, SimError> {
+    ) -> Result<bool, PlanError> {
         let from = self.env.targets()[arm].0;
         for k in 1..=steps.max(1) {
             let t = k as f64 / steps.max(1) as f64;
@@ -173,7 +174,7 @@ impl Recorder {
         quat: [f64; 4],
         hand: [f64; HAND_DOF],
         steps: usize,
-    ) -> Result<(), SimError> {
+    ) -> Result<(), PlanError> {
         let at = self.env.targets()[arm].0;
         for _ in 0..steps {
             let mut a = self.others_held(arm);
@@ -218,7 +219,7 @@ impl Recorder {
         goals: &[Goal],
         steps: usize,
         mut stop: impl FnMut(&TaskEnv) -> bool,
-    ) -> Result<bool, SimError> {
+    ) -> Result<bool, PlanError> {
         let n = self.hands.len();
         let from: Vec<(V3, Q, [f64; HAND_DOF])> = (0..n)
             .map(|a| {
@@ -273,20 +274,20 @@ impl Recorder {
         quat: Q,
         hand: [f64; HAND_DOF],
         steps: usize,
-    ) -> Result<(), SimError> {
+    ) -> Result<(), PlanError> {
         self.go_many(&[Goal::new(arm, pos, quat, hand)], steps, |_| false)?;
         Ok(())
     }
 
     /// Holds every target for `steps` steps.
-    pub(crate) fn wait(&mut self, steps: usize) -> Result<(), SimError> {
+    pub(crate) fn wait(&mut self, steps: usize) -> Result<(), PlanError> {
         self.go_many(&[], steps, |_| false)?;
         Ok(())
     }
 
     /// Holds every target until each arm's TCP is within `tol` (m) of its target
     /// position, at most `max_steps` steps: contact phases start only after this.
-    pub(crate) fn settle(&mut self, tol: f64, max_steps: usize) -> Result<(), SimError> {
+    pub(crate) fn settle(&mut self, tol: f64, max_steps: usize) -> Result<(), PlanError> {
         let n = self.hands.len();
         let arrived = move |e: &TaskEnv| {
             (0..n).all(|a| kin::norm(kin::sub(kin::tcp(e, a).0, e.targets()[a].0)) < tol)
@@ -329,7 +330,7 @@ impl Recorder {
     }
 
     /// The recorded episode and how it ended.
-    pub fn finish(mut self, id: &str) -> Result<Planned, SimError> {
+    pub fn finish(mut self, id: &str) -> Result<Planned, PlanError> {
         let success_at = self.success_at;
         let failed = self.failed;
         let subtasks = self.env.subtask_spans();
@@ -344,12 +345,12 @@ impl Recorder {
     }
 
     /// The recorded episode (frames up to and including the success step).
-    pub fn into_episode(self, id: &str) -> Result<Episode, SimError> {
+    pub fn into_episode(self, id: &str) -> Result<Episode, PlanError> {
         let mut ep =
             Episode::from_rollout(id.to_owned(), self.env.spec(), &self.actions, &self.states)
-                .map_err(|e| SimError::Spec(e.to_string()))?;
+                .map_err(PlanError::Episode)?;
         ep.insert_rows(Episode::ENVIRONMENT_STATE, &self.environment)
-            .map_err(|e| SimError::Spec(e.to_string()))?;
+            .map_err(PlanError::Episode)?;
         Ok(ep)
     }
 }
@@ -451,17 +452,16 @@ pub enum Variant {
 
 /// A planner: from the task's environment at its initial state, the episode id and the
 /// variant, the recorded plan.
-type PlanFn = fn(TaskEnv, &str, Variant) -> Result<Planned, SimError>;
+type PlanFn = fn(TaskEnv, &str, Variant) -> Result<Planned, PlanError>;
 
 /// A planner that only plans demonstrations (its task has no failure condition).
 macro_rules! demo_only {
     ($plan:path) => {
         |env: TaskEnv, id: &str, variant: Variant| match variant {
             Variant::Demo => $plan(env, id),
-            Variant::Wrong => Err(SimError::Spec(format!(
-                "'{}' has no failure condition to plan for",
-                env.spec().id
-            ))),
+            Variant::Wrong => Err(PlanError::NoFailure {
+                task: env.spec().id.clone(),
+            }),
         }
     };
 }
@@ -500,16 +500,16 @@ pub fn plan(
     state0: &[f64],
     id: &str,
     variant: Variant,
-) -> Result<Planned, SimError> {
+) -> Result<Planned, PlanError> {
     let Some((_, planner)) = PLANNERS.iter().find(|(task, _)| *task == spec.id) else {
-        return Err(SimError::Spec(match variant {
-            Variant::Demo => format!(
-                "no scripted planner for '{}' (planned: {})",
-                spec.id,
-                PLANNED_TASKS.join(", ")
-            ),
-            Variant::Wrong => format!("'{}' has no failure condition to plan for", spec.id),
-        }));
+        return Err(match variant {
+            Variant::Demo => PlanError::NoPlanner {
+                task: spec.id.clone(),
+            },
+            Variant::Wrong => PlanError::NoFailure {
+                task: spec.id.clone(),
+            },
+        });
     };
     planner(
         TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default())?,

@@ -14,7 +14,7 @@ use dexjoco_core::{HAND_DOF, NameKind};
 use super::hands::microwave_cook::{CLAMP_OPEN, HOOK, PRESS, RELEASE, SHUT_HAND};
 use super::kin::{self, Q, V3};
 use super::{CLOSE, Goal, Planned, Recorder, debug};
-use dexjoco_sim::SimError;
+use crate::PlanError;
 use dexjoco_sim::TaskEnv;
 use dexjoco_sim::name_id;
 
@@ -179,7 +179,7 @@ fn now(rec: &Recorder, arm: usize) -> Pose {
 }
 
 /// One step: both arms' targets set to `left` and `right`.
-fn step(rec: &mut Recorder, left: Pose, right: Pose) -> Result<(), SimError> {
+fn step(rec: &mut Recorder, left: Pose, right: Pose) -> Result<(), PlanError> {
     rec.go_many(&[left.goal(LEFT), right.goal(RIGHT)], 1, |_| false)?;
     Ok(())
 }
@@ -246,7 +246,7 @@ fn snap(rec: &mut Recorder, name: &str, lookat: V3, scale: f64) {
 }
 
 /// Plans bimanual_microwave_cook on an environment just restored from its initial state.
-pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, PlanError> {
     let s = env.state();
     let right_home = [s[3], s[4], s[5], s[6]];
     let mut rec = Recorder::new(env);
@@ -263,7 +263,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
 const VIEW: V3 = [-0.3, 0.0, 1.1];
 
 /// The microwave's door angle (rad; 0 closed, negative open).
-fn door_angle(e: &TaskEnv) -> Result<f64, SimError> {
+fn door_angle(e: &TaskEnv) -> Result<f64, PlanError> {
     kin::joint(e, "microjoint")
 }
 
@@ -310,10 +310,10 @@ struct Setup {
 
 impl Setup {
     /// Measures the scene of an environment just restored from its initial state.
-    fn measure(e: &TaskEnv, right_home: Q) -> Result<Self, SimError> {
+    fn measure(e: &TaskEnv, right_home: Q) -> Result<Self, PlanError> {
         let geom_id = |name: &str| {
             name_id(e.data().model(), NameKind::Geom, name)
-                .ok_or_else(|| SimError::Spec(format!("the scene has no geom '{name}'")))
+                .ok_or_else(|| PlanError::lacks("geom", name))
         };
         // The door's frame: offsets from the hinge as they are with the door closed.
         let hinge = kin::anchor(e, "microjoint")?;
@@ -333,7 +333,7 @@ impl Setup {
         ];
         // The right hand's clamp across the hot dog, fingers along its width (+x-ish).
         let dog = super::geom_of_body(e, "hot_dog")
-            .ok_or_else(|| SimError::Spec("no hot dog collision geom".into()))?;
+            .ok_or_else(|| PlanError::lacks("collision geom of body", "hot_dog"))?;
         let (dp, dm) = (e.data().geom_xpos()[dog], e.data().geom_xmat()[dog]);
         let mut d = [dm[1], dm[4], 0.0];
         if d[0] < 0.0 {
@@ -357,7 +357,7 @@ impl Setup {
         let button = geom_id("start_button")?;
         let button_depth = e.data().model().geom_size()[button][1];
         let tip = super::geom_of_body(e, "ff_tip_right")
-            .ok_or_else(|| SimError::Spec("no right index fingertip geom".into()))?;
+            .ok_or_else(|| PlanError::lacks("collision geom of body", "ff_tip_right"))?;
         Ok(Self {
             hinge,
             theta0,
@@ -408,7 +408,7 @@ impl Setup {
 
 /// Both hands above their grips, then in: the left fingers slide into the gap while
 /// the right hand clamps the hot dog.
-fn grip_handle_and_hot_dog(rec: &mut Recorder, setup: &Setup) -> Result<(), SimError> {
+fn grip_handle_and_hot_dog(rec: &mut Recorder, setup: &Setup) -> Result<(), PlanError> {
     rec.go_many(
         &[
             setup.hook(setup.theta0, -0.1, 0.15, HOOK).goal(LEFT),
@@ -448,7 +448,7 @@ fn grip_handle_and_hot_dog(rec: &mut Recorder, setup: &Setup) -> Result<(), SimE
 /// Pull the door open; the right hand lifts the hot dog and takes it beside the
 /// opening, clear of the door's sweep, turning to its placing orientation. Returns the
 /// spot where the hot dog goes.
-fn pull_door_open(rec: &mut Recorder, setup: &Setup) -> Result<V3, SimError> {
+fn pull_door_open(rec: &mut Recorder, setup: &Setup) -> Result<V3, PlanError> {
     let mut spot = setup.oven([PLACE_X, DROP_Y, 0.0]);
     spot[2] = setup.floor + 0.03 + DROP_UP;
     let aside = kin::add(spot, [-0.35, -0.2, 0.1]);
@@ -496,7 +496,7 @@ fn pull_door_open(rec: &mut Recorder, setup: &Setup) -> Result<V3, SimError> {
 
 /// In over the floor's front edge, down to `spot`, let go (the fingers straighten
 /// upward, the thumb folds up), back out. Returns where the right hand backed out to.
-fn place_hot_dog(rec: &mut Recorder, setup: &Setup, spot: V3) -> Result<V3, SimError> {
+fn place_hot_dog(rec: &mut Recorder, setup: &Setup, spot: V3) -> Result<V3, PlanError> {
     let e = rec.env();
     let place = kin::sub(
         spot,
@@ -537,7 +537,7 @@ fn place_hot_dog(rec: &mut Recorder, setup: &Setup, spot: V3) -> Result<V3, SimE
 /// The right hand waits aside (coming from `back`), clear of the door's sweep and of
 /// the left arm; once it is clear the left hand pushes the door shut. Returns where the
 /// right index finger presses from.
-fn shut_door(rec: &mut Recorder, setup: &Setup, back: V3) -> Result<V3, SimError> {
+fn shut_door(rec: &mut Recorder, setup: &Setup, back: V3) -> Result<V3, PlanError> {
     let e = rec.env();
     let face = kin::sub(
         e.data().geom_xpos()[setup.button],
@@ -592,7 +592,7 @@ fn shut_door(rec: &mut Recorder, setup: &Setup, back: V3) -> Result<V3, SimError
 
 /// The left fingers slide out of the handle and the hand backs away; the right index
 /// finger comes in front of the button (`ready`), then presses it with a guarded move.
-fn press_start(rec: &mut Recorder, setup: &Setup, ready: V3) -> Result<(), SimError> {
+fn press_start(rec: &mut Recorder, setup: &Setup, ready: V3) -> Result<(), PlanError> {
     let theta = door_angle(rec.env())?;
     let slid = setup.hook(theta, 0.0, 0.13, HOOK);
     rec.go_many(
@@ -648,7 +648,7 @@ fn press_start(rec: &mut Recorder, setup: &Setup, ready: V3) -> Result<(), SimEr
 /// direction by the fingertip's offset from the button's centre (the arm may settle
 /// off its target, its elbow folded near its limit, so close to its base). Returns the
 /// TCP target the press starts from.
-fn aim_at_button(rec: &mut Recorder, setup: &Setup, ready: V3) -> Result<V3, SimError> {
+fn aim_at_button(rec: &mut Recorder, setup: &Setup, ready: V3) -> Result<V3, PlanError> {
     let near = |to: V3| move |e: &TaskEnv| kin::norm(kin::sub(kin::tcp(e, RIGHT).0, to)) < 0.003;
     rec.go_many(&[], 60, near(ready))?;
     let e = rec.env();

@@ -4,7 +4,7 @@
 
 use super::kin::{self, V3};
 use super::{CLOSE, Goal, OPEN, POINT_HAND as POINT, Planned, Recorder, debug};
-use dexjoco_sim::SimError;
+use crate::PlanError;
 use dexjoco_sim::TaskEnv;
 
 /// Where the lens goes, from the TCP along the thumb-to-fingers axis.
@@ -21,13 +21,13 @@ const LEFT: usize = 1;
 const LEFT_YAW: f64 = 0.0;
 
 /// The camera's optical axis (world) and the point in front of its lens.
-fn optics(e: &TaskEnv) -> Result<(V3, V3), SimError> {
+fn optics(e: &TaskEnv) -> Result<(V3, V3), PlanError> {
     let m = kin::geom(e, "camera_axis_z")?.1;
     Ok(([m[2], m[5], m[8]], kin::site(e, "view_direction_site")?))
 }
 
 /// Plans bimanual_photograph on an environment just restored from its initial state.
-pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, PlanError> {
     let s = env.state();
     let right_home = [s[3], s[4], s[5], s[6]];
     let left_home = [s[10], s[11], s[12], s[13]];
@@ -71,7 +71,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
     let tip = {
         let e = rec.env();
         let g = super::geom_of_body(e, "ff_tip_right")
-            .ok_or_else(|| SimError::Spec("no ff_tip_right geom".into()))?;
+            .ok_or_else(|| PlanError::lacks("collision geom of body", "ff_tip_right"))?;
         kin::sub(e.data().geom_xpos()[g], kin::tcp(e, RIGHT).0)
     };
     let cap = kin::geom(rec.env(), "camera_body_top_cap")?.0;
@@ -113,7 +113,7 @@ fn show(rec: &Recorder, what: &str) {
 
 /// Aims the gripped camera in closed-loop rounds: turns the left hand so the optical axis
 /// points at +x and moves the view point to the middle of the target region.
-fn aim_camera(rec: &mut Recorder) -> Result<(), SimError> {
+fn aim_camera(rec: &mut Recorder) -> Result<(), PlanError> {
     let region = kin::geom(rec.env(), "photograph_target_region_visual")?.0;
     for k in 0..AIM_ROUNDS {
         let e = rec.env();

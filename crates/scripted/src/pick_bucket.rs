@@ -10,7 +10,7 @@ use dexjoco_core::HAND_DOF;
 use super::hands::pick_bucket::{DOWN, HOOK, HOOK_DOWN};
 use super::kin::{self, Q, V3};
 use super::{CLOSE, OPEN, Planned, Recorder, debug};
-use dexjoco_sim::SimError;
+use crate::PlanError;
 use dexjoco_sim::TaskEnv;
 
 /// The food's centre from the TCP along the thumb-to-fingers axis, and below it.
@@ -44,7 +44,7 @@ const ARC_STEP: (f64, usize) = (0.1, 10);
 const LIFT: f64 = 0.22;
 
 /// The basket's inside box: centre and its x and y axes (world), from its sites.
-fn basket(e: &TaskEnv) -> Result<(V3, V3, V3), SimError> {
+fn basket(e: &TaskEnv) -> Result<(V3, V3, V3), PlanError> {
     let mut c = [0.0; 3];
     let mut p = Vec::new();
     for i in 0..8 {
@@ -62,7 +62,7 @@ fn basket(e: &TaskEnv) -> Result<(V3, V3, V3), SimError> {
 }
 
 /// Plans pick_bucket on an environment just restored from its initial state.
-pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, PlanError> {
     let s = env.state();
     let home = [s[3], s[4], s[5], s[6]];
     let folded = kin::joint(&env, "bucket_joint_0")? < FOLDED;
@@ -84,7 +84,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
 
 /// Pinches the food, carries it over the basket (`spot` from its centre along its x
 /// axis), lowers it and lets go.
-fn put_food(rec: &mut Recorder, home: Q, spot: f64) -> Result<(), SimError> {
+fn put_food(rec: &mut Recorder, home: Q, spot: f64) -> Result<(), PlanError> {
     let e = rec.env();
     let table = kin::site(e, "table_top")?[2];
     let (fp, fm) = kin::body(e, "boxed_food_0")?;
@@ -128,7 +128,7 @@ fn put_food(rec: &mut Recorder, home: Q, spot: f64) -> Result<(), SimError> {
 }
 
 /// Grips an upright handle's bar from above (fingers on its far side) and lifts.
-fn grip_upright(rec: &mut Recorder, home: Q) -> Result<(), SimError> {
+fn grip_upright(rec: &mut Recorder, home: Q) -> Result<(), PlanError> {
     let e = rec.env();
     let bar = kin::geom(e, "handle1")?.0;
     let (_, bx, _) = basket(e)?;
@@ -174,7 +174,7 @@ fn grip_upright(rec: &mut Recorder, home: Q) -> Result<(), SimError> {
 /// arc, orientation fixed), curl round it, carry it on toward upright, close and lift.
 /// The pivot, its axis and the bar's radius come from the model (the hinge's anchor,
 /// the handle body's frame, the bar geom `handle1`).
-fn raise_folded(rec: &mut Recorder, home: Q) -> Result<(), SimError> {
+fn raise_folded(rec: &mut Recorder, home: Q) -> Result<(), PlanError> {
     let e = rec.env();
     let pivot = kin::anchor(e, "bucket_joint_0")?;
     let (_, lm) = kin::body(e, "bucket_link_0")?;
@@ -200,7 +200,7 @@ fn raise_folded(rec: &mut Recorder, home: Q) -> Result<(), SimError> {
             *t += ARC_STEP.0;
             rec.go(0, tcp_at(*t), q, *hand, ARC_STEP.1)?;
         }
-        Ok::<(), SimError>(())
+        Ok::<(), PlanError>(())
     };
     let mut t = -TIP_LAG;
     rec.go(0, kin::add(tcp_at(t), [0.0, 0.0, 0.1]), q, DOWN, 60)?;

@@ -8,7 +8,7 @@
 
 use super::kin::{self, Q, V3};
 use super::{CLOSE, OPEN, Planned, Recorder, debug};
-use dexjoco_sim::SimError;
+use crate::PlanError;
 use dexjoco_sim::TaskEnv;
 
 /// Where the middle fingertip crosses the tongs: this far from the hinge toward the tips.
@@ -26,7 +26,7 @@ const RISE: f64 = 0.04;
 const LIFT: f64 = 0.15;
 
 /// Plans pinch_tongs on an environment just restored from its initial state.
-pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, PlanError> {
     let s = env.state();
     let home = [s[3], s[4], s[5], s[6]];
     let table = kin::site(&env, "table_top")?[2];
@@ -71,7 +71,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
 /// The TCP target and orientation for squeezing the tongs where they lie now: the hinge
 /// and the arms' directions come from the model (joint `joint_0`'s anchor, `link_1`'s
 /// frame: z along the arms toward the hinge, x from the swinging arm to the fixed one).
-fn grip(env: &TaskEnv, home: Q, table: f64) -> Result<(V3, Q), SimError> {
+fn grip(env: &TaskEnv, home: Q, table: f64) -> Result<(V3, Q), PlanError> {
     let (_, m) = kin::body(env, "link_1")?;
     let hinge = kin::anchor(env, "joint_0")?;
     let along = kin::horizontal([m[2], m[5], m[8]]);

@@ -6,8 +6,8 @@ use dexjoco_core::{Episode, NameKind, TaskSpec};
 use super::hands::INDEX_HAND;
 use super::kin::qmul;
 use super::{Planned, Recorder, Variant};
+use crate::PlanError;
 use dexjoco_sim::Scene;
-use dexjoco_sim::SimError;
 use dexjoco_sim::name_id;
 use dexjoco_sim::{EnvOptions, TaskEnv};
 
@@ -20,12 +20,12 @@ pub fn unlock_ipad_demo(
     spec: &TaskSpec,
     state0: &[f64],
     id: &str,
-) -> Result<Episode, SimError> {
+) -> Result<Episode, PlanError> {
     if spec.id != "bimanual_unlock_ipad" {
-        return Err(SimError::Spec(format!(
-            "unlock_ipad_demo cannot plan '{}'",
-            spec.id
-        )));
+        return Err(PlanError::WrongTask {
+            planner: "unlock_ipad_demo",
+            task: spec.id.clone(),
+        });
     }
     let env = TaskEnv::from_initial_state(scene, spec, state0, EnvOptions::default())?;
     Ok(plan(env, id, Variant::Demo)?.episode)
@@ -33,7 +33,7 @@ pub fn unlock_ipad_demo(
 
 /// Plans bimanual_unlock_ipad on an environment just restored from its initial state;
 /// the wrong plan enters the password's first digit, then a wrong one.
-pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, PlanError> {
     let mut password = env
         .spec()
         .nodes
@@ -42,7 +42,10 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
             dexjoco_core::Node::Keypad { password, .. } => Some(password.clone()),
             _ => None,
         })
-        .ok_or_else(|| SimError::Spec("no keypad".into()))?;
+        .ok_or_else(|| PlanError::SpecLacks {
+            task: env.spec().id.clone(),
+            what: "keypad node",
+        })?;
     if variant == Variant::Wrong {
         let wrong = (password[1] + 1) % 10;
         password.truncate(1);
@@ -58,7 +61,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
     let (normal, ipad_pos) = {
         let d = rec.env().data();
         let b = name_id(d.model(), NameKind::Body, "ipad_body")
-            .ok_or_else(|| SimError::Spec("no ipad_body".into()))?;
+            .ok_or_else(|| PlanError::lacks("body", "ipad_body"))?;
         let m = d.xmat()[b];
         ([m[2], m[5], m[8]], d.xpos()[b])
     };
@@ -70,7 +73,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
         let e = rec.env();
         let d = e.data();
         let tip = name_id(d.model(), NameKind::Geom, "fingertip_ff_right")
-            .ok_or_else(|| SimError::Spec("no fingertip".into()))?;
+            .ok_or_else(|| PlanError::lacks("geom", "fingertip_ff_right"))?;
         let tcp = e.robot().tcp_pose(d, &e.robot().arms[0]).0;
         let t = d.geom_xpos()[tip];
         [t[0] - tcp[0], t[1] - tcp[1], t[2] - tcp[2]]
@@ -86,7 +89,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, 
         let button = {
             let d = rec.env().data();
             let g = name_id(d.model(), NameKind::Geom, &format!("btn{digit}_cyl"))
-                .ok_or_else(|| SimError::Spec(format!("no button {digit}")))?;
+                .ok_or_else(|| PlanError::lacks("geom of keypad button", digit.to_string()))?;
             d.geom_xpos()[g]
         };
         let tcp_at = |k: f64| {

@@ -14,7 +14,7 @@
 use super::hands::water_plant::{AIM, HOLD, OPEN, PRESS, PULL};
 use super::kin::{self, V3};
 use super::{Goal, Planned, Recorder, Variant, debug};
-use dexjoco_sim::SimError;
+use crate::PlanError;
 use dexjoco_sim::TaskEnv;
 
 /// Where the bottle's axis goes, from the TCP (home orientation, world axes): the
@@ -29,7 +29,7 @@ const GRIP_Y: f64 = -0.05;
 /// Plans water_plant on an environment just restored from its initial state; the wrong
 /// plan pulls the trigger right after lifting the bottle (a front trigger: after setting
 /// it down again), far from the plant.
-pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str, variant: Variant) -> Result<Planned, PlanError> {
     let s = env.state();
     let home = [s[3], s[4], s[5], s[6]];
     let mut rec = Recorder::new(env);
@@ -120,7 +120,7 @@ fn frame_debug(rec: &Recorder) {
     }
 }
 
-fn frame_debug_inner(rec: &Recorder) -> Result<(), SimError> {
+fn frame_debug_inner(rec: &Recorder) -> Result<(), PlanError> {
     if debug() {
         let e = rec.env();
         let (bp, m) = kin::body(e, "link_2")?;
@@ -158,7 +158,7 @@ fn frame_debug_inner(rec: &Recorder) -> Result<(), SimError> {
 /// Whether the trigger hangs in front of the body (its hinge ahead of the body's front
 /// face along the spray direction), as on a hand-held sprayer, rather than lying on top
 /// of the spray head.
-fn front_trigger(e: &TaskEnv) -> Result<bool, SimError> {
+fn front_trigger(e: &TaskEnv) -> Result<bool, PlanError> {
     let (bp, m) = kin::body(e, "link_2")?;
     let d = kin::sub(kin::anchor(e, "joint_0")?, bp);
     Ok(m[2] * d[0] + m[5] * d[1] + m[8] * d[2] > 0.03)
@@ -212,7 +212,7 @@ fn place_and_press(
     xy: [f64; 2],
     id: &str,
     variant: Variant,
-) -> Result<Planned, SimError> {
+) -> Result<Planned, PlanError> {
     let demo = variant == Variant::Demo;
     let (tp, tq) = rec.target(0);
     let bz = kin::body(rec.env(), "link_2")?.0[2];

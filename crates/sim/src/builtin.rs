@@ -92,14 +92,9 @@ fn robot(suffix: &str, base: &str, left: bool, kp: &str) -> String {
 
 /// The MJCF text of a task's built-in scene.
 pub fn scene_xml(spec: &TaskSpec) -> Result<String, SimError> {
-    let objects = object_fragment(&spec.id).ok_or_else(|| {
-        SimError::Spec(format!(
-            "task '{}' has no built-in scene (no assets/builtin/objects/{}.xml; built-in: {}); \
-             pass --scene-dir with the DexJoCo reference scenes",
-            spec.id,
-            spec.id,
-            builtin_tasks().join(", ")
-        ))
+    let objects = object_fragment(&spec.id).ok_or_else(|| SimError::NoBuiltinScene {
+        task: spec.id.clone(),
+        builtin: builtin_tasks().iter().map(|t| t.to_string()).collect(),
     })?;
     let mut parts: Vec<(String, String)> = vec![("arena.xml".into(), ARENA.into())];
     match spec.setup {

@@ -163,9 +163,7 @@ impl Robot {
             let ps = r.id(NameKind::Sensor, &format!("franka/flange_pos{sfx}"));
             let qs = r.id(NameKind::Sensor, &format!("franka/flange_quat{sfx}"));
             if body != usize::MAX && mocap < 0 {
-                return Err(SimError::Spec(format!(
-                    "body '{target}' is not a mocap body"
-                )));
+                return Err(SimError::NotMocap(target.to_string()));
             }
             arms.push(Arm {
                 name,

@@ -49,11 +49,10 @@ fn slot(
     spec: &TaskSpec,
     d: &DynamicsRandomization,
 ) -> Result<(Slot, String), SimError> {
-    let missing = |kind: &str, name: &str| {
-        SimError::Spec(format!(
-            "task '{}': the dynamics entry names {kind} '{name}', which the scene lacks",
-            spec.id
-        ))
+    let missing = |kind: &str, name: &str| SimError::DynamicsName {
+        task: spec.id.clone(),
+        kind: kind.into(),
+        name: name.into(),
     };
     let joint_dof = |j: &str| {
         name_id(model, NameKind::Joint, j)

@@ -474,7 +474,7 @@ impl TaskEnv {
         let states = if states.is_empty() {
             FrameArray::zeros(0, self.spec.state.width)
         } else {
-            FrameArray::from_rows(&states).map_err(|e| SimError::Spec(e.to_string()))?
+            FrameArray::from_rows(&states).map_err(|e| SimError::Rows(Box::new(e)))?
         };
         Ok(Rollout { states, verdicts })
     }

@@ -105,7 +105,11 @@ impl Feedback {
 }
 
 fn parse(spec: &TaskSpec, model: &MjModel, name: &str, text: &str) -> Result<Rule, SimError> {
-    let bad = |m: String| SimError::Spec(format!("feedback rule '{name}' (\"{text}\"): {m}"));
+    let bad = |problem: String| SimError::FeedbackRule {
+        name: name.into(),
+        text: text.into(),
+        problem,
+    };
     let (mut when, mut geoms, mut rgba) = (None, Vec::new(), None);
     for part in text.split(';').map(str::trim).filter(|p| !p.is_empty()) {
         let (k, v) = part

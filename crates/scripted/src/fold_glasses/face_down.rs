@@ -5,9 +5,9 @@
 
 use super::model::{box_centre, front, joint_body};
 use super::{POINT, Pace, STALL_DQ, STALL_NEAR, STALL_STEPS, TIP, fold_standing, push_back, show};
+use crate::PlanError;
 use crate::kin::{self, Q, V3};
 use crate::{Recorder, debug};
-use dexjoco_sim::SimError;
 use dexjoco_sim::TaskEnv;
 
 /// How far behind the front's top the fingertip comes down to tip the glasses forward
@@ -36,7 +36,7 @@ const EDGE_CLEAR_FIRST: f64 = 0.25;
 /// toward it), folds the first temple standing, tips the glasses over forwards and
 /// folds the second temple down onto the front (the push then presses them onto the
 /// table, where a standing fold drags them).
-pub(super) fn fold_face_down(rec: &mut Recorder, down: Q, pace: &Pace) -> Result<(), SimError> {
+pub(super) fn fold_face_down(rec: &mut Recorder, down: Q, pace: &Pace) -> Result<(), PlanError> {
     let mut approach = 110;
     if push_back(rec, down, 60, EDGE_CLEAR_FIRST, pace)? {
         let here = rec.target(0).0;
@@ -54,7 +54,7 @@ pub(super) fn fold_face_down(rec: &mut Recorder, down: Q, pace: &Pace) -> Result
 /// Folds the temple on hinge `joint` with the glasses lying face down (the hinge's axis
 /// level, the temple pointing up): the fingertip sweeps it around the axis toward the
 /// other hinge (`other`) and down onto the front, in a closed loop as [`fold_temple`](super::fold_temple).
-fn fold_lying(rec: &mut Recorder, down: Q, joint: &str, other: &str) -> Result<(), SimError> {
+fn fold_lying(rec: &mut Recorder, down: Q, joint: &str, other: &str) -> Result<(), PlanError> {
     let e = rec.env();
     // Where the index fingertip (its collision capsule's centre) is from the TCP now:
     // the temple is a thin wire, so the sweep needs the fingertip itself.
@@ -114,7 +114,7 @@ fn fold_lying(rec: &mut Recorder, down: Q, joint: &str, other: &str) -> Result<(
 /// The plane of a lying fold's sweep about hinge `j` (moving body `b`): its centre, the
 /// temple's direction from the axis now, and the direction toward hinge `other`
 /// square to it (both square to the axis).
-fn sweep_plane(e: &TaskEnv, j: usize, b: usize, other: &str) -> Result<(V3, V3, V3), SimError> {
+fn sweep_plane(e: &TaskEnv, j: usize, b: usize, other: &str) -> Result<(V3, V3, V3), PlanError> {
     let d = e.data();
     let h = d.xanchor()[j];
     let n = d.xaxis()[j];
@@ -128,7 +128,7 @@ fn sweep_plane(e: &TaskEnv, j: usize, b: usize, other: &str) -> Result<(V3, V3, 
 /// Lays the folded glasses face down (temples on top): the fingertip comes down behind
 /// the top of the front (behind the folded temples) and sweeps forward on an arc about
 /// the front's lower edge until they fall over toward the robot.
-fn tip_over_forwards(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
+fn tip_over_forwards(rec: &mut Recorder, down: Q) -> Result<(), PlanError> {
     let e = rec.env();
     let (fc, fm, half) = front(e)?;
     let up = [fm[2], fm[5], fm[8]];
@@ -170,7 +170,7 @@ fn tip_over_forwards(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
 /// Whether gravity can turn the temple on hinge `joint` against the hinge's friction
 /// loss when the hinge's axis lies level (the glasses lying down): its weight times
 /// its centre of mass's distance from the axis exceeds the friction loss.
-pub(super) fn temple_sags(e: &TaskEnv, joint: &str) -> Result<bool, SimError> {
+pub(super) fn temple_sags(e: &TaskEnv, joint: &str) -> Result<bool, PlanError> {
     let (j, b) = joint_body(e, joint)?;
     let m = e.data().model();
     let d = e.data();

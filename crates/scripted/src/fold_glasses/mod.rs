@@ -17,7 +17,7 @@ use self::model::{body_box, box_centre, front, hinge_damped, joint_body, table_n
 use super::hands::INDEX_HAND as POINT;
 use super::kin::{self, Q, V3};
 use super::{CLOSE, OPEN, Planned, Recorder, debug};
-use dexjoco_sim::SimError;
+use crate::PlanError;
 use dexjoco_sim::TaskEnv;
 
 /// Where the pinch closes on the front, from the TCP along the thumb-to-fingers axis.
@@ -107,7 +107,7 @@ const FACE_DOWN: Pace = Pace {
 };
 
 /// Plans fold_glasses on an environment just restored from its initial state.
-pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
+pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, PlanError> {
     let s = env.state();
     let home = [s[3], s[4], s[5], s[6]];
     let mut rec = Recorder::new(env);
@@ -134,7 +134,7 @@ pub(crate) fn plan(env: TaskEnv, id: &str) -> Result<Planned, SimError> {
 
 /// Turns the hand palm-down, pinches the folded glasses lying on the table, carries
 /// them over the case and lets go inside it.
-fn stow(rec: &mut Recorder, table: f64, home: Q, pace: &Pace) -> Result<(), SimError> {
+fn stow(rec: &mut Recorder, table: f64, home: Q, pace: &Pace) -> Result<(), PlanError> {
     // Turn palm-down well above the glasses, and let the glasses settle
     // (folded, they may topple), then come over them.
     let here = rec.target(0).0;
@@ -191,7 +191,7 @@ fn fold_standing(
     other: &str,
     mut approach: usize,
     pace: &Pace,
-) -> Result<(), SimError> {
+) -> Result<(), PlanError> {
     for _ in 0..3 {
         if fold_temple(rec, down, joint, other, approach, pace)? {
             break;
@@ -211,7 +211,7 @@ fn push_back(
     approach: usize,
     clear: f64,
     pace: &Pace,
-) -> Result<bool, SimError> {
+) -> Result<bool, PlanError> {
     let e = rec.env();
     let (fc, fm, half) = front(e)?;
     let edge = table_near_edge(e)?;
@@ -279,7 +279,7 @@ fn fold_temple(
     other: &str,
     approach: usize,
     pace: &Pace,
-) -> Result<bool, SimError> {
+) -> Result<bool, PlanError> {
     let e = rec.env();
     let hinge = kin::anchor(e, joint)?;
     let dir = kin::horizontal(kin::sub(temple(e, joint)?, hinge));
@@ -383,7 +383,7 @@ fn fold_temple(
 
 /// Tips the folded glasses over backwards (away from the table's edge) with the
 /// fingertip on the top of the front, when they still stand.
-fn tip_over_backwards(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
+fn tip_over_backwards(rec: &mut Recorder, down: Q) -> Result<(), PlanError> {
     let e = rec.env();
     let (fc, fm, half) = front(e)?;
     let up = [fm[2], fm[5], fm[8]];
@@ -414,7 +414,7 @@ fn tip_over_backwards(rec: &mut Recorder, down: Q) -> Result<(), SimError> {
 /// The TCP target and orientation that pinch the front: across its width when the
 /// glasses lie (thumb at one long edge, fingers at the other), the thin front near its
 /// top when they still stand; fingers away from the robot.
-fn front_pinch(e: &TaskEnv, table: f64, home: Q) -> Result<(V3, Q), SimError> {
+fn front_pinch(e: &TaskEnv, table: f64, home: Q) -> Result<(V3, Q), PlanError> {
     let (fc, fm, _) = front(e)?;
     let up = [fm[2], fm[5], fm[8]];
     let thick = [fm[0], fm[3], fm[6]];
@@ -450,7 +450,7 @@ fn front_pinch(e: &TaskEnv, table: f64, home: Q) -> Result<(V3, Q), SimError> {
 /// temple's lowest point there. The temple (its bounding box) is taken to run from the
 /// hinge down to the box's bottom over twice the horizontal distance to the box's centre
 /// (the straight finger, pointing down, spans the temple's height).
-fn fold_at(e: &TaskEnv, joint: &str, t: f64) -> Result<(f64, f64), SimError> {
+fn fold_at(e: &TaskEnv, joint: &str, t: f64) -> Result<(f64, f64), PlanError> {
     let (j, b) = joint_body(e, joint)?;
     let m = e.data().model();
     let (_, h) = body_box(e, b);

@@ -2,20 +2,20 @@
 //! temples, hinges) and the table's near edge, as bounding boxes of collision geoms.
 
 use super::DAMPED;
+use crate::PlanError;
 use crate::kin::{self, V3};
-use dexjoco_sim::SimError;
 use dexjoco_sim::TaskEnv;
 
 /// The joint id of `joint` and the id of the body it moves.
-pub(super) fn joint_body(e: &TaskEnv, joint: &str) -> Result<(usize, usize), SimError> {
+pub(super) fn joint_body(e: &TaskEnv, joint: &str) -> Result<(usize, usize), PlanError> {
     let m = e.data().model();
     let j = dexjoco_sim::name_id(m, dexjoco_core::NameKind::Joint, joint)
-        .ok_or_else(|| SimError::Spec(format!("the scene has no Joint '{joint}'")))?;
+        .ok_or_else(|| PlanError::lacks("joint", joint))?;
     Ok((j, m.jnt_bodyid()[j] as usize))
 }
 
 /// Whether hinge `joint` is damped (see [`DAMPED`]).
-pub(super) fn hinge_damped(e: &TaskEnv, joint: &str) -> Result<bool, SimError> {
+pub(super) fn hinge_damped(e: &TaskEnv, joint: &str) -> Result<bool, PlanError> {
     let (j, _) = joint_body(e, joint)?;
     let m = e.data().model();
     Ok(m.dof_damping()[m.jnt_dofadr()[j] as usize] >= DAMPED)
@@ -23,10 +23,10 @@ pub(super) fn hinge_damped(e: &TaskEnv, joint: &str) -> Result<bool, SimError> {
 
 /// The x of the table's near edge (the robot's side): the bounding box of the body
 /// holding site `table_top`.
-pub(super) fn table_near_edge(e: &TaskEnv) -> Result<f64, SimError> {
+pub(super) fn table_near_edge(e: &TaskEnv) -> Result<f64, PlanError> {
     let m = e.data().model();
     let s = dexjoco_sim::name_id(m, dexjoco_core::NameKind::Site, "table_top")
-        .ok_or_else(|| SimError::Spec("the scene has no Site 'table_top'".into()))?;
+        .ok_or_else(|| PlanError::lacks("site", "table_top"))?;
     let b = m.site_bodyid()[s] as usize;
     let (c, h) = body_box(e, b);
     let d = e.data();
@@ -67,7 +67,7 @@ pub(super) fn body_box(e: &TaskEnv, b: usize) -> (V3, V3) {
 
 /// The centre (world) of the bounding box of the temple on hinge `joint` (the body the
 /// joint moves).
-pub(super) fn temple(e: &TaskEnv, joint: &str) -> Result<V3, SimError> {
+pub(super) fn temple(e: &TaskEnv, joint: &str) -> Result<V3, PlanError> {
     let (_, b) = joint_body(e, joint)?;
     Ok(box_centre(e, b))
 }
@@ -76,10 +76,10 @@ pub(super) fn temple(e: &TaskEnv, joint: &str) -> Result<V3, SimError> {
 /// centre (world), a row-major matrix whose columns are the box's thin, wide and tall
 /// axes (world; the tall one pointing up when the glasses stand), and its half sizes
 /// along them.
-pub(super) fn front(e: &TaskEnv) -> Result<(V3, [f64; 9], V3), SimError> {
+pub(super) fn front(e: &TaskEnv) -> Result<(V3, [f64; 9], V3), PlanError> {
     let m = e.data().model();
     let b = dexjoco_sim::name_id(m, dexjoco_core::NameKind::Body, "glass")
-        .ok_or_else(|| SimError::Spec("the scene has no Body 'glass'".into()))?;
+        .ok_or_else(|| PlanError::lacks("body", "glass"))?;
     let (_, h) = body_box(e, b);
     let d = e.data();
     let xm = d.xmat()[b];

@@ -234,7 +234,7 @@ pub(super) struct Graph {
 pub(super) fn compile(spec: &TaskSpec, model: &MjModel) -> Result<Graph, SimError> {
     let order = spec
         .evaluation_order()
-        .map_err(|e| SimError::Spec(e.to_string()))?;
+        .map_err(|e| SimError::Spec(Box::new(e)))?;
     let mut c = Compiler {
         spec,
         model,
@@ -275,7 +275,7 @@ impl Compiler<'_> {
             .order
             .iter()
             .position(|n| n == base)
-            .ok_or_else(|| SimError::Spec(format!("unknown node '{base}'")))?;
+            .ok_or_else(|| SimError::UnknownNode(base.into()))?;
         let output = match out {
             None => None,
             Some(o) => Some(
@@ -283,7 +283,7 @@ impl Compiler<'_> {
                     .outputs()
                     .iter()
                     .position(|x| *x == o)
-                    .ok_or_else(|| SimError::Spec(format!("no output '{r}'")))?,
+                    .ok_or_else(|| SimError::UnknownOutput(r.into()))?,
             ),
         };
         Ok(Port { node, output })
@@ -630,9 +630,7 @@ impl Compiler<'_> {
         let body = self.res.id(NameKind::Body, nail_body);
         let mocap = self.model.body_mocapid().get(body).copied().unwrap_or(-1);
         if body != usize::MAX && mocap < 0 {
-            return Err(SimError::Spec(format!(
-                "body '{nail_body}' is not a mocap body"
-            )));
+            return Err(SimError::NotMocap(nail_body.to_string()));
         }
         Ok(mocap.max(0) as usize)
     }
