@@ -32,7 +32,7 @@ pub enum RenderError {
     ReadPixels(String),
     /// The Warp renderer's worker could not start or failed.
     #[error("warp renderer: {0}")]
-    Warp(String),
+    Warp(Box<WarpError>),
     /// Writing an image failed.
     #[error("cannot write image '{path}': {message}")]
     Image {
@@ -127,4 +127,135 @@ pub struct DeviceAttempt {
     pub device: String,
     /// EGL's error.
     pub source: glutin::error::Error,
+}
+
+impl From<WarpError> for RenderError {
+    fn from(e: WarpError) -> Self {
+        Self::Warp(Box::new(e))
+    }
+}
+
+/// Why the Warp renderer's worker could not start, or what went wrong with a batch.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum WarpError {
+    /// No Python with MuJoCo Warp was found.
+    #[error(
+        "no Python with MuJoCo Warp found (tried the Python beside this program, $VIRTUAL_ENV's and {}); run `scripts/setup.sh --warp` or `pip install 'dexjoco-data[warp]'`, or name one with --warp-python or ${variable}",
+        setup_venv.display()
+    )]
+    NoPython {
+        /// The setup script's venv, tried last.
+        setup_venv: PathBuf,
+        /// The environment variable that names a Python.
+        variable: &'static str,
+    },
+    /// The Python could not be started.
+    #[error("cannot start {}: {source}", python.display())]
+    Start {
+        /// The Python.
+        python: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The Python started but cannot run the worker (MuJoCo Warp missing, or broken).
+    #[error(
+        "{} cannot run the worker ({reason}); run `scripts/setup.sh --warp` or `pip install 'dexjoco-data[warp]'` and use that Python",
+        python.display()
+    )]
+    CannotRun {
+        /// The Python.
+        python: PathBuf,
+        /// What happened when it was asked.
+        reason: Box<RenderError>,
+    },
+    /// The worker's greeting or a reply is not what this program speaks.
+    #[error("unexpected {what} from the worker: {source}")]
+    Protocol {
+        /// `hello` or `render reply`.
+        what: &'static str,
+        /// The parse error.
+        source: serde_json::Error,
+    },
+    /// A package of the worker's Python is not the version the renderer needs.
+    #[error(
+        "{} has {package} {}, the Warp renderer needs {pin}; run `scripts/setup.sh --warp` or `pip install 'dexjoco-data[warp]'`",
+        python.display(), found.as_deref().unwrap_or("missing")
+    )]
+    Pin {
+        /// The Python.
+        python: PathBuf,
+        /// The package.
+        package: String,
+        /// Its version there (`None`: not installed).
+        found: Option<String>,
+        /// The version needed.
+        pin: String,
+    },
+    /// The worker reported an error (its own words).
+    #[error("the worker failed: {0}")]
+    Failed(String),
+    /// The worker stopped answering.
+    #[error(
+        "the worker ({}) stopped answering ({source}; exit: {exit}); its last output:\n{}",
+        python.display(), output.join("\n")
+    )]
+    Stopped {
+        /// The Python.
+        python: PathBuf,
+        /// The read or write that failed.
+        source: std::io::Error,
+        /// Its exit status, or `running`.
+        exit: String,
+        /// Its last lines on stderr.
+        output: Vec<String>,
+    },
+    /// A view's field of view has no slot in the opened renderer.
+    #[error("no view slot of field of view {fovy} (opened with {slots:?})")]
+    NoSlot {
+        /// The field of view asked for.
+        fovy: f64,
+        /// The slots opened.
+        slots: Vec<f64>,
+    },
+    /// More images in a batch than the renderer was opened for.
+    #[error("a batch of {images} images; the renderer was opened for {worlds}")]
+    BatchTooLarge {
+        /// Images in the batch.
+        images: usize,
+        /// Worlds opened.
+        worlds: usize,
+    },
+    /// A world's field of view is not its batch's slot's.
+    #[error("a world of field of view {fovy} in a batch of slot {slot} ({slot_fovy:?})")]
+    WrongSlot {
+        /// The world's field of view.
+        fovy: f64,
+        /// The batch's slot.
+        slot: usize,
+        /// That slot's field of view.
+        slot_fovy: Option<f64>,
+    },
+    /// A world's lights do not match the scene's.
+    #[error("a world has {world} lights, the scene {scene}")]
+    Lights {
+        /// The world's.
+        world: usize,
+        /// The scene's.
+        scene: usize,
+    },
+    /// The reply's size is not the images asked for.
+    #[error(
+        "the worker answered {worlds} images in {bytes} bytes, expected {images} in {expected}"
+    )]
+    ReplySize {
+        /// Images answered.
+        worlds: usize,
+        /// Bytes answered.
+        bytes: usize,
+        /// Images asked for.
+        images: usize,
+        /// Bytes expected.
+        expected: usize,
+    },
 }

@@ -23,7 +23,7 @@ pub use egl::{
     EGL_DEVICE_ENV, EglDevice, EglProbe, gpu_devices, list_egl_devices, probe_egl, probe_renderer,
     requested_egl_device, share_llvmpipe_threads,
 };
-pub use error::{DeviceAttempt, EglError, RenderError};
+pub use error::{DeviceAttempt, EglError, RenderError, WarpError};
 pub use geometry::Geometry;
 pub use render::{
     CameraView, Frame, MAX_IMAGE_SIDE, RenderQuality, RenderSettings, RenderTimes, Renderer,

@@ -11,7 +11,7 @@ use serde::Deserialize;
 use super::worker::WarpWorker;
 use super::worker::WorkerInfo;
 use super::world::WarpBatch;
-use crate::error::RenderError;
+use crate::error::{RenderError, WarpError};
 use crate::render::{Frame, RenderSettings};
 
 /// A scene as the worker compiles it: the MJCF file, or the XML text of a built-in one.
@@ -129,10 +129,11 @@ impl WarpRenderer {
     /// The slot rendering views of field of view `fovy`.
     pub fn slot_of(&self, fovy: f64) -> Result<usize, RenderError> {
         self.slots.iter().position(|&s| s == fovy).ok_or_else(|| {
-            RenderError::Warp(format!(
-                "no view slot of field of view {fovy} (opened with {:?})",
-                self.slots
-            ))
+            WarpError::NoSlot {
+                fovy,
+                slots: self.slots.clone(),
+            }
+            .into()
         })
     }
 
@@ -168,17 +169,20 @@ impl WarpRenderer {
             return Ok(Vec::new());
         }
         if n > self.worlds {
-            return Err(RenderError::Warp(format!(
-                "a batch of {n} images; the renderer was opened for {}",
-                self.worlds
-            )));
+            return Err(WarpError::BatchTooLarge {
+                images: n,
+                worlds: self.worlds,
+            }
+            .into());
         }
         let fovy = self.slots.get(batch.slot).copied();
         if let Some((_, v)) = batch.worlds.iter().find(|(_, v)| Some(v.fovy) != fovy) {
-            return Err(RenderError::Warp(format!(
-                "a world of field of view {} in a batch of slot {} ({fovy:?})",
-                v.fovy, batch.slot
-            )));
+            return Err(WarpError::WrongSlot {
+                fovy: v.fovy,
+                slot: batch.slot,
+                slot_fovy: fovy,
+            }
+            .into());
         }
         let started = Instant::now();
         let payload = batch.payload(self.nlight)?;
@@ -192,8 +196,11 @@ impl WarpRenderer {
         let expect = self.reply_bytes(n);
         let (reply, data) = self.worker.call(&request, &payload, expect)?;
         let got = Instant::now();
-        let reply: RenderReply = serde_json::from_value(reply)
-            .map_err(|e| RenderError::Warp(format!("unexpected render reply: {e}")))?;
+        let reply: RenderReply =
+            serde_json::from_value(reply).map_err(|source| WarpError::Protocol {
+                what: "render reply",
+                source,
+            })?;
         let frames = self.unpack(n, reply.worlds, &data)?;
         let t = |k: &str| reply.times.get(k).copied().unwrap_or(0.0);
         let worker = t("upload") + t("render") + t("readback");
@@ -222,10 +229,13 @@ impl WarpRenderer {
         let depth = self.settings.depth;
         let expect = self.reply_bytes(n);
         if worlds != n || data.len() != expect {
-            return Err(RenderError::Warp(format!(
-                "the worker answered {worlds} images in {} bytes, expected {n} in {expect}",
-                data.len()
-            )));
+            return Err(WarpError::ReplySize {
+                worlds,
+                bytes: data.len(),
+                images: n,
+                expected: expect,
+            }
+            .into());
         }
         let (rgb, depths) = data.split_at(n * pixels * 4);
         Ok((0..n)

@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex};
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::RenderError;
+use crate::error::{RenderError, WarpError};
 
 /// The worker script, run as `python -c`.
 const WORKER_SCRIPT: &str = include_str!("../../python/warp_worker.py");
@@ -140,14 +140,9 @@ impl WarpWorker {
             None => python_candidates()
                 .into_iter()
                 .find(|p| p.is_file() && has_warp(p))
-                .ok_or_else(|| {
-                    RenderError::Warp(format!(
-                        "no Python with MuJoCo Warp found (tried the Python beside this \
-                         program, $VIRTUAL_ENV's and {}); run `scripts/setup.sh --warp` or \
-                         `pip install 'dexjoco-data[warp]'`, or name one with --warp-python or \
-                         ${PYTHON_VARIABLE}",
-                        setup_venv().display()
-                    ))
+                .ok_or_else(|| WarpError::NoPython {
+                    setup_venv: setup_venv(),
+                    variable: PYTHON_VARIABLE,
                 })?,
         };
         let mut command = Command::new(&python);
@@ -158,9 +153,10 @@ impl WarpWorker {
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
         dies_with_parent(&mut command);
-        let mut child = command
-            .spawn()
-            .map_err(|e| RenderError::Warp(format!("cannot start {}: {e}", python.display())))?;
+        let mut child = command.spawn().map_err(|source| WarpError::Start {
+            python: python.clone(),
+            source,
+        })?;
         let stderr = Arc::new(Mutex::new(VecDeque::new()));
         let tail = Arc::clone(&stderr);
         let err = child.stderr.take().expect("piped");
@@ -196,15 +192,15 @@ impl WarpWorker {
                 &[],
                 0,
             )
-            .map_err(|e| {
-                RenderError::Warp(format!(
-                    "{} cannot run the worker ({e}); run `scripts/setup.sh --warp` or `pip \
-                     install 'dexjoco-data[warp]'` and use that Python",
-                    python.display()
-                ))
+            .map_err(|e| WarpError::CannotRun {
+                python: python.clone(),
+                reason: Box::new(e),
             })?;
-        let info: HelloReply = serde_json::from_value(hello)
-            .map_err(|e| RenderError::Warp(format!("unexpected hello from the worker: {e}")))?;
+        let info: HelloReply =
+            serde_json::from_value(hello).map_err(|source| WarpError::Protocol {
+                what: "hello",
+                source,
+            })?;
         worker.info.device = info.device;
         worker.info.device_name = info.device_name;
         worker.info.versions = info.versions;
@@ -228,12 +224,13 @@ impl WarpWorker {
         for (package, pin) in WARP_PINS {
             let have = self.info.versions.get(package).cloned().flatten();
             if have.as_deref() != Some(pin) {
-                return Err(RenderError::Warp(format!(
-                    "{} has {package} {}, the Warp renderer needs {pin}; run `scripts/setup.sh \
-                     --warp` or `pip install 'dexjoco-data[warp]'`",
-                    self.info.python.display(),
-                    have.as_deref().unwrap_or("missing")
-                )));
+                return Err(WarpError::Pin {
+                    python: self.info.python.clone(),
+                    package: package.to_string(),
+                    found: have,
+                    pin: pin.to_string(),
+                }
+                .into());
             }
         }
         Ok(())
@@ -260,7 +257,7 @@ impl WarpWorker {
                 trace = header.get("trace").and_then(|t| t.as_str()),
                 "warp worker"
             );
-            return Err(RenderError::Warp(format!("the worker failed: {error}")));
+            return Err(WarpError::Failed(error.to_string()).into());
         }
         Ok((header, data))
     }
@@ -281,12 +278,13 @@ impl WarpWorker {
         // Give the stderr reader a moment to collect what the worker printed last.
         std::thread::sleep(std::time::Duration::from_millis(100));
         let tail: Vec<String> = self.stderr.lock().expect("tail").iter().cloned().collect();
-        RenderError::Warp(format!(
-            "the worker ({}) stopped answering ({e}; exit: {}); its last output:\n{}",
-            self.info.python.display(),
-            status.map_or_else(|| "running".into(), |s| s.to_string()),
-            tail.join("\n")
-        ))
+        WarpError::Stopped {
+            python: self.info.python.clone(),
+            source: std::io::Error::new(e.kind(), e.to_string()),
+            exit: status.map_or_else(|| "running".into(), |s| s.to_string()),
+            output: tail,
+        }
+        .into()
     }
 }
 

@@ -4,7 +4,7 @@
 use mujoco_rs::prelude::{MjData, MjModel};
 use mujoco_rs::wrappers::mj_model::traits::ModelType;
 
-use crate::error::RenderError;
+use crate::error::{RenderError, WarpError};
 use crate::render::CameraView;
 
 /// One world's look: view, lights, headlight and table.
@@ -179,10 +179,11 @@ impl WarpBatch {
         }
         let w = &self.worlds;
         if let Some((_, bad)) = w.iter().find(|(_, v)| v.lights.len() != nlight) {
-            return Err(RenderError::Warp(format!(
-                "a world has {} lights, the scene {nlight}",
-                bad.lights.len()
-            )));
+            return Err(WarpError::Lights {
+                world: bad.lights.len(),
+                scene: nlight,
+            }
+            .into());
         }
         f32s(&mut out, &mut w.iter().flat_map(|(_, v)| v.cam_pos.map(f)));
         f32s(&mut out, &mut w.iter().flat_map(|(_, v)| v.cam_mat.map(f)));
