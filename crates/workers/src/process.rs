@@ -75,11 +75,9 @@ impl Worker {
             cmd.env(dexjoco_render::EGL_DEVICE_ENV, dev.to_string());
         }
         dexjoco_render::share_llvmpipe_threads(&mut cmd, busy);
-        let mut child = cmd.spawn().map_err(|e| {
-            PoolError::Start(format!(
-                "cannot start a worker process '{}': {e}",
-                w.program.display()
-            ))
+        let mut child = cmd.spawn().map_err(|source| PoolError::Spawn {
+            program: w.program.clone(),
+            source,
         })?;
         tracing::debug!(slot, pid = child.id(), "started worker process {slot}");
         let stdin = child.stdin.take();
@@ -110,7 +108,7 @@ impl Worker {
         // On failure the worker is dropped: killed and reaped.
         worker
             .send(&ToWorker::<&H, ()>::Hello(hello))
-            .map_err(|_| PoolError::Start(format!("worker process {slot} ended at once")))?;
+            .map_err(|_| PoolError::EndedAtOnce { slot })?;
         Ok(worker)
     }
 

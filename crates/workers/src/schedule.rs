@@ -155,15 +155,15 @@ pub fn run_jobs<J: JobSet>(
         return Err(e);
     }
     if !s.queue.is_empty() {
-        let why = s.retired.join("; ");
-        let hint = if why.contains(WARP_WORDS) {
+        let hint = if s.retired.iter().any(|r| r.contains(WARP_WORDS)) {
             WARP_STALL_HINT
         } else {
             STALL_HINT
         };
-        return Err(PoolError::NoRenderer(format!(
-            "no worker process could render ({why}); hint: {hint}"
-        )));
+        return Err(PoolError::NoRenderer {
+            retired: s.retired,
+            hint,
+        });
     }
     Ok(s.results
         .into_iter()
