@@ -379,6 +379,6 @@ pub enum ZarrWriteError {
     #[error(transparent)]
     Array(#[from] zarrs::array::ArrayError),
     /// Groups or array metadata could not be made ([`crate::zarr_v2`]).
-    #[error("{0}")]
-    Layout(String),
+    #[error(transparent)]
+    Layout(#[from] crate::zarr_v2::ZarrV2Error),
 }

@@ -48,15 +48,15 @@ pub fn array_metadata(
     chunks: &[u64],
     dtype: &str,
     compressor: Option<Blosc>,
-) -> Result<ArrayMetadata, String> {
+) -> Result<ArrayMetadata, ZarrV2Error> {
     let chunks = chunks
         .iter()
-        .map(|&c| NonZeroU64::new(c).ok_or("building .zarray: a chunk of size 0"))
+        .map(|&c| NonZeroU64::new(c).ok_or(ZarrV2Error::ZeroChunk))
         .collect::<Result<Vec<_>, _>>()?;
     let compressor = compressor
         .map(Blosc::metadata)
         .transpose()
-        .map_err(|e| format!("building .zarray: {e}"))?;
+        .map_err(ZarrV2Error::Compressor)?;
     let fill = if dtype.get(1..2) == Some("f") {
         FillValueMetadataV2::from(0.0)
     } else {
@@ -99,18 +99,34 @@ impl Blosc {
 }
 
 /// Writes an empty v2 group (`.zgroup`) at each of `paths` (e.g. `["/", "/data"]`).
-pub fn create_groups(store: &Arc<FilesystemStore>, paths: &[&str]) -> Result<(), String> {
+pub fn create_groups(store: &Arc<FilesystemStore>, paths: &[&str]) -> Result<(), ZarrV2Error> {
     for path in paths {
         Group::new_with_metadata(
             store.clone(),
             path,
             GroupMetadata::V2(GroupMetadataV2::new()),
-        )
-        .map_err(|e| e.to_string())?
-        .store_metadata_opt(&GroupMetadataOptions::default())
-        .map_err(|e| e.to_string())?;
+        )?
+        .store_metadata_opt(&GroupMetadataOptions::default())?;
     }
     Ok(())
+}
+
+/// Why Zarr v2 metadata or groups could not be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ZarrV2Error {
+    /// A chunk side of 0.
+    #[error("building .zarray: a chunk of size 0")]
+    ZeroChunk,
+    /// The compressor entry could not be built.
+    #[error("building .zarray: {0}")]
+    Compressor(#[source] serde_json::Error),
+    /// A group could not be created.
+    #[error(transparent)]
+    Group(#[from] zarrs::group::GroupCreateError),
+    /// A group's metadata could not be stored.
+    #[error(transparent)]
+    Storage(#[from] zarrs::storage::StorageError),
 }
 
 #[cfg(test)]

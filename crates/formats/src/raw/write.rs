@@ -57,7 +57,7 @@ pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
     let err = zarr_write_err(&at);
     fs_err::create_dir_all(&zarr).map_err(io_err("create", &zarr))?;
     let store = Arc::new(FilesystemStore::new(&zarr).map_err(|e| err(e.to_string()))?);
-    zarr_v2::create_groups(&store, &["/", "/data", "/meta"]).map_err(&err)?;
+    zarr_v2::create_groups(&store, &["/", "/data", "/meta"]).map_err(|e| err(e.to_string()))?;
     let array_opts = ArrayMetadataOptions::default().with_include_zarrs_metadata(false);
     let codec_opts = CodecOptions::default().with_store_empty_chunks(true);
     let frames = ep.len() as u64;
@@ -70,8 +70,8 @@ pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
         } else {
             (vec![frames, width], vec![chunk_frames, width])
         };
-        let meta =
-            zarr_v2::array_metadata(&shape, &chunks, "<f8", Some(Blosc::RECORDER)).map_err(&err)?;
+        let meta = zarr_v2::array_metadata(&shape, &chunks, "<f8", Some(Blosc::RECORDER))
+            .map_err(|e| err(e.to_string()))?;
         let array = Array::new_with_metadata(store.clone(), &format!("/data/{name}"), meta)
             .map_err(|e| err(e.to_string()))?;
         array
@@ -83,7 +83,8 @@ pub fn write_replay_zarr(dir: &Path, ep: &Episode) -> Result<()> {
                 .map_err(|e| err(e.to_string()))?;
         }
     }
-    let meta = zarr_v2::array_metadata(&[1], &[1024], "<i8", None).map_err(&err)?;
+    let meta =
+        zarr_v2::array_metadata(&[1], &[1024], "<i8", None).map_err(|e| err(e.to_string()))?;
     let array = Array::new_with_metadata(store.clone(), "/meta/episode_ends", meta)
         .map_err(|e| err(e.to_string()))?;
     array
