@@ -23,7 +23,7 @@ fn text(b: &[u8]) -> String {
 }
 
 fn probe_scene() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/sim/tests/data/render_probe.xml")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/render/tests/data/render_probe.xml")
 }
 
 #[test]
