@@ -31,9 +31,7 @@ where
     T: Into<std::ffi::OsString> + Clone,
 {
     let cli = Cli::parse_from(args);
-    init_logging(cli.global.verbose, cli.global.quiet);
-    dexjoco_sim::route_mujoco_warnings();
-    init_worker_pool(cli.global.jobs);
+    start(&cli.global);
     let result = match cli.command {
         Command::Doctor(args) => {
             commands::doctor::run(settings::DoctorSettings::resolve(&args, &cli.global))
@@ -55,6 +53,19 @@ where
         Command::Generate(args) => commands::generate::run(&cli.global, args),
         Command::Dataset(cmd) => commands::dataset::run(&cli.global, cmd),
     };
+    exit_code(result)
+}
+
+/// What every command of either binary does first: logging at the level asked for,
+/// MuJoCo's warnings into it, and the worker pool of `-j` threads.
+pub fn start(global: &cli::GlobalArgs) {
+    init_logging(global.verbose, global.quiet);
+    dexjoco_sim::route_mujoco_warnings();
+    init_worker_pool(global.jobs);
+}
+
+/// A command's result as the process's exit code, its error reported first.
+pub fn exit_code(result: anyhow::Result<ExitStatus>) -> ExitCode {
     match result {
         Ok(status) => status.into(),
         Err(err) => report(&err).into(),
@@ -64,7 +75,7 @@ where
 /// The one worker pool of the process (rayon's global pool): `--jobs` threads (default:
 /// all cores) named `worker-N`. Every stage's parallel work runs on it; results never
 /// depend on its size.
-pub fn init_worker_pool(jobs: Option<usize>) {
+fn init_worker_pool(jobs: Option<usize>) {
     let mut b = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("worker-{i}"));
     if let Some(j) = jobs {
         b = b.num_threads(j);
@@ -75,7 +86,7 @@ pub fn init_worker_pool(jobs: Option<usize>) {
 }
 
 /// Prints an error as `error:` / `Caused by:` / `hint:` and picks the exit status.
-pub fn report(err: &anyhow::Error) -> ExitStatus {
+fn report(err: &anyhow::Error) -> ExitStatus {
     let cli_error = err.chain().find_map(|e| e.downcast_ref::<CliError>());
     errln!("error: {err}");
     let causes: Vec<String> = exit::messages(err).into_iter().skip(1).collect();
@@ -94,7 +105,7 @@ pub fn report(err: &anyhow::Error) -> ExitStatus {
 }
 
 /// Logs to stderr at the level `-v`/`-q` ask for (`DEXJOCO_LOG` overrides it).
-pub fn init_logging(verbose: u8, quiet: bool) {
+fn init_logging(verbose: u8, quiet: bool) {
     use tracing_subscriber::EnvFilter;
     let default = match (quiet, verbose) {
         (true, _) => "error",

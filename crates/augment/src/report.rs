@@ -10,7 +10,7 @@ use dexjoco_render::RenderSettings;
 
 use crate::config::{PREVIEWS, REPORT_JSON, REPORT_MD};
 use crate::error::{AugmentError, io_err};
-use dexjoco_formats::augment_report::{self, Provenance, ToolVersions};
+use dexjoco_formats::augment_report::{self, Provenance};
 use dexjoco_render::randomize::VisualSample;
 use dexjoco_sim::dynamics::DynamicsValue;
 
@@ -65,11 +65,7 @@ pub(crate) fn take_made_on(
 ) -> Vec<MadeOn> {
     let mut counts: BTreeMap<Provenance, usize> = BTreeMap::new();
     for r in replays.iter_mut().chain(dropped.iter_mut()) {
-        let p = r.made_on.take().unwrap_or_else(|| Provenance {
-            cpu_model: "not recorded".into(),
-            cpu_flags: "not recorded".into(),
-            versions: ToolVersions::default(),
-        });
+        let p = r.made_on.take().unwrap_or_default();
         *counts.entry(p).or_default() += 1;
     }
     counts

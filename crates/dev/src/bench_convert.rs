@@ -132,7 +132,7 @@ fn ours(
     config: &Path,
     extra: &[&str],
 ) -> anyhow::Result<(f64, f64)> {
-    let (exe, user) = crate::user_binary()?;
+    let exe = std::env::current_exe()?;
     let out = tmp.join(name);
     let (input, out, config) = (
         input.to_string_lossy(),
@@ -140,7 +140,7 @@ fn ours(
         config.to_string_lossy(),
     );
     let mut argv = vec![
-        user,
+        crate::USER,
         "-q",
         "convert",
         &input,

@@ -8,11 +8,9 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use dexjoco_core::SubtaskSpan;
+use dexjoco_core::{Location, SubtaskSpan};
 use serde::de::IgnoredAny;
 use serde::{Deserialize, Serialize};
-
-use dexjoco_core::Location;
 
 use crate::error::{FormatError, ProblemCode, Result};
 use crate::raw::RenderFlag;
@@ -295,4 +293,15 @@ pub struct Provenance {
     pub cpu_flags: String,
     /// The programs' versions.
     pub versions: ToolVersions,
+}
+
+impl Default for Provenance {
+    /// Every field "not recorded" (a replay made before provenance was recorded).
+    fn default() -> Self {
+        Self {
+            cpu_model: NOT_RECORDED.into(),
+            cpu_flags: NOT_RECORDED.into(),
+            versions: ToolVersions::default(),
+        }
+    }
 }

@@ -301,25 +301,37 @@ impl Recorder {
     /// With `DEXJOCO_PLAN_SNAP` set to a folder: a picture of the scene around arm
     /// `arm`'s TCP (planner diagnostics; rendering does not change the state).
     pub(crate) fn snap(&mut self, arm: usize, name: &str) {
+        let lookat = kin::tcp(&self.env, arm).0;
+        let views = [90.0, 180.0].map(|azimuth| dexjoco_render::CameraView::Orbit {
+            lookat: [lookat[0], lookat[1], lookat[2] - 0.1],
+            distance: 0.6,
+            azimuth,
+            elevation: -30.0,
+        });
+        self.snap_views(name, (480, 480), &views);
+    }
+
+    /// With `DEXJOCO_PLAN_SNAP` set to a folder: `views` of the scene as it is, drawn at
+    /// `size` into `<name>_<k>.png` there (planner diagnostics; rendering does not change
+    /// the state; a failure is printed, never stops the plan).
+    pub(crate) fn snap_views(
+        &mut self,
+        name: &str,
+        (width, height): (u32, u32),
+        views: &[dexjoco_render::CameraView],
+    ) {
         let Some(dir) = std::env::var_os("DEXJOCO_PLAN_SNAP") else {
             return;
         };
-        let lookat = kin::tcp(&self.env, arm).0;
         let model = self.env.data().model_clone();
         let settings = dexjoco_render::RenderSettings {
-            width: 480,
-            height: 480,
+            width,
+            height,
             ..Default::default()
         };
         let result = dexjoco_render::Renderer::new(&model, settings).and_then(|mut r| {
-            for (k, az) in [(0, 90.0), (1, 180.0)] {
-                let view = dexjoco_render::CameraView::Orbit {
-                    lookat: [lookat[0], lookat[1], lookat[2] - 0.1],
-                    distance: 0.6,
-                    azimuth: az,
-                    elevation: -30.0,
-                };
-                let f = r.render(self.env.data_mut(), view)?;
+            for (k, view) in views.iter().enumerate() {
+                let f = r.render(self.env.data_mut(), *view)?;
                 f.save_png(&std::path::Path::new(&dir).join(format!("{name}_{k}.png")))?;
             }
             Ok(())

@@ -213,36 +213,21 @@ fn contacts(e: &TaskEnv, g: Option<usize>, part: &str) -> Vec<String> {
 /// With `DEXJOCO_PLAN_SNAP` set: pictures around `lookat` (from behind and above, from
 /// the right, from the front right, from above; `scale` times the usual distances).
 fn snap(rec: &mut Recorder, name: &str, lookat: V3, scale: f64) {
-    let Some(dir) = std::env::var_os("DEXJOCO_PLAN_SNAP") else {
-        return;
-    };
-    let model = rec.env.data().model_clone();
-    let settings = dexjoco_render::RenderSettings {
-        width: 640,
-        height: 480,
-        ..Default::default()
-    };
-    let result = dexjoco_render::Renderer::new(&model, settings).and_then(|mut r| {
-        for (k, azimuth, elevation, distance) in [
-            (0, 0.0, -45.0, 1.3),
-            (1, 90.0, -10.0, 0.9),
-            (2, 30.0, -35.0, 0.8),
-            (3, 0.0, -88.0, 1.3),
-        ] {
-            let view = dexjoco_render::CameraView::Orbit {
-                lookat,
-                distance: distance * scale,
-                azimuth,
-                elevation,
-            };
-            let f = r.render(rec.env.data_mut(), view)?;
-            f.save_png(&std::path::Path::new(&dir).join(format!("{name}_{k}.png")))?;
-        }
-        Ok(())
-    });
-    if let Err(e) = result {
-        eprintln!("snapshot {name}: {e}");
-    }
+    let views = [
+        (0.0, -45.0, 1.3),
+        (90.0, -10.0, 0.9),
+        (30.0, -35.0, 0.8),
+        (0.0, -88.0, 1.3),
+    ]
+    .map(
+        |(azimuth, elevation, distance)| dexjoco_render::CameraView::Orbit {
+            lookat,
+            distance: distance * scale,
+            azimuth,
+            elevation,
+        },
+    );
+    rec.snap_views(name, (640, 480), &views);
 }
 
 /// Plans bimanual_microwave_cook on an environment just restored from its initial state.
